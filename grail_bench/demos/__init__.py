@@ -1,0 +1,1 @@
+"""Demonstration generators, one module per domain."""

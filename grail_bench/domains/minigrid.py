@@ -1,0 +1,162 @@
+"""The paper's MiniGrid domain: a 9x9 room, one obstacle, goal-pinned envs.
+
+Observations are the compact state ``(x, y, direction)`` as a ``MultiDiscrete``
+space (SB3 and imitation one-hot encode it); actions are ``Discrete(4)``:
+turn left, turn right, move forward, stay. Directions follow minigrid:
+0 = east, 1 = south, 2 = west, 3 = north; ``y`` grows southwards.
+
+With ``fixed_horizon=True`` (the default, needed by GAIL and AIRL) reaching the
+goal does not end the episode: the agent is absorbed there, every further
+action is a no-op with zero reward, and the episode is truncated after
+``max_steps``. ``info["is_success"]`` tells whether the goal has been reached.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+import numpy as np  # noqa: E402
+from gymnasium import spaces  # noqa: E402
+from minigrid.core.actions import Actions  # noqa: E402
+from minigrid.core.grid import Grid  # noqa: E402
+from minigrid.core.mission import MissionSpace  # noqa: E402
+from minigrid.core.world_object import Goal, Wall  # noqa: E402
+from minigrid.minigrid_env import MiniGridEnv  # noqa: E402
+
+LEFT, RIGHT, FORWARD, STAY = 0, 1, 2, 3
+ACTION_NAMES = ("left", "right", "forward", "stay")
+_TO_MINIGRID = (Actions.left, Actions.right, Actions.forward, Actions.done)
+DIR_VEC = ((1, 0), (0, 1), (-1, 0), (0, -1))
+HEADINGS = "ESWN"  # compass letter of each minigrid direction
+
+State = tuple[int, int, int]
+
+
+def _mission() -> str:
+    return "reach the goal"
+
+
+@dataclass(frozen=True)
+class GridModel:
+    """Pure-Python dynamics of the room, used for planning demonstrations.
+
+    It mirrors :class:`GRMiniGridEnv` exactly (a test checks every state and
+    action against the env).
+    """
+
+    size: int
+    obstacles: frozenset[tuple[int, int]]
+
+    def free(self, x: int, y: int) -> bool:
+        """Whether a cell is inside the outer wall and not an obstacle."""
+        return 0 < x < self.size - 1 and 0 < y < self.size - 1 and (x, y) not in self.obstacles
+
+    def states(self) -> list[State]:
+        """Every state the agent can be in."""
+        return [(x, y, d) for x in range(self.size) for y in range(self.size) for d in range(4) if self.free(x, y)]
+
+    def step(self, state: State, action: int) -> State:
+        """Successor of ``state`` under ``action`` (ignoring goal absorption)."""
+        x, y, d = state
+        if action == LEFT:
+            return x, y, (d - 1) % 4
+        if action == RIGHT:
+            return x, y, (d + 1) % 4
+        if action == FORWARD:
+            dx, dy = DIR_VEC[d]
+            return (x + dx, y + dy, d) if self.free(x + dx, y + dy) else state
+        return state
+
+
+class GRMiniGridEnv(MiniGridEnv):
+    """Goal-pinned navigation in the paper's room.
+
+    Args:
+        goal: The ``(x, y)`` cell this env rewards.
+        size: Side of the square grid, outer walls included.
+        start: Start cell of the agent.
+        start_dir: Start direction (0 = east).
+        obstacles: Interior wall cells.
+        max_steps: Episode horizon.
+        fixed_horizon: Absorb at the goal instead of terminating.
+        render_mode: ``"rgb_array"``, ``"human"`` or ``None``.
+    """
+
+    def __init__(
+        self,
+        goal: Sequence[int] = (7, 1),
+        *,
+        size: int = 9,
+        start: Sequence[int] = (1, 4),
+        start_dir: int = 0,
+        obstacles: Sequence[Sequence[int]] = ((7, 4),),
+        max_steps: int = 60,
+        fixed_horizon: bool = True,
+        render_mode: str | None = None,
+    ) -> None:
+        self.model = GridModel(int(size), frozenset(tuple(map(int, o)) for o in obstacles))
+        self.goal = (int(goal[0]), int(goal[1]))
+        self.start = (int(start[0]), int(start[1]))
+        self.start_dir = int(start_dir)
+        for name, cell in (("goal", self.goal), ("start", self.start)):
+            if not self.model.free(*cell):
+                raise ValueError(f"{name} {cell} is not a free cell of the {size}x{size} room")
+        if self.goal == self.start:
+            raise ValueError("goal and start must differ")
+        if not 0 <= self.start_dir < 4:
+            raise ValueError(f"start_dir must be in 0..3, got {start_dir}")
+        self.fixed_horizon = bool(fixed_horizon)
+        self.task = None  # set by GRTask.make_env
+        self._absorbed = False
+        super().__init__(
+            mission_space=MissionSpace(mission_func=_mission),
+            width=self.model.size, height=self.model.size, max_steps=int(max_steps),
+            see_through_walls=True, render_mode=render_mode,
+        )
+        self.observation_space = spaces.MultiDiscrete([self.model.size, self.model.size, 4])
+        self.action_space = spaces.Discrete(len(ACTION_NAMES))
+
+    def _gen_grid(self, width: int, height: int) -> None:
+        self.grid = Grid(width, height)
+        self.grid.wall_rect(0, 0, width, height)
+        for x, y in self.model.obstacles:
+            self.grid.set(x, y, Wall())
+        self.put_obj(Goal(), *self.goal)
+        self.agent_pos = self.start
+        self.agent_dir = self.start_dir
+
+    def gen_obs(self) -> np.ndarray:
+        """The compact state ``(x, y, direction)``."""
+        return np.array([self.agent_pos[0], self.agent_pos[1], self.agent_dir], dtype=np.int64)
+
+    @property
+    def state(self) -> State:
+        """Current ``(x, y, direction)`` as a tuple."""
+        return int(self.agent_pos[0]), int(self.agent_pos[1]), int(self.agent_dir)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        self._absorbed = False
+        obs, info = super().reset(seed=seed, options=options)
+        return obs, {**info, "is_success": False}
+
+    def step(self, action: Any):
+        if not self.action_space.contains(action):
+            raise ValueError(f"invalid action {action!r}; expected an integer in [0, {self.action_space.n})")
+        if self._absorbed:
+            self.step_count += 1
+            truncated = self.step_count >= self.max_steps
+            return self.gen_obs(), 0.0, False, truncated, {"is_success": True}
+        obs, reward, terminated, truncated, info = super().step(_TO_MINIGRID[int(action)])
+        if terminated:  # only the goal terminates in this room
+            self._absorbed = self.fixed_horizon
+        info["is_success"] = bool(terminated)
+        return obs, float(reward), terminated and not self.fixed_horizon, truncated, info
+
+
+def make_env(goal: Sequence[int], **kwargs: Any) -> GRMiniGridEnv:
+    """Domain env factory named by :data:`grail_bench.domains.DOMAINS`."""
+    return GRMiniGridEnv(goal, **kwargs)

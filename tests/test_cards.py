@@ -1,0 +1,66 @@
+"""Task-card parsing: valid cards load; every bad field names its file and field."""
+
+from __future__ import annotations
+
+import pytest
+
+from grail_bench.cards import CardError, load_cards, parse_card
+
+GOOD = """
+domain = "minigrid"
+[[task]]
+id = "GRAIL/Test-v0"
+regime = "suboptimal"
+goals = [[7, 1], [7, 7]]
+params = { turn_prob = 0.5 }
+"""
+
+
+def test_good_card_merges_defaults():
+    (card,) = parse_card(GOOD, "good.toml")
+    assert card.id == "GRAIL/Test-v0"
+    assert card.params == {"turn_prob": 0.5}
+    assert card.env["max_steps"] == 60
+    assert (card.n_demos, card.n_train) == (10, 7)
+    assert card.observability == (0.1, 0.2, 0.3)
+
+
+def test_shipped_cards_load():
+    ids = [c.id for c in load_cards()]
+    assert len(ids) == len(set(ids))
+    assert "GRAIL/MiniGrid-Biased-v0" in ids
+
+
+@pytest.mark.parametrize(
+    "text, where",
+    [
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "lazy"\ngoals = [[7,1],[7,7]]', "task[0].regime"),
+        ('domain = "minigrid"\n[[task]]\nid = "bad id"\nregime = "optimal"\ngoals = [[7,1],[7,7]]', "task[0].id"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1]]', "task[0].goals"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1,2],[7,7,2]]', "task[0].goals"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,1]]', "task[0].goals"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\ncolour = 3', "task[0].colour"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\nparams = { turn_prob = 0.1 }', "task[0].params.turn_prob"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\nenv = { speed = 2 }', "task[0].env.speed"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\nn_train = 10', "task[0].n_train"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\nn_demos = 0', "task[0].n_demos"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\nobservability = [0, 0.5]', "task[0].observability"),
+        ('domain = "chess"\n[[task]]\nid = "GRAIL/T-v0"', "domain"),
+        ('domain = "minigrid"', "task"),
+        ('domain = "minigrid"\ncolour = 1\n[[task]]\nid = "GRAIL/T-v0"', "colour"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\n'
+         '[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]', "task"),
+    ],
+)
+def test_bad_field_names_file_and_field(text, where):
+    with pytest.raises(CardError) as info:
+        parse_card(text, "tasks/bad.toml")
+    assert str(info.value).startswith(f"tasks/bad.toml: {where}:")
+    assert "\n" not in str(info.value)
+
+
+def test_invalid_toml_names_file(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("domain = \n")
+    with pytest.raises(CardError, match="broken.toml: invalid TOML"):
+        load_cards([path])

@@ -1,0 +1,73 @@
+"""The MiniGrid domain env: layout, dynamics, reward and the fixed horizon."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from grail_bench.domains.minigrid import FORWARD, LEFT, RIGHT, STAY, GRMiniGridEnv
+
+
+def test_layout_matches_paper():
+    env = GRMiniGridEnv((7, 1))
+    env.reset(seed=0)
+    assert env.state == (1, 4, 0)  # start (1, 4) facing east
+    assert env.grid.get(7, 4).type == "wall"
+    assert env.grid.get(7, 1).type == "goal"
+    free = [(x, y) for x in range(9) for y in range(9) if env.model.free(x, y)]
+    assert len(free) == 7 * 7 - 1
+
+
+def test_grid_model_mirrors_env_dynamics():
+    env = GRMiniGridEnv((7, 7), fixed_horizon=False)
+    for state in env.model.states():
+        if state[:2] == (7, 7):
+            continue
+        for action in (LEFT, RIGHT, FORWARD, STAY):
+            env.reset(seed=0)
+            env.agent_pos, env.agent_dir = state[:2], state[2]
+            obs, *_ = env.step(action)
+            assert tuple(obs.tolist()) == env.model.step(state, action), (state, action)
+
+
+def test_reward_and_absorbing_fixed_horizon():
+    env = GRMiniGridEnv((3, 4), max_steps=10)
+    env.reset(seed=0)
+    _, r1, term1, _, info1 = env.step(FORWARD)
+    _, r2, term2, _, info2 = env.step(FORWARD)
+    assert (r1, info1["is_success"]) == (0.0, False)
+    assert r2 == pytest.approx(1 - 0.9 * 2 / 10)
+    assert info2["is_success"] and not term2
+    for t in range(3, 11):
+        obs, r, term, trunc, info = env.step(FORWARD)  # absorbed: no movement, no reward
+        assert tuple(obs.tolist()) == (3, 4, 0) and r == 0.0 and info["is_success"] and not term
+        assert trunc == (t == 10)
+
+
+def test_without_fixed_horizon_goal_terminates():
+    env = GRMiniGridEnv((3, 4), fixed_horizon=False)
+    env.reset(seed=0)
+    env.step(FORWARD)
+    *_, terminated, truncated, info = env.step(FORWARD)
+    assert terminated and not truncated and info["is_success"]
+
+
+@pytest.mark.parametrize("action", [4, -1, 1.5, "left"])
+def test_invalid_action_is_rejected(action):
+    env = GRMiniGridEnv((7, 1))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="invalid action"):
+        env.step(action)
+
+
+@pytest.mark.parametrize("kwargs", [{"goal": (7, 4)}, {"goal": (0, 0)}, {"goal": (1, 4)}, {"goal": (7, 1), "start_dir": 5}])
+def test_bad_layout_is_rejected(kwargs):
+    with pytest.raises(ValueError):
+        GRMiniGridEnv(**kwargs)
+
+
+def test_renders_rgb():
+    env = GRMiniGridEnv((7, 1), render_mode="rgb_array")
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
