@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml constraints.txt
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/grail-bench tasks
+	$(VENV)/bin/grail-bench run
 
 test: $(STAMP)
 	$(PY) -m pytest

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import sys
-from typing import Optional
+from pathlib import Path
+from typing import Any, List, Optional
 
 import typer
 from rich.console import Console
@@ -15,17 +17,36 @@ console = Console()
 err_console = Console(stderr=True)
 
 EXIT_USAGE = 2
+DEFAULT_TASK = "GRAIL/MiniGrid-Biased-v0"
+DEFAULT_RECOGNIZERS = ["bc", "graql"]
 
 
 def fail(message: str, code: int = EXIT_USAGE) -> typer.Exit:
     """Print one error line to stderr and return the exit to raise."""
-    err_console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    err_console.print(f"error: {message}", highlight=False, markup=False, soft_wrap=True)
     return typer.Exit(code)
 
 
+def _user_errors() -> tuple[type[BaseException], ...]:
+    """Exceptions that mean bad input, reported as one line with exit code 2."""
+    from gymnasium.error import Error as GymError
+
+    from grail_bench.cards import CardError
+    from grail_bench.recognizers import RecognizerError, UnknownRecognizerError
+    from grail_bench.store import StoreError
+
+    return (GymError, CardError, UnknownRecognizerError, RecognizerError, StoreError, ValueError, TypeError)
+
+
+def _open_store(path: Optional[Path]):
+    from grail_bench.store import ResultsStore, default_store_path
+
+    return ResultsStore(path or default_store_path())
+
+
 def _tasks_table() -> Table:
-    from grail_bench.task import make_task
     from grail_bench.registration import task_ids
+    from grail_bench.task import make_task
 
     table = Table(title="GRAIL/ tasks")
     table.add_column("task", no_wrap=True, style="bold")
@@ -51,12 +72,129 @@ def tasks() -> None:
     console.print(_tasks_table())
 
 
+@app.command("list")
+def list_(what: str = typer.Argument("all", help="tasks, recognizers or all")) -> None:
+    """List tasks and recognizers (imports no recognizer code)."""
+    from grail_bench.recognizers.registry import available_recognizers
+
+    if what not in ("all", "tasks", "recognizers"):
+        raise fail(f"cannot list {what!r}; choose tasks, recognizers or all")
+    if what in ("all", "tasks"):
+        console.print(_tasks_table())
+    if what in ("all", "recognizers"):
+        table = Table(title="recognizers (entry-point group grail_bench.recognizers)")
+        table.add_column("name", style="bold")
+        table.add_column("provided by")
+        for name, target in available_recognizers().items():
+            table.add_row(name, target)
+        console.print(table)
+
+
+def _parse_settings(settings: List[str], names: List[str]) -> dict[str, dict[str, Any]]:
+    """``["bc.n_epochs=10"]`` -> ``{"bc": {"n_epochs": 10}}`` (values parsed as JSON when they can be)."""
+    out: dict[str, dict[str, Any]] = {name: {} for name in names}
+    for item in settings:
+        key, sep, raw = item.partition("=")
+        name, dot, param = key.partition(".")
+        if not sep or not dot or not param:
+            raise ValueError(f"--set expects RECOGNIZER.PARAM=VALUE, got {item!r}")
+        if name not in out:
+            raise ValueError(f"--set {item!r} names recognizer {name!r}, which is not being run")
+        try:
+            out[name][param] = json.loads(raw)
+        except json.JSONDecodeError:
+            out[name][param] = raw
+    return out
+
+
+@app.command()
+def run(
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
+    recognizer: Optional[List[str]] = typer.Option(None, "--recognizer", "-r",
+                                                   help="Recognizer name; repeat for several (default: bc, graql)."),
+    seeds: int = typer.Option(3, "--seeds", "-s", min=1, help="Seeds 0..N-1 (the paper uses 10)."),
+    observability: Optional[str] = typer.Option(None, "--observability", "-o",
+                                                help="Comma-separated fractions, e.g. 0.1,0.2,0.3 (default: the task's)."),
+    sampling: str = typer.Option("prefix", help="prefix (the paper's) or random (an ordered random subset)."),
+    settings: Optional[List[str]] = typer.Option(None, "--set", help="Recognizer hyperparameter, e.g. bc.n_epochs=50."),
+    json_path: Optional[Path] = typer.Option(None, "--json", help="Also write the records to this JSON file."),
+    store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE",
+                                              help="Results database (default: ~/.local/share/grail-bench/results.sqlite)."),
+    progress: bool = typer.Option(True, help="Show progress bars."),
+) -> None:
+    """Benchmark recognizers on one task; finished seeds in the store are reused."""
+    from grail_bench.evaluation.runner import RecognizerSpec, evaluate
+    from grail_bench.leaderboard import build_boards, rich_tables
+
+    names = list(dict.fromkeys(recognizer or DEFAULT_RECOGNIZERS))
+    try:
+        config = _parse_settings(settings or [], names)
+        with _open_store(store_path) as store:
+            records = evaluate(task, [RecognizerSpec(n, config[n]) for n in names], seeds=seeds,
+                               observability=observability, sampling=sampling, store=store, progress=progress)
+            where = store.path
+    except _user_errors() as exc:
+        raise fail(str(exc)) from None
+    for table in rich_tables(build_boards(records)):
+        console.print(table)
+    timing = Table(title="timings (mean over seeds)")
+    for col in ("recognizer", "fit s/goal", "score µs/observation"):
+        timing.add_column(col)
+    for name in names:
+        mine = [r for r in records if r["recognizer"] == name]
+        timing.add_row(name, f"{mine[0]['fit_seconds_per_goal']:.2f}",
+                       f"{sum(r['score_us_per_observation'] for r in mine) / len(mine):.0f}")
+    console.print(timing)
+    console.print(f"results stored in {where}", highlight=False)
+    if json_path is not None:
+        json_path.write_text(json.dumps(records, indent=2) + "\n", encoding="utf-8")
+        console.print(f"records written to {json_path}", highlight=False)
+
+
+@app.command()
+def leaderboard(
+    store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE", help="Results database."),
+    markdown_path: Optional[Path] = typer.Option(None, "--markdown", help="Also write the leaderboard as Markdown here."),
+    reference: Optional[Path] = typer.Option(None, "--reference",
+                                             help="CSV of reported values (task,recognizer,observability,f1) to show beside ours."),
+    task: Optional[List[str]] = typer.Option(None, "--task", "-t", help="Only these tasks."),
+    sampling: str = typer.Option("prefix", help="Which observation sampling to show."),
+) -> None:
+    """Paper-style F1 tables from the results store."""
+    from grail_bench.evaluation.runner import aggregate
+    from grail_bench.leaderboard import build_boards, markdown, read_reference, rich_tables
+
+    from grail_bench.store import default_store_path
+
+    path = store_path or default_store_path()
+    if not path.exists():
+        raise fail(f"no results store at {path}; run `grail-bench run` first", code=1)
+    try:
+        ref = read_reference(reference) if reference else None
+        with _open_store(path) as store:
+            where = {"sampling": sampling} | ({"task": task} if task else {})
+            records = aggregate(store.rows(**where))
+    except OSError as exc:
+        raise fail(f"cannot read {exc.filename}: {exc.strerror}") from None
+    except _user_errors() as exc:
+        raise fail(str(exc)) from None
+    if not records:
+        raise fail(f"no results in {path} yet; run `grail-bench run` first", code=1)
+    boards = build_boards(records, ref)
+    for table in rich_tables(boards):
+        console.print(table)
+    if markdown_path is not None:
+        markdown_path.parent.mkdir(parents=True, exist_ok=True)
+        markdown_path.write_text(markdown(boards, records), encoding="utf-8")
+        console.print(f"Markdown written to {markdown_path}", highlight=False)
+
+
 def main() -> None:
     """Console-script entry point."""
     try:
         app()
     except KeyboardInterrupt:
-        err_console.print("interrupted; completed results are kept")
+        err_console.print("interrupted; completed seeds are kept in the store")
         sys.exit(130)
 
 

@@ -17,3 +17,37 @@ def rng() -> np.random.Generator:
 @pytest.fixture(scope="session")
 def all_task_ids() -> list[str]:
     return grail_bench.task_ids()
+
+
+PLUGIN_DIR = __import__("pathlib").Path(__file__).parent / "plugin"
+
+
+def install_plugin(root, name: str = "toy", target: str = "toy_recognizer:LookupRecognizer"):
+    """Make a minimal installed distribution under ``root`` declaring one recognizer entry point.
+
+    Returns:
+        The folder to put on ``sys.path`` / ``PYTHONPATH``.
+    """
+    import shutil
+
+    root.mkdir(parents=True, exist_ok=True)
+    shutil.copy(PLUGIN_DIR / "toy_recognizer.py", root / "toy_recognizer.py")
+    dist = root / f"toy_plugin_{root.name}-0.1.dist-info"
+    dist.mkdir(exist_ok=True)
+    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: toy-plugin-{root.name}\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text(f"[grail_bench.recognizers]\n{name} = {target}\n")
+    return root
+
+
+@pytest.fixture
+def toy_plugin(tmp_path, monkeypatch):
+    """The toy recognizer installed as a plugin for this test (entry point ``toy``)."""
+    root = install_plugin(tmp_path / "site")
+    monkeypatch.syspath_prepend(str(root))
+    import importlib
+
+    importlib.invalidate_caches()
+    return root
+
+
+FAST = {"bc": {"n_epochs": 3}, "graql": {"episodes": 200}}

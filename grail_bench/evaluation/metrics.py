@@ -1,0 +1,42 @@
+"""Metrics as pure functions: per-seed classification scores and across-seed summaries."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from scipy import stats
+from sklearn.metrics import accuracy_score, precision_recall_fscore_support
+
+
+def predict(scores: np.ndarray) -> tuple[int, bool]:
+    """Index of the best score, ties broken towards the lowest index; and whether it tied."""
+    best = scores.max()
+    winners = np.flatnonzero(scores == best)
+    return int(winners[0]), len(winners) > 1
+
+
+def classification(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> dict[str, float]:
+    """Accuracy and macro precision, recall and F1 over all candidate goals."""
+    labels = list(range(n_classes))
+    precision, recall, f1, _ = precision_recall_fscore_support(
+        y_true, y_pred, labels=labels, average="macro", zero_division=0
+    )
+    return {"accuracy": float(accuracy_score(y_true, y_pred)), "precision": float(precision),
+            "recall": float(recall), "f1": float(f1)}
+
+
+def summarize(values: Sequence[float], confidence: float = 0.95) -> dict[str, float]:
+    """Mean, sample standard deviation and a Student-t confidence interval.
+
+    With one value the interval collapses to it; with identical values too.
+    """
+    x = np.asarray(values, dtype=float)
+    mean = float(x.mean())
+    if len(x) < 2:
+        return {"mean": mean, "std": 0.0, "ci_low": mean, "ci_high": mean}
+    std = float(x.std(ddof=1))
+    if std == 0.0:
+        return {"mean": mean, "std": 0.0, "ci_low": mean, "ci_high": mean}
+    low, high = stats.t.interval(confidence, df=len(x) - 1, loc=mean, scale=std / np.sqrt(len(x)))
+    return {"mean": mean, "std": std, "ci_low": float(low), "ci_high": float(high)}

@@ -1,0 +1,188 @@
+"""The run loop: demos -> fit -> score every observation -> metrics -> store."""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from grail_bench.evaluation import metrics
+from grail_bench.evaluation.protocol import SAMPLINGS, observe, parse_observability, seed_list
+from grail_bench.recognizers.base import Recognizer, RecognizerError, recognizer_config
+from grail_bench.recognizers.registry import make_recognizer
+from grail_bench.store import ResultRow, ResultsStore, config_hash, package_versions
+from grail_bench.task import GRTask, make_task
+
+RECORD_KEYS = (
+    "task", "recognizer", "scorer", "sampling", "observability", "n_seeds", "f1_mean", "f1_std",
+    "f1_ci95_low", "f1_ci95_high", "accuracy_mean", "precision_mean", "recall_mean",
+    "fit_seconds_per_goal", "score_us_per_observation", "tie_rate", "config_hash",
+)
+
+
+@dataclass(frozen=True)
+class RecognizerSpec:
+    """A recognizer name, its constructor config and the identity of its results."""
+
+    name: str
+    config: Mapping[str, Any] = field(default_factory=dict)
+
+
+def _spec(item: str | RecognizerSpec | tuple[str, Mapping[str, Any]]) -> RecognizerSpec:
+    if isinstance(item, RecognizerSpec):
+        return item
+    if isinstance(item, str):
+        return RecognizerSpec(item)
+    name, config = item
+    return RecognizerSpec(name, dict(config))
+
+
+def _identity(task: GRTask, spec: RecognizerSpec, recognizer: Recognizer) -> tuple[str, str, str]:
+    """``(scorer, config JSON, config hash)`` of a recognizer on a task."""
+    scorer = str(getattr(recognizer, "scorer", "default"))
+    config = {"recognizer": spec.name, "config": recognizer_config(recognizer) or dict(spec.config),
+              "scorer": scorer, "task": {"params": dict(task.params), "env": dict(task.env_params),
+                                         "n_demos": task.n_demos, "n_train": task.n_train}}
+    return scorer, json.dumps(config, sort_keys=True, default=str), config_hash(config)
+
+
+def _check_scores(name: str, scores: Any, goals: Sequence[tuple]) -> np.ndarray:
+    if not isinstance(scores, Mapping) or {tuple(g) for g in scores} != set(goals):
+        raise RecognizerError(f"recognizer {name!r} must return one score per candidate goal {list(goals)}")
+    out = np.array([float(scores[g]) for g in goals])
+    if not np.all(np.isfinite(out)):
+        raise RecognizerError(f"recognizer {name!r} returned a non-finite score: {out.tolist()}")
+    return out
+
+
+def run_seed(task: GRTask, spec: RecognizerSpec, seed: int, levels: Sequence[float], sampling: str,
+             versions: str) -> list[ResultRow]:
+    """Fit one recognizer on one seed's training demos and score every level.
+
+    The recognizer never sees the true goal: it gets the training demos per
+    goal, an env factory, and observations stripped of infos, scored in a
+    seeded random order across goals.
+    """
+    recognizer = make_recognizer(spec.name, **spec.config)
+    scorer, config_json, chash = _identity(task, spec, recognizer)
+    train, test = task.split(task.generate_demos(seed))
+    start = time.perf_counter()
+    recognizer.fit(train, task.make_env, seed=seed)
+    fit_per_goal = (time.perf_counter() - start) / len(task.goals)
+
+    rng = np.random.default_rng([seed, 1])
+    labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
+    rows = []
+    for level in levels:
+        order = rng.permutation(len(labelled))
+        y_true, y_pred, ties, elapsed_ns = [], [], 0, 0
+        for j in order:
+            label, traj = labelled[j]
+            observed = observe(traj, level, sampling, rng)
+            t0 = time.perf_counter_ns()
+            scores = recognizer.score(observed)
+            elapsed_ns += time.perf_counter_ns() - t0
+            pred, tied = metrics.predict(_check_scores(spec.name, scores, task.goals))
+            y_true.append(label)
+            y_pred.append(pred)
+            ties += tied
+        m = metrics.classification(y_true, y_pred, len(task.goals))
+        rows.append(ResultRow(
+            task=task.id, recognizer=spec.name, scorer=scorer, config_hash=chash, seed=seed,
+            observability=level, sampling=sampling, n_observations=len(y_true), n_ties=ties,
+            fit_seconds_per_goal=fit_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
+            config=config_json, versions=versions, **m,
+        ))
+    return rows
+
+
+def aggregate(rows: Iterable[ResultRow]) -> list[dict[str, Any]]:
+    """Across-seed records (the ``--json`` format), one per configuration and level."""
+    groups: dict[tuple, list[ResultRow]] = {}
+    for r in rows:
+        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.sampling, r.observability), []).append(r)
+    records = []
+    for (task, rec, scorer, chash, sampling, level), group in groups.items():
+        f1 = metrics.summarize([r.f1 for r in group])
+        n_obs = sum(r.n_observations for r in group)
+        records.append({
+            "task": task, "recognizer": rec, "scorer": scorer, "sampling": sampling, "observability": level,
+            "n_seeds": len(group), "f1_mean": f1["mean"], "f1_std": f1["std"], "f1_ci95_low": f1["ci_low"],
+            "f1_ci95_high": f1["ci_high"],
+            "accuracy_mean": float(np.mean([r.accuracy for r in group])),
+            "precision_mean": float(np.mean([r.precision for r in group])),
+            "recall_mean": float(np.mean([r.recall for r in group])),
+            "fit_seconds_per_goal": float(np.mean([r.fit_seconds_per_goal for r in group])),
+            "score_us_per_observation": float(np.mean([r.score_us_per_observation for r in group])),
+            "tie_rate": sum(r.n_ties for r in group) / n_obs if n_obs else 0.0,
+            "config_hash": chash,
+        })
+    return sorted(records, key=lambda r: (r["task"], r["recognizer"], r["scorer"], r["observability"]))
+
+
+def evaluate(
+    task_id: str,
+    recognizers: Sequence[str | RecognizerSpec | tuple[str, Mapping[str, Any]]],
+    *,
+    seeds: int | Sequence[int] = 3,
+    observability: Iterable[float] | str | None = None,
+    sampling: str = "prefix",
+    store: ResultsStore | None = None,
+    progress: bool = False,
+) -> list[dict[str, Any]]:
+    """Benchmark recognizers on one task.
+
+    Seeds whose rows are already in ``store`` are skipped, so an interrupted
+    run resumes where it stopped.
+
+    Args:
+        task_id: A ``GRAIL/`` ID.
+        recognizers: Names, ``(name, config)`` pairs or :class:`RecognizerSpec`.
+        seeds: ``n`` for seeds ``0..n-1``, or explicit seeds.
+        observability: Fractions observed; defaults to the task's.
+        sampling: ``"prefix"`` (the paper's) or ``"random"``.
+        store: Where rows go; an in-memory store if ``None``.
+        progress: Show a progress bar.
+
+    Returns:
+        One record per recognizer and observability level (keys: :data:`RECORD_KEYS`).
+    """
+    task = make_task(task_id)
+    levels = parse_observability(observability) if observability is not None else task.observability
+    seed_values = seed_list(seeds)
+    if sampling not in SAMPLINGS:
+        raise ValueError(f"unknown sampling {sampling!r}; choose one of {', '.join(SAMPLINGS)}")
+    specs = [_spec(r) for r in recognizers]
+    if not specs:
+        raise ValueError("name at least one recognizer")
+    store = store if store is not None else ResultsStore(":memory:")
+    versions = package_versions()
+
+    plan = []  # (spec, seed) still to run
+    identities = []  # (scorer, config hash) per spec; also fails fast on unknown names
+    for spec in specs:
+        scorer, _, chash = _identity(task, spec, make_recognizer(spec.name, **spec.config))
+        identities.append((scorer, chash))
+        done = store.completed(task.id, spec.name, scorer, chash, sampling)
+        plan += [(spec, seed) for seed in seed_values if not all((seed, lv) in done for lv in levels)]
+
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
+    with Progress(*columns, disable=not progress, transient=False) as bar:
+        job = bar.add_task(f"{task.id}", total=len(plan))
+        for spec, seed in plan:
+            bar.update(job, description=f"{task.id}: fitting and scoring {spec.name} (seed {seed})")
+            store.add(run_seed(task, spec, seed, levels, sampling, versions))
+            bar.advance(job)
+        bar.update(job, description=f"{task.id}: done")
+
+    rows = []
+    for spec, (scorer, chash) in zip(specs, identities):
+        rows += [r for r in store.rows(task=task.id, recognizer=spec.name, scorer=scorer, config_hash=chash,
+                                       sampling=sampling, seed=seed_values)
+                 if r.observability in levels]
+    return aggregate(rows)

@@ -1,0 +1,32 @@
+"""Small torch and imitation helpers shared by the learning recognizers."""
+
+from __future__ import annotations
+
+import contextlib
+from typing import Iterator
+
+import numpy as np
+import torch
+from imitation.util.logger import HierarchicalLogger
+from stable_baselines3.common.logger import Logger
+
+
+def silent_logger() -> HierarchicalLogger:
+    """An imitation logger that writes nothing anywhere (no folders in $TMPDIR)."""
+    return HierarchicalLogger(Logger(folder=None, output_formats=[]), format_strs=[])
+
+
+@contextlib.contextmanager
+def single_thread() -> Iterator[None]:
+    """Run small-network training on one thread (faster for these sizes), then restore."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def goal_seeds(seed: int, n: int) -> list[int]:
+    """``n`` independent 31-bit seeds derived from ``seed``, one per goal."""
+    return [int(s.generate_state(1)[0] >> 1) for s in np.random.SeedSequence(seed).spawn(n)]

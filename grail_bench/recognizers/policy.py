@@ -1,0 +1,88 @@
+"""GRAIL's recognition scheme: one policy per goal, scored in one batched pass."""
+
+from __future__ import annotations
+
+import abc
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import torch
+from gymnasium import spaces
+from imitation.data.types import Trajectory
+from stable_baselines3.common.policies import ActorCriticPolicy
+
+from grail_bench import scoring
+from grail_bench.recognizers._torch import goal_seeds, single_thread
+from grail_bench.recognizers.base import EnvFactory, Goal, observed_arrays
+from grail_bench.recognizers.policy_bank import PolicyBank
+
+
+def until_success(traj: Trajectory) -> Trajectory:
+    """Cut a fixed-horizon demo after the step that reached the goal.
+
+    The absorbed tail (the agent staying on the goal) carries no behaviour;
+    demonstrations without ``is_success`` infos are returned unchanged.
+    """
+    if traj.infos is None:
+        return traj
+    for t, info in enumerate(traj.infos):
+        if info.get("is_success"):
+            return Trajectory(obs=traj.obs[: t + 2], acts=traj.acts[: t + 1], infos=traj.infos[: t + 1], terminal=True)
+    return traj
+
+
+class PolicyRecognizer(abc.ABC):
+    """Base of recognizers that learn one SB3 policy per goal.
+
+    Subclasses implement :meth:`train_policy`; scoring is shared: the
+    negative MSE between each policy's action (probability vector against the
+    one-hot observed action for discrete actions, mean action for continuous
+    ones) and the observed action, for all goals in one batched pass.
+    """
+
+    name: str = ""
+    scorer: str = "mse"
+
+    def __init__(self, **config: Any) -> None:
+        self.config = dict(config)
+        self.goals: list[Goal] = []
+        self.bank: PolicyBank | None = None
+
+    @abc.abstractmethod
+    def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
+                     seed: int) -> ActorCriticPolicy:
+        """Train and return the policy of one goal."""
+
+    def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int) -> None:
+        """Train one policy per goal (see :class:`grail_bench.Recognizer`)."""
+        if len(demos) < 2:
+            raise ValueError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
+        policies = []
+        with single_thread():
+            for goal, goal_seed in zip(demos, goal_seeds(seed, len(demos))):
+                torch.manual_seed(goal_seed)
+                policies.append(self.train_policy(goal, demos[goal], env_factory, goal_seed))
+        self.goals = list(demos)
+        self.bank = PolicyBank(policies)
+
+    def score(self, observed: Trajectory) -> dict[Goal, float]:
+        """Negative MSE of every goal's policy on the observed steps."""
+        if self.bank is None:
+            raise RuntimeError(f"{self.name}: call fit() before score()")
+        obs, acts = observed_arrays(observed, self.bank.observation_space, self.bank.action_space)
+        if self.bank.discrete:
+            predicted = self.bank.action_probs(obs)
+            target = scoring.one_hot(acts.astype(np.int64), predicted.shape[-1])
+        else:
+            predicted = self.bank.forward(obs)
+            target = acts.reshape(len(acts), -1).astype(np.float64)
+        return dict(zip(self.goals, scoring.neg_mse(predicted, target).tolist()))
+
+
+def spaces_of(env_factory: EnvFactory, goal: Goal) -> tuple[spaces.Space, spaces.Space]:
+    """Observation and action space of a goal's env."""
+    env = env_factory(goal)
+    try:
+        return env.observation_space, env.action_space
+    finally:
+        env.close()

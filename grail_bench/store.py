@@ -1,0 +1,174 @@
+"""The results store: an embedded SQLite database, the only code that touches it.
+
+One row per (task, recognizer, scorer, config hash, seed, observability,
+sampling). Rows are written in one transaction per fitted seed with
+``INSERT OR IGNORE``, in WAL mode with a busy timeout, so an interrupted run
+keeps what it finished and concurrent writers lose nothing.
+
+Default location: ``$GRAIL_BENCH_STORE``, else
+``$XDG_DATA_HOME/grail-bench/results.sqlite`` (``~/.local/share/...``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+SCHEMA_VERSION = 1
+KEY = ("task", "recognizer", "scorer", "config_hash", "seed", "observability", "sampling")
+
+
+class StoreError(RuntimeError):
+    """The store cannot be opened, read or written."""
+
+
+@dataclass(frozen=True)
+class ResultRow:
+    """Metrics of one recognizer on one task, seed and observability level."""
+
+    task: str
+    recognizer: str
+    scorer: str
+    config_hash: str
+    seed: int
+    observability: float
+    sampling: str
+    accuracy: float
+    precision: float
+    recall: float
+    f1: float
+    n_observations: int
+    n_ties: int
+    fit_seconds_per_goal: float
+    score_us_per_observation: float
+    config: str
+    versions: str
+    brier: float | None = None
+    nll: float | None = None
+
+
+_COLUMNS = [f.name for f in fields(ResultRow)]
+_TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash": "TEXT", "seed": "INTEGER",
+          "observability": "REAL", "sampling": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
+          "config": "TEXT", "versions": "TEXT"}
+_CREATE = (
+    "CREATE TABLE IF NOT EXISTS results ("
+    + ", ".join(f"{c} {_TYPES.get(c, 'REAL')}" + (" NOT NULL" if c in KEY else "") for c in _COLUMNS)
+    + ", created_at TEXT NOT NULL DEFAULT (datetime('now'))"
+    + f", PRIMARY KEY ({', '.join(KEY)}))"
+)
+
+
+def default_store_path() -> Path:
+    """Where results go unless ``--store`` or ``GRAIL_BENCH_STORE`` says otherwise."""
+    if os.environ.get("GRAIL_BENCH_STORE"):
+        return Path(os.environ["GRAIL_BENCH_STORE"]).expanduser()
+    base = Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
+    return base / "grail-bench" / "results.sqlite"
+
+
+class ResultsStore:
+    """Append-only results database.
+
+    Args:
+        path: Database file (created with its folder if missing), or ``":memory:"``.
+
+    Raises:
+        StoreError: If the file is not a grail-bench results database.
+    """
+
+    def __init__(self, path: str | Path = ":memory:") -> None:
+        self.path = str(path)
+        try:
+            if self.path != ":memory:":
+                Path(self.path).expanduser().parent.mkdir(parents=True, exist_ok=True)
+            self._conn = sqlite3.connect(self.path, timeout=60.0)
+            version = self._conn.execute("PRAGMA user_version").fetchone()[0]
+            tables = {r[0] for r in self._conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            if tables and "results" not in tables:
+                raise StoreError(f"{self.path} is an SQLite file but not a grail-bench results store")
+            if version > SCHEMA_VERSION:
+                raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
+            if self.path != ":memory:":
+                self._conn.execute("PRAGMA journal_mode=WAL")
+            with self._conn:
+                self._conn.execute(_CREATE)
+                self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot use results store {self.path}: {exc}") from None
+        except OSError as exc:
+            raise StoreError(f"cannot create results store {self.path}: {exc.strerror}") from None
+
+    def close(self) -> None:
+        self._conn.close()
+
+    def __enter__(self) -> ResultsStore:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def add(self, rows: Iterable[ResultRow]) -> int:
+        """Insert rows in one transaction, ignoring ones already stored.
+
+        Returns:
+            How many rows were new.
+        """
+        rows = list(rows)
+        sql = f"INSERT OR IGNORE INTO results ({', '.join(_COLUMNS)}) VALUES ({', '.join('?' * len(_COLUMNS))})"
+        try:
+            with self._conn:
+                before = self._conn.total_changes
+                self._conn.executemany(sql, [tuple(asdict(r).values()) for r in rows])
+                return self._conn.total_changes - before
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot write to results store {self.path}: {exc}") from None
+
+    def rows(self, **where: Any) -> list[ResultRow]:
+        """Stored rows, optionally filtered by column equality (a list means any of)."""
+        clauses, params = [], []
+        for column, value in where.items():
+            if column not in _COLUMNS:
+                raise ValueError(f"unknown column {column!r}")
+            values = list(value) if isinstance(value, (list, tuple, set)) else [value]
+            clauses.append(f"{column} IN ({', '.join('?' * len(values))})")
+            params += values
+        sql = f"SELECT {', '.join(_COLUMNS)} FROM results"
+        if clauses:
+            sql += " WHERE " + " AND ".join(clauses)
+        sql += " ORDER BY task, recognizer, scorer, observability, seed"
+        try:
+            return [ResultRow(*r) for r in self._conn.execute(sql, params)]
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot read results store {self.path}: {exc}") from None
+
+    def completed(self, task: str, recognizer: str, scorer: str, config_hash: str, sampling: str) -> set[tuple[int, float]]:
+        """``(seed, observability)`` pairs already stored for one configuration."""
+        return {(r.seed, r.observability) for r in
+                self.rows(task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash, sampling=sampling)}
+
+
+def config_hash(payload: dict[str, Any]) -> str:
+    """Short, stable hash of a JSON-able configuration (no git state involved)."""
+    import hashlib
+
+    text = json.dumps(payload, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def package_versions(names: Sequence[str] = ("grail-bench", "gymnasium", "stable-baselines3", "imitation",
+                                              "minigrid", "torch", "numpy")) -> str:
+    """JSON of the installed versions of the packages that shape a result."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for name in names:
+        try:
+            out[name] = version(name)
+        except PackageNotFoundError:
+            out[name] = None
+    return json.dumps(out, sort_keys=True)

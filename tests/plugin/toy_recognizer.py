@@ -1,0 +1,25 @@
+"""A third-party recognizer, as a plugin package would ship it (no grail_bench import)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class LookupRecognizer:
+    """Scores a goal by the fraction of observed state-action pairs seen in its demos."""
+
+    name = "toy"
+
+    def __init__(self, smoothing: float = 0.0) -> None:
+        self.config = {"smoothing": smoothing}
+        self.seen: dict = {}
+
+    def fit(self, demos, env_factory, *, seed):
+        self.seen = {
+            goal: {(tuple(np.asarray(o).tolist()), int(a)) for t in trajs for o, a in zip(t.obs[:-1], t.acts)}
+            for goal, trajs in demos.items()
+        }
+
+    def score(self, observed):
+        pairs = [(tuple(np.asarray(o).tolist()), int(a)) for o, a in zip(observed.obs[:-1], observed.acts)]
+        return {g: (sum(p in s for p in pairs) + self.config["smoothing"]) / len(pairs) for g, s in self.seen.items()}

@@ -1,0 +1,132 @@
+"""The command line: main paths, plugins end to end, and one-line errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+import grail_bench
+from grail_bench.cli import app
+
+from conftest import install_plugin
+
+BIN = Path(sys.executable).parent / "grail-bench"
+
+
+def cli(args, tmp_path, **env):
+    full_env = {**os.environ, "COLUMNS": "200", "GRAIL_BENCH_STORE": str(tmp_path / "store.sqlite"), **env}
+    return subprocess.run([str(BIN), *args], capture_output=True, text=True, env=full_env, timeout=600)
+
+
+def test_tasks_lists_every_id():
+    result = CliRunner().invoke(app, ["tasks"], env={"COLUMNS": "200"})
+    assert result.exit_code == 0
+    for task_id in grail_bench.task_ids():
+        assert task_id in result.output
+
+
+def test_list_does_not_import_torch(tmp_path):
+    code = ("import sys\nfrom grail_bench.cli import main\nsys.argv = ['grail-bench', 'list']\n"
+            "try:\n    main()\nexcept SystemExit:\n    pass\nassert 'torch' not in sys.modules\nprint('no torch')")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"})
+    assert out.returncode == 0, out.stderr
+    assert "bc" in out.stdout and "graql" in out.stdout and "no torch" in out.stdout
+
+
+def test_plugin_runs_end_to_end_and_reaches_the_leaderboard(tmp_path):
+    site = install_plugin(tmp_path / "site")
+    env = {"PYTHONPATH": str(site)}
+    out = cli(["list", "recognizers"], tmp_path, **env)
+    assert "toy" in out.stdout
+    out = cli(["run", "-r", "toy", "--seeds", "2", "--no-progress", "--json", str(tmp_path / "r.json")], tmp_path, **env)
+    assert out.returncode == 0, out.stderr
+    records = json.loads((tmp_path / "r.json").read_text())
+    assert {r["recognizer"] for r in records} == {"toy"}
+    assert {r["observability"] for r in records} == {0.2, 0.3, 0.4}
+    for key in ("task", "recognizer", "observability", "n_seeds", "f1_mean", "f1_std", "f1_ci95_low", "f1_ci95_high",
+                "accuracy_mean", "precision_mean", "recall_mean", "fit_seconds_per_goal", "score_us_per_observation"):
+        assert key in records[0]
+    assert all(r["f1_mean"] == 1.0 for r in records)  # biased routes are disjoint from the first step
+    md = tmp_path / "board" / "LEADERBOARD.md"
+    out = cli(["leaderboard", "--markdown", str(md)], tmp_path, **env)
+    assert out.returncode == 0, out.stderr
+    text = md.read_text()
+    assert "| 2 | 20% | **1.00 ± 0.00** |" in text and "toy" in text
+
+
+def test_rerun_reuses_stored_seeds(tmp_path):
+    site = install_plugin(tmp_path / "site")
+    env = {"PYTHONPATH": str(site)}
+    for _ in range(2):
+        assert cli(["run", "-r", "toy", "--seeds", "2", "--no-progress"], tmp_path, **env).returncode == 0
+    import sqlite3
+
+    n = sqlite3.connect(tmp_path / "store.sqlite").execute("SELECT COUNT(*) FROM results").fetchone()[0]
+    assert n == 2 * 3
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["run", "--task", "GRAIL/Nope-v0"], "Nope"),
+        (["run", "-r", "nope"], "unknown recognizer 'nope'"),
+        (["run", "-r", "bc", "--observability", "0.1,1.5"], "observability 1.5 must be a fraction"),
+        (["run", "-r", "bc", "--observability", "lots"], "is not a number"),
+        (["run", "-r", "bc", "--sampling", "middle"], "unknown sampling"),
+        (["run", "-r", "bc", "--set", "bc.n_epochz=3"], "n_epochz"),
+        (["run", "-r", "bc", "--set", "graql.episodes=3"], "not being run"),
+        (["list", "goals"], "cannot list"),
+    ],
+)
+def test_bad_input_gives_one_line_and_exit_2(args, message, tmp_path):
+    out = cli(args, tmp_path)
+    assert out.returncode == 2, out.stderr
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], out.stderr
+    assert "Traceback" not in out.stderr
+
+
+def test_corrupt_store_is_one_line_and_untouched(tmp_path):
+    store = tmp_path / "store.sqlite"
+    store.write_bytes(b"garbage" * 500)
+    before = store.read_bytes()
+    for args in (["run", "-r", "bc"], ["leaderboard"]):
+        out = cli(args, tmp_path)
+        assert out.returncode == 2
+        assert out.stderr.count("\n") == 1 and "cannot use results store" in out.stderr
+    assert store.read_bytes() == before
+
+
+def test_leaderboard_without_results(tmp_path):
+    out = cli(["leaderboard"], tmp_path)
+    assert out.returncode == 1 and "run `grail-bench run` first" in out.stderr
+    assert not (tmp_path / "store.sqlite").exists(), "reading must not create a store"
+    from grail_bench.store import ResultsStore
+
+    ResultsStore(tmp_path / "store.sqlite").close()
+    out = cli(["leaderboard"], tmp_path)
+    assert out.returncode == 1 and "no results in" in out.stderr
+
+
+def test_leaderboard_with_reference(tmp_path):
+    site = install_plugin(tmp_path / "site")
+    env = {"PYTHONPATH": str(site)}
+    assert cli(["run", "-r", "toy", "--seeds", "1", "--no-progress"], tmp_path, **env).returncode == 0
+    ref = tmp_path / "ref.csv"
+    ref.write_text("# reported\ntask,recognizer,observability,f1\nGRAIL/MiniGrid-Biased-v0,toy,0.2,0.42 ± 0.1\n")
+    md = tmp_path / "lb.md"
+    out = cli(["leaderboard", "--reference", str(ref), "--markdown", str(md)], tmp_path, **env)
+    assert out.returncode == 0, out.stderr
+    assert "0.42 ± 0.1" in md.read_text() and "*(paper)*" in md.read_text()
+    bad = tmp_path / "bad.csv"
+    bad.write_text("task,recognizer,observability,f1\nx,y,notanumber,1\n")
+    out = cli(["leaderboard", "--reference", str(bad)], tmp_path, **env)
+    assert out.returncode == 2 and "malformed reference row" in out.stderr
+    out = cli(["leaderboard", "--reference", str(tmp_path / "missing.csv")], tmp_path, **env)
+    assert out.returncode == 2 and "cannot read" in out.stderr

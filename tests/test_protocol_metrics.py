@@ -1,0 +1,88 @@
+"""Observation protocol and metrics as pure functions."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from imitation.data.types import Trajectory
+from scipy import stats
+
+from grail_bench.evaluation import metrics
+from grail_bench.evaluation.protocol import goal_horizon, observe, parse_observability, seed_list
+
+
+def demo(T: int = 10, horizon: int = 20) -> Trajectory:
+    infos = np.array([{"is_success": t >= T - 1} for t in range(horizon)])
+    return Trajectory(obs=np.arange(horizon + 1)[:, None] * np.ones((1, 3), int), acts=np.arange(horizon) % 4,
+                      infos=infos, terminal=True)
+
+
+def test_goal_horizon_counts_up_to_success():
+    assert goal_horizon(demo(T=7)) == 7
+    no_info = Trajectory(obs=np.zeros((6, 1)), acts=np.zeros(5), infos=None, terminal=True)
+    assert goal_horizon(no_info) == 5
+
+
+@pytest.mark.parametrize("fraction, k", [(0.1, 1), (0.2, 2), (0.25, 3), (0.3, 3), (0.01, 1), (1.0, 10)])
+def test_prefix_length_is_ceil_of_fraction_of_goal_horizon(fraction, k):
+    observed = observe(demo(T=10), fraction)
+    assert len(observed.acts) == k == max(1, math.ceil(fraction * 10))
+    assert len(observed.obs) == k + 1
+    assert observed.infos is None  # nothing about the goal leaks
+    assert observed.obs[:, 0].tolist() == list(range(k + 1))
+
+
+def test_random_sampling_is_ordered_subset_within_goal_horizon(rng):
+    observed = observe(demo(T=10), 0.5, "random", rng)
+    steps = observed.obs[:-1, 0]
+    assert len(steps) == 5 and np.all(np.diff(steps) > 0) and steps.max() < 10
+    assert observed.obs[-1, 0] == steps[-1] + 1
+    assert observed.acts.tolist() == (steps % 4).tolist()
+
+
+def test_observe_rejects_unknown_sampling():
+    with pytest.raises(ValueError, match="unknown sampling"):
+        observe(demo(), 0.5, "middle")
+
+
+@pytest.mark.parametrize("bad", ["0", "1.5", "abc", "-0.1", "", "nan"])
+def test_parse_observability_rejects(bad):
+    with pytest.raises(ValueError):
+        parse_observability(bad)
+
+
+def test_parse_observability_accepts_strings_and_dedupes():
+    assert parse_observability("0.1,0.2,0.1") == (0.1, 0.2)
+    assert parse_observability([0.3]) == (0.3,)
+
+
+def test_seed_list():
+    assert seed_list(3) == [0, 1, 2]
+    assert seed_list([5, 7]) == [5, 7]
+    with pytest.raises(ValueError):
+        seed_list(0)
+
+
+def test_predict_breaks_ties_towards_lowest_index_and_reports_them():
+    assert metrics.predict(np.array([0.1, 0.5, 0.2])) == (1, False)
+    assert metrics.predict(np.array([0.5, 0.1, 0.5])) == (0, True)
+
+
+def test_classification_macro_scores():
+    m = metrics.classification([0, 0, 1, 1], [0, 1, 1, 1], n_classes=3)
+    assert m["accuracy"] == 0.75
+    # class 0: P=1, R=.5, F1=2/3; class 1: P=2/3, R=1, F1=.8; class 2 (never true or predicted): 0
+    assert m["precision"] == pytest.approx((1 + 2 / 3 + 0) / 3)
+    assert m["f1"] == pytest.approx((2 / 3 + 0.8 + 0) / 3)
+
+
+def test_summarize_t_interval():
+    values = [0.5, 0.7, 0.9, 0.6]
+    s = metrics.summarize(values)
+    half = stats.t.ppf(0.975, 3) * np.std(values, ddof=1) / 2
+    assert s["mean"] == pytest.approx(0.675)
+    assert s["ci_low"] == pytest.approx(0.675 - half) and s["ci_high"] == pytest.approx(0.675 + half)
+    assert metrics.summarize([1.0, 1.0]) == {"mean": 1.0, "std": 0.0, "ci_low": 1.0, "ci_high": 1.0}
+    assert metrics.summarize([0.4])["std"] == 0.0

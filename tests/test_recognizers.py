@@ -1,0 +1,153 @@
+"""Every registered recognizer against the protocol; built-in specifics."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+from imitation.data.types import Trajectory
+
+import grail_bench
+from grail_bench.evaluation.protocol import observe
+from grail_bench.recognizers import Recognizer, UnknownRecognizerError, available_recognizers, make_recognizer
+from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
+
+from conftest import FAST
+
+TASK = grail_bench.make_task("GRAIL/MiniGrid-Biased-v0")
+TRAIN, TEST = TASK.split(TASK.generate_demos(seed=0))
+BUILTINS = sorted(available_recognizers())
+
+
+def fitted(name: str, seed: int = 0):
+    rec = make_recognizer(name, **FAST.get(name, {}))
+    rec.fit(TRAIN, TASK.make_env, seed=seed)
+    return rec
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_conforms_to_protocol(name):
+    rec = make_recognizer(name, **FAST.get(name, {}))
+    assert isinstance(rec, Recognizer)
+    assert rec.name == name
+    rec.fit(TRAIN, TASK.make_env, seed=0)
+    scores = rec.score(observe(TEST[(7, 1)][0], 0.3))
+    assert set(scores) == set(TASK.goals)
+    assert all(isinstance(v, float) and np.isfinite(v) for v in scores.values())
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_same_seed_same_scores(name):
+    observed = observe(TEST[(7, 7)][0], 0.4)
+    assert fitted(name, seed=3).score(observed) == fitted(name, seed=3).score(observed)
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_bad_observations_are_clear_errors(name):
+    rec = fitted(name)
+    traj = TEST[(7, 1)][0]
+    cases = [
+        (SimpleNamespace(obs=traj.obs[:1], acts=traj.acts[:0]), "empty"),
+        (Trajectory(obs=traj.obs[:, :2], acts=traj.acts, infos=None, terminal=False), "shape"),
+        ("not a trajectory", "expected a Trajectory"),
+    ]
+    for observed, message in cases:
+        with pytest.raises(ValueError, match=message):
+            rec.score(observed)
+
+
+@pytest.mark.parametrize("name", BUILTINS)
+def test_score_before_fit_is_an_error(name):
+    with pytest.raises(RuntimeError, match="fit"):
+        make_recognizer(name).score(observe(TEST[(7, 1)][0], 0.3))
+
+
+def test_malformed_trajectory_lengths():
+    rec = fitted("bc")
+
+    loose = SimpleNamespace(obs=TEST[(7, 1)][0].obs[:3], acts=TEST[(7, 1)][0].acts[:5])  # not a checked Trajectory
+    with pytest.raises(ValueError, match="malformed"):
+        rec.score(loose)
+
+
+def test_policy_bank_matches_sb3_policies():
+    rec = fitted("bc")
+    obs = TEST[(7, 1)][0].obs[:20]
+    bank_probs = rec.bank.action_probs(obs)
+    env = TASK.make_env()
+    for k, goal in enumerate(TASK.goals):
+        # Re-train the same goal's policy to compare against torch directly.
+        policy = rec.train_policy(goal, TRAIN[goal], TASK.make_env, seed=11)
+        from grail_bench.recognizers.policy_bank import PolicyBank
+
+        single = PolicyBank([policy]).action_probs(obs)[0]
+        with torch.no_grad():
+            obs_t, _ = policy.obs_to_tensor(obs)
+            expected = policy.get_distribution(obs_t).distribution.probs.numpy()
+        np.testing.assert_allclose(single, expected, rtol=1e-5, atol=1e-6)
+    assert bank_probs.shape == (2, 20, env.action_space.n)
+
+
+def test_bc_separates_biased_routes():
+    rec = make_recognizer("bc")
+    rec.fit(TRAIN, TASK.make_env, seed=0)
+    for goal, trajs in TEST.items():
+        for traj in trajs:
+            scores = rec.score(observe(traj, 0.2))
+            assert max(scores, key=scores.get) == goal
+
+
+def test_graql_learns_to_reach_goals():
+    rec = make_recognizer("graql")
+    rec.fit(TRAIN, TASK.make_env, seed=0)
+    from grail_bench.recognizers.graql import state_index
+
+    for k, goal in enumerate(TASK.goals):
+        env = TASK.make_env(goal)
+        obs, _ = env.reset(seed=0)
+        for _ in range(env.unwrapped.max_steps):
+            obs, _, _, _, info = env.step(int(rec.q[k, state_index(obs[None], env.observation_space)[0]].argmax()))
+            if info["is_success"]:
+                break
+        assert info["is_success"], f"greedy Q policy never reaches {goal}"
+
+
+def test_graql_unvisited_states_get_uniform_policy():
+    rec = fitted("graql")
+    rec.visited[:] = False
+    probs = rec.policy_probs(TEST[(7, 1)][0].obs[:4])
+    np.testing.assert_allclose(probs, 0.25)
+
+
+def test_registry_errors():
+    with pytest.raises(UnknownRecognizerError, match="unknown recognizer 'nope'; available: .*bc"):
+        make_recognizer("nope")
+    with pytest.raises(ValueError, match="already registered"):
+        register_recognizer("bc", lambda: None)
+    with pytest.raises(TypeError, match="does not satisfy the Recognizer protocol"):
+        register_recognizer("broken", lambda: object())
+        try:
+            make_recognizer("broken")
+        finally:
+            unregister_recognizer("broken")
+    with pytest.raises(TypeError):
+        make_recognizer("bc", n_epochz=3)
+
+
+def test_plugin_found_through_entry_point(toy_plugin):
+    assert "toy" in available_recognizers()
+    rec = make_recognizer("toy")
+    rec.fit(TRAIN, TASK.make_env, seed=0)
+    scores = rec.score(observe(TEST[(7, 7)][0], 0.3))
+    assert max(scores, key=scores.get) == (7, 7)
+
+
+def test_duplicate_entry_point_names_are_rejected(toy_plugin, tmp_path, monkeypatch):
+    from conftest import install_plugin
+
+    other = install_plugin(tmp_path / "other", name="toy", target="toy_recognizer:Other")
+    monkeypatch.syspath_prepend(str(other))
+    with pytest.raises(ValueError, match="registered twice"):
+        available_recognizers()

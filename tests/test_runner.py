@@ -1,0 +1,135 @@
+"""The evaluation harness: records, resume, interruption, and what recognizers get to see."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import grail_bench
+from grail_bench.evaluation import evaluate
+from grail_bench.evaluation.runner import RECORD_KEYS
+from grail_bench.recognizers import RecognizerError
+from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
+from grail_bench.store import ResultsStore
+
+TASK_ID = "GRAIL/MiniGrid-Biased-v0"
+
+
+class Spy:
+    """Records everything the harness hands over; scores by a fixed rule."""
+
+    name = "spy"
+    fits: list = []
+    observed: list = []
+    fail_on_seed: int | None = None
+    bad_scores = None
+
+    def fit(self, demos, env_factory, *, seed):
+        if seed == Spy.fail_on_seed:
+            raise KeyboardInterrupt
+        Spy.fits.append((seed, sorted(demos)))
+        self.goals = list(demos)
+
+    def score(self, observed, *extra):
+        assert not extra
+        Spy.observed.append(observed)
+        if Spy.bad_scores is not None:
+            return Spy.bad_scores
+        return {g: float(i) for i, g in enumerate(self.goals)}
+
+
+@pytest.fixture
+def spy():
+    Spy.fits, Spy.observed, Spy.fail_on_seed, Spy.bad_scores = [], [], None, None
+    register_recognizer("spy", Spy)
+    yield Spy
+    unregister_recognizer("spy")
+
+
+def test_records_have_the_documented_keys(spy):
+    records = evaluate(TASK_ID, ["spy"], seeds=2, observability=[0.2, 0.4])
+    assert len(records) == 2
+    for r in records:
+        assert set(RECORD_KEYS) <= set(r)
+        assert r["n_seeds"] == 2
+    # The spy always picks the last goal: accuracy 1/2, F1 = (0 + 2/3) / 2.
+    assert records[0]["accuracy_mean"] == 0.5
+    assert records[0]["f1_mean"] == pytest.approx(1 / 3)
+
+
+def test_recognizer_never_sees_the_true_goal(spy):
+    evaluate(TASK_ID, ["spy"], seeds=1, observability=[0.2, 0.3, 0.4])
+    assert spy.fits == [(0, [(7, 1), (7, 7)])]
+    task = grail_bench.make_task(TASK_ID)
+    _, test = task.split(task.generate_demos(0))
+    first_states = {goal: [tuple(t.obs[1].tolist()) for t in trajs] for goal, trajs in test.items()}
+    labels = []
+    for observed in spy.observed:
+        assert observed.infos is None
+        assert not observed.terminal
+        start = tuple(observed.obs[1].tolist())
+        labels.append(next(i for i, g in enumerate(task.goals) if start in first_states[g]))
+    per_level = [labels[i:i + 6] for i in range(0, 18, 6)]
+    assert any(level != sorted(level) for level in per_level), "observations must not arrive in goal order"
+
+
+def test_resume_skips_finished_seeds_and_adds_no_duplicates(spy, tmp_path):
+    with ResultsStore(tmp_path / "r.sqlite") as store:
+        evaluate(TASK_ID, ["spy"], seeds=2, store=store)
+        assert len(spy.fits) == 2
+        records = evaluate(TASK_ID, ["spy"], seeds=3, store=store)
+        assert [s for s, _ in spy.fits] == [0, 1, 2]
+        assert len(store.rows()) == 3 * 3
+        assert all(r["n_seeds"] == 3 for r in records)
+
+
+def test_interrupted_run_keeps_finished_seeds_and_resumes(spy, tmp_path):
+    path = tmp_path / "r.sqlite"
+    spy.fail_on_seed = 2
+    with ResultsStore(path) as store, pytest.raises(KeyboardInterrupt):
+        evaluate(TASK_ID, ["spy"], seeds=4, store=store)
+    with ResultsStore(path) as store:
+        assert sorted({r.seed for r in store.rows()}) == [0, 1]
+        spy.fail_on_seed = None
+        evaluate(TASK_ID, ["spy"], seeds=4, store=store)
+        assert sorted(r.seed for r in store.rows()) == sorted([0, 1, 2, 3] * 3)
+
+
+@pytest.mark.parametrize("bad, message", [({(7, 1): 1.0}, "one score per candidate goal"),
+                                          ({(7, 1): 1.0, (7, 7): float("nan")}, "non-finite"),
+                                          ([1.0, 2.0], "one score per candidate goal")])
+def test_protocol_violations_are_reported(spy, bad, message):
+    spy.bad_scores = bad
+    with pytest.raises(RecognizerError, match=message):
+        evaluate(TASK_ID, ["spy"], seeds=1)
+
+
+def test_unknown_names_fail_before_any_work(spy):
+    with pytest.raises(KeyError):
+        evaluate(TASK_ID, ["spy", "nope"], seeds=1)
+    assert spy.fits == []
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="observability"):
+        evaluate(TASK_ID, ["bc"], observability="0.1,2")
+    with pytest.raises(ValueError, match="sampling"):
+        evaluate(TASK_ID, ["bc"], sampling="middle")
+
+
+def test_random_sampling_is_seeded(spy):
+    evaluate(TASK_ID, ["spy"], seeds=1, sampling="random")
+    first = [o.obs.tolist() for o in spy.observed]
+    spy.observed.clear()
+    evaluate(TASK_ID, ["spy"], seeds=1, sampling="random")
+    assert [o.obs.tolist() for o in spy.observed] == first
+
+
+@pytest.mark.slow
+def test_end_to_end_bc_beats_chance_on_biased_task():
+    records = evaluate(TASK_ID, [("bc", {"n_epochs": 10}), ("graql", {"episodes": 1000})], seeds=2)
+    bc = [r for r in records if r["recognizer"] == "bc"]
+    assert len(bc) == 3
+    assert all(r["f1_mean"] > 0.8 for r in bc), bc  # chance is 0.5
+    assert all(0 <= r["f1_mean"] <= 1 for r in records)
+    assert all(r["fit_seconds_per_goal"] > 0 and r["score_us_per_observation"] > 0 for r in records)
