@@ -21,6 +21,7 @@ from __future__ import annotations
 import re
 import tomllib
 from dataclasses import dataclass
+from functools import lru_cache
 from importlib.resources import files
 from pathlib import Path
 from typing import Any, Iterable
@@ -174,14 +175,17 @@ def parse_card(text: str, source: str) -> list[TaskCard]:
 
 
 def load_cards(paths: Iterable[Path] | None = None) -> list[TaskCard]:
-    """Load every shipped card (or the given files), in a stable order."""
+    """Load every shipped card (parsed once per process), or the given files, in a stable order."""
     if paths is None:
-        root = files("grail_bench.tasks")
-        entries = sorted((p for p in root.iterdir() if p.name.endswith(".toml")), key=lambda p: p.name)
-        sources = [(p.name, p.read_text(encoding="utf-8")) for p in entries]
-    else:
-        sources = [(str(p), Path(p).read_text(encoding="utf-8")) for p in paths]
+        return list(_shipped_cards())
     cards: list[TaskCard] = []
-    for source, text in sources:
-        cards.extend(parse_card(text, source))
+    for p in paths:
+        cards.extend(parse_card(Path(p).read_text(encoding="utf-8"), str(p)))
     return cards
+
+
+@lru_cache(maxsize=1)
+def _shipped_cards() -> tuple[TaskCard, ...]:
+    root = files("grail_bench.tasks")
+    entries = sorted((p for p in root.iterdir() if p.name.endswith(".toml")), key=lambda p: p.name)
+    return tuple(card for p in entries for card in parse_card(p.read_text(encoding="utf-8"), p.name))

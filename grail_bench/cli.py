@@ -33,9 +33,11 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
     from grail_bench.cards import CardError
     from grail_bench.recognizers import RecognizerError, UnknownRecognizerError
+    from grail_bench.scoring import UnknownScorerError
     from grail_bench.store import StoreError
 
-    return (GymError, CardError, UnknownRecognizerError, RecognizerError, StoreError, ValueError, TypeError)
+    return (GymError, CardError, UnknownRecognizerError, UnknownScorerError, RecognizerError, StoreError,
+            ValueError, TypeError)
 
 
 def _open_store(path: Optional[Path]):
@@ -73,12 +75,12 @@ def tasks() -> None:
 
 
 @app.command("list")
-def list_(what: str = typer.Argument("all", help="tasks, recognizers or all")) -> None:
-    """List tasks and recognizers (imports no recognizer code)."""
+def list_(what: str = typer.Argument("all", help="tasks, recognizers, scorers or all")) -> None:
+    """List tasks, recognizers and scorers (imports no recognizer code)."""
     from grail_bench.recognizers.registry import available_recognizers
 
-    if what not in ("all", "tasks", "recognizers"):
-        raise fail(f"cannot list {what!r}; choose tasks, recognizers or all")
+    if what not in ("all", "tasks", "recognizers", "scorers"):
+        raise fail(f"cannot list {what!r}; choose tasks, recognizers, scorers or all")
     if what in ("all", "tasks"):
         console.print(_tasks_table())
     if what in ("all", "recognizers"):
@@ -88,10 +90,27 @@ def list_(what: str = typer.Argument("all", help="tasks, recognizers or all")) -
         for name, target in available_recognizers().items():
             table.add_row(name, target)
         console.print(table)
+    if what in ("all", "scorers"):
+        from grail_bench.scoring import BUILTIN, available_scorers
+
+        table = Table(title="scorers (entry-point group grail_bench.scorers)")
+        table.add_column("name", style="bold")
+        table.add_column("what it computes")
+        for name, target in available_scorers().items():
+            table.add_row(name, BUILTIN[name].description if name in BUILTIN else target)
+        console.print(table)
+
+
+def _value(raw: str) -> Any:
+    """A command-line value: JSON when it parses (numbers, lists, booleans), else the string."""
+    try:
+        return json.loads(raw)
+    except json.JSONDecodeError:
+        return raw
 
 
 def _parse_settings(settings: List[str], names: List[str]) -> dict[str, dict[str, Any]]:
-    """``["bc.n_epochs=10"]`` -> ``{"bc": {"n_epochs": 10}}`` (values parsed as JSON when they can be)."""
+    """``["bc.n_epochs=10"]`` -> ``{"bc": {"n_epochs": 10}}``."""
     out: dict[str, dict[str, Any]] = {name: {} for name in names}
     for item in settings:
         key, sep, raw = item.partition("=")
@@ -100,10 +119,18 @@ def _parse_settings(settings: List[str], names: List[str]) -> dict[str, dict[str
             raise ValueError(f"--set expects RECOGNIZER.PARAM=VALUE, got {item!r}")
         if name not in out:
             raise ValueError(f"--set {item!r} names recognizer {name!r}, which is not being run")
-        try:
-            out[name][param] = json.loads(raw)
-        except json.JSONDecodeError:
-            out[name][param] = raw
+        out[name][param] = _value(raw)
+    return out
+
+
+def _parse_params(params: List[str]) -> dict[str, Any]:
+    """``["turn_prob=0.5"]`` -> ``{"turn_prob": 0.5}``."""
+    out = {}
+    for item in params:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"--param expects NAME=VALUE, got {item!r}")
+        out[key] = _value(raw)
     return out
 
 
@@ -116,7 +143,11 @@ def run(
     observability: Optional[str] = typer.Option(None, "--observability", "-o",
                                                 help="Comma-separated fractions, e.g. 0.1,0.2,0.3 (default: the task's)."),
     sampling: str = typer.Option("prefix", help="prefix (the paper's) or random (an ordered random subset)."),
+    scorer: Optional[List[str]] = typer.Option(None, "--scorer",
+                                               help="Scorer; repeat for several (default: each recognizer's own)."),
     settings: Optional[List[str]] = typer.Option(None, "--set", help="Recognizer hyperparameter, e.g. bc.n_epochs=50."),
+    params: Optional[List[str]] = typer.Option(
+        None, "--param", help="Task parameter, as gym.make takes it, e.g. turn_prob=0.5, expert=scripted, n_demos=20."),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Also write the records to this JSON file."),
     store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE",
                                               help="Results database (default: ~/.local/share/grail-bench/results.sqlite)."),
@@ -130,19 +161,22 @@ def run(
     try:
         config = _parse_settings(settings or [], names)
         with _open_store(store_path) as store:
-            records = evaluate(task, [RecognizerSpec(n, config[n]) for n in names], seeds=seeds,
-                               observability=observability, sampling=sampling, store=store, progress=progress)
+            scorers = tuple(dict.fromkeys(scorer or []))
+            records = evaluate(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
+                               observability=observability, sampling=sampling, store=store, progress=progress,
+                               task_params=_parse_params(params or []))
             where = store.path
     except _user_errors() as exc:
         raise fail(str(exc)) from None
     for table in rich_tables(build_boards(records)):
         console.print(table)
     timing = Table(title="timings (mean over seeds)")
-    for col in ("recognizer", "fit s/goal", "score µs/observation"):
+    for col in ("recognizer", "scorer", "fit s/goal", "score µs/observation"):
         timing.add_column(col)
-    for name in names:
-        mine = [r for r in records if r["recognizer"] == name]
-        timing.add_row(name, f"{mine[0]['fit_seconds_per_goal']:.2f}",
+    pairs = dict.fromkeys((r["recognizer"], r["scorer"]) for r in records)
+    for name, scorer_name in pairs:
+        mine = [r for r in records if (r["recognizer"], r["scorer"]) == (name, scorer_name)]
+        timing.add_row(name, scorer_name, f"{mine[0]['fit_seconds_per_goal']:.2f}",
                        f"{sum(r['score_us_per_observation'] for r in mine) / len(mine):.0f}")
     console.print(timing)
     console.print(f"results stored in {where}", highlight=False)
@@ -158,11 +192,16 @@ def leaderboard(
     reference: Optional[Path] = typer.Option(None, "--reference",
                                              help="CSV of reported values (task,recognizer,observability,f1) to show beside ours."),
     task: Optional[List[str]] = typer.Option(None, "--task", "-t", help="Only these tasks."),
+    scorer: Optional[List[str]] = typer.Option(
+        None, "--scorer", help="Only these scorers (NAME), or recognizer/scorer pairs (e.g. bc/mse)."),
     sampling: str = typer.Option("prefix", help="Which observation sampling to show."),
+    ablation: bool = typer.Option(False, "--ablation", help="Compare scorers: F1 and scoring time per scorer."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="With --ablation: also write a PNG plot here."),
 ) -> None:
     """Paper-style F1 tables from the results store."""
     from grail_bench.evaluation.runner import aggregate
-    from grail_bench.leaderboard import build_boards, markdown, read_reference, rich_tables
+    from grail_bench.leaderboard import (ablation_markdown, ablation_plot, ablation_rows, ablation_table,
+                                         build_boards, markdown, read_reference, rich_tables)
 
     from grail_bench.store import default_store_path
 
@@ -173,13 +212,29 @@ def leaderboard(
         ref = read_reference(reference) if reference else None
         with _open_store(path) as store:
             where = {"sampling": sampling} | ({"task": task} if task else {})
-            records = aggregate(store.rows(**where))
+            records = [r for r in aggregate(store.rows(**where))
+                       if not scorer or r["scorer"] in scorer or f"{r['recognizer']}/{r['scorer']}" in scorer]
     except OSError as exc:
         raise fail(f"cannot read {exc.filename}: {exc.strerror}") from None
     except _user_errors() as exc:
         raise fail(str(exc)) from None
     if not records:
         raise fail(f"no results in {path} yet; run `grail-bench run` first", code=1)
+    if ablation:
+        rows = ablation_rows(records)
+        if not rows:
+            raise fail("no recognizer was run with several scorers; use `grail-bench run --scorer A --scorer B`",
+                       code=1)
+        console.print(ablation_table(rows))
+        if markdown_path is not None:
+            markdown_path.parent.mkdir(parents=True, exist_ok=True)
+            markdown_path.write_text(ablation_markdown(rows), encoding="utf-8")
+            console.print(f"Markdown written to {markdown_path}", highlight=False)
+        if plot is not None:
+            plot.parent.mkdir(parents=True, exist_ok=True)
+            ablation_plot(rows, plot)
+            console.print(f"plot written to {plot}", highlight=False)
+        return
     boards = build_boards(records, ref)
     for table in rich_tables(boards):
         console.print(table)
@@ -189,8 +244,26 @@ def leaderboard(
         console.print(f"Markdown written to {markdown_path}", highlight=False)
 
 
+def _one_line_warnings() -> None:
+    """Show grail-bench's own warnings (e.g. a cached model being retrained) as one line."""
+    import warnings
+
+    from grail_bench.cache import CacheWarning
+
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001
+        if issubclass(category, CacheWarning):
+            err_console.print(f"warning: {message}", highlight=False, markup=False, soft_wrap=True)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
+
+
 def main() -> None:
     """Console-script entry point."""
+    _one_line_warnings()
     try:
         app()
     except KeyboardInterrupt:

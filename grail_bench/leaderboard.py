@@ -18,6 +18,8 @@ from typing import Any, Iterable
 from rich.table import Table
 
 PAPER_NAMES = {"bc": "BC-GRAIL", "gail": "GAIL-GRAIL", "airl": "AIRL-GRAIL", "graql": "GRAQL", "draco": "DRACO"}
+# The scorer each method uses in the paper: reported values sit beside that column only.
+PAPER_SCORERS = {"bc": "mse", "gail": "mse", "airl": "mse", "graql": "kl", "draco": "wasserstein"}
 
 
 @dataclass
@@ -42,9 +44,10 @@ def _task_facts(task_id: str) -> tuple[str, int]:
     return f"{task.domain} / {task.regime}", len(task.goals)
 
 
-def column_label(record: dict[str, Any], multi_scorer: set[str], multi_config: set[tuple[str, str]]) -> str:
+def column_label(record: dict[str, Any], multi_config: set[tuple[str, str]]) -> str:
+    """``recognizer/scorer`` (just the recognizer for plugins without scorers)."""
     label = record["recognizer"]
-    if label in multi_scorer:
+    if record["scorer"] != "default":
         label += f"/{record['scorer']}"
     if (record["recognizer"], record["scorer"]) in multi_config:
         label += f" [{record['config_hash'][:6]}]"
@@ -66,25 +69,23 @@ def read_reference(path: str | Path) -> dict[tuple[str, str, float], str]:
 def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, str, float], str] | None = None) -> list[Board]:
     """Group aggregated records into tables (see module docstring)."""
     records = list(records)
-    scorers, configs = defaultdict(set), defaultdict(set)
+    configs = defaultdict(set)
     for r in records:
-        scorers[r["recognizer"]].add(r["scorer"])
         configs[(r["task"], r["recognizer"], r["scorer"])].add(r["config_hash"])
-    multi_scorer = {k for k, v in scorers.items() if len(v) > 1}
     multi_config = {(k[1], k[2]) for k, v in configs.items() if len(v) > 1}
 
     boards: dict[str, Board] = {}
     for r in records:
         title, n_goals = _task_facts(r["task"])
         board = boards.setdefault(title, Board(title=title, columns=[]))
-        label = column_label(r, multi_scorer, multi_config)
+        label = column_label(r, multi_config)
         if label not in board.columns:
             board.columns.append(label)
         row = (n_goals, r["observability"])
         if row not in board.rows:
             board.rows.append(row)
         board.cells[(*row, label)] = r
-        if reference:
+        if reference and PAPER_SCORERS.get(r["recognizer"], r["scorer"]) == r["scorer"]:
             reported = reference.get((r["task"], r["recognizer"], round(r["observability"], 6)))
             if reported:
                 board.reported[(*row, label)] = reported
@@ -92,6 +93,10 @@ def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, s
         board.rows.sort()
         board.columns.sort()
     return [boards[k] for k in sorted(boards)]
+
+
+def _has_reported(board: Board, column: str) -> bool:
+    return any(key[2] == column for key in board.reported)
 
 
 def _best(board: Board, row: tuple[int, float]) -> float | None:
@@ -116,14 +121,14 @@ def rich_tables(boards: list[Board]) -> list[Table]:
         table.add_column("obs", justify="right")
         for c in board.columns:
             table.add_column(c, justify="center")
-            if board.reported:
+            if _has_reported(board, c):
                 table.add_column(f"{c} (paper)", justify="center", style="dim")
         for row in board.rows:
             cells = []
             for c in board.columns:
                 text, best = _cell(board, row, c)
                 cells.append(f"[bold]{text}[/]" if best else text)
-                if board.reported:
+                if _has_reported(board, c):
                     cells.append(board.reported.get((*row, c), "–"))
             table.add_row(str(row[0]), f"{row[1]:.0%}", *cells)
         tables.append(table)
@@ -140,7 +145,7 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
         header = ["goals", "obs"]
         for c in board.columns:
             header.append(c)
-            if board.reported:
+            if _has_reported(board, c):
                 header.append(f"{PAPER_NAMES.get(c.split('/')[0], c)} *(paper)*")
         lines += [f"## {board.title}", "", "| " + " | ".join(header) + " |",
                   "|" + "---|" * len(header)]
@@ -149,7 +154,7 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
             for c in board.columns:
                 text, best = _cell(board, row, c)
                 cells.append(f"**{text}**" if best else text)
-                if board.reported:
+                if _has_reported(board, c):
                     cells.append(board.reported.get((*row, c), "–"))
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
@@ -168,3 +173,102 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
         lines.append(f"| {r['task']} | {r['recognizer']} | {r['scorer']} | {r['n_seeds']} | "
                      f"{r['fit_seconds_per_goal']:.2f} | {score_us:.0f} | {ties:.1%} |")
     return "\n".join(lines) + "\n"
+
+
+def ablation_rows(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per task, recognizer and scorer: F1 at each level and mean scoring time.
+
+    Only recognizers run with more than one scorer on a task are included
+    (the paper's Figures 4 and 5).
+    """
+    scorers = defaultdict(set)
+    for r in records:
+        scorers[(r["task"], r["recognizer"])].add(r["scorer"])
+    out: dict[tuple, dict[str, Any]] = {}
+    for r in records:
+        if len(scorers[(r["task"], r["recognizer"])]) < 2:
+            continue
+        row = out.setdefault((r["task"], r["recognizer"], r["scorer"]), {
+            "task": r["task"], "recognizer": r["recognizer"], "scorer": r["scorer"], "f1": {}, "score_us": []})
+        row["f1"][r["observability"]] = (r["f1_mean"], r["f1_std"])
+        row["score_us"].append(r["score_us_per_observation"])
+        if r.get("brier_mean") is not None:
+            row.setdefault("calibration", []).append((r["brier_mean"], r["nll_mean"]))
+    for row in out.values():
+        row["score_us"] = sum(row["score_us"]) / len(row["score_us"])
+        row["f1_overall"] = sum(m for m, _ in row["f1"].values()) / len(row["f1"])
+    return [out[k] for k in sorted(out)]
+
+
+def ablation_table(rows: list[dict[str, Any]]) -> Table:
+    """Terminal table of :func:`ablation_rows`."""
+    levels = sorted({lv for r in rows for lv in r["f1"]})
+    table = Table(title="scorer ablation: F1 (mean ± std) and scoring time")
+    for col in ("task", "recognizer", "scorer"):
+        table.add_column(col)
+    for lv in levels:
+        table.add_column(f"F1 @ {lv:.0%}", justify="center")
+    table.add_column("µs / observation", justify="right")
+    table.add_column("Brier / NLL", justify="center")
+    for r in rows:
+        cal = r.get("calibration")
+        cal_text = (f"{sum(b for b, _ in cal) / len(cal):.3f} / {sum(n for _, n in cal) / len(cal):.3f}"
+                    if cal else "–")
+        cells = [f"{r['f1'][lv][0]:.2f} ± {r['f1'][lv][1]:.2f}" if lv in r["f1"] else "–" for lv in levels]
+        table.add_row(r["task"], r["recognizer"], r["scorer"], *cells, f"{r['score_us']:.0f}", cal_text)
+    return table
+
+
+def ablation_markdown(rows: list[dict[str, Any]]) -> str:
+    """:func:`ablation_rows` as a Markdown table."""
+    levels = sorted({lv for r in rows for lv in r["f1"]})
+    header = ["task", "recognizer", "scorer", *[f"F1 @ {lv:.0%}" for lv in levels], "µs / observation", "Brier", "NLL"]
+    lines = ["# Scorer ablation", "",
+             "F1 (mean ± std over seeds) of each recognizer under each scorer, from the same fitted policies,",
+             "and the mean time to score one observation against all goals. Brier score and NLL are those of",
+             "the posterior over goals that the `loglik` scorer yields.", "",
+             "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for r in rows:
+        cal = r.get("calibration")
+        brier = f"{sum(b for b, _ in cal) / len(cal):.3f}" if cal else "–"
+        nll = f"{sum(n for _, n in cal) / len(cal):.3f}" if cal else "–"
+        cells = [f"{r['f1'][lv][0]:.2f} ± {r['f1'][lv][1]:.2f}" if lv in r["f1"] else "–" for lv in levels]
+        lines.append(f"| {r['task']} | {r['recognizer']} | {r['scorer']} | " + " | ".join(cells)
+                     + f" | {r['score_us']:.0f} | {brier} | {nll} |")
+    return "\n".join(lines) + "\n"
+
+
+def ablation_plot(rows: list[dict[str, Any]], path: str | Path) -> None:
+    """Grouped bars per task: F1 (mean over levels) and scoring time, by recognizer and scorer."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    tasks = sorted({r["task"] for r in rows})
+    fig, axes = plt.subplots(len(tasks), 2, figsize=(11, 3.2 * len(tasks)), squeeze=False)
+    for ax_f1, ax_time, task in zip(axes[:, 0], axes[:, 1], tasks):
+        mine = [r for r in rows if r["task"] == task]
+        recs = sorted({r["recognizer"] for r in mine})
+        scorers = sorted({r["scorer"] for r in mine})
+        width = 0.8 / len(scorers)
+        for i, scorer in enumerate(scorers):
+            xs, f1s, times = [], [], []
+            for j, rec in enumerate(recs):
+                hit = [r for r in mine if r["recognizer"] == rec and r["scorer"] == scorer]
+                if hit:
+                    xs.append(j + i * width)
+                    f1s.append(hit[0]["f1_overall"])
+                    times.append(hit[0]["score_us"])
+            ax_f1.bar(xs, f1s, width, label=scorer)
+            ax_time.bar(xs, times, width, label=scorer)
+        for ax, ylabel in ((ax_f1, "F1 (mean over observability)"), (ax_time, "scoring µs / observation")):
+            ax.set_xticks(np.arange(len(recs)) + 0.4 - width / 2, recs)
+            ax.set_ylabel(ylabel)
+            ax.set_title(task, fontsize=9)
+        ax_f1.set_ylim(0, 1.05)
+        ax_time.legend(fontsize=8, loc="lower right", framealpha=0.9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

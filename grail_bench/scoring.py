@@ -1,23 +1,81 @@
 """Goal-agnostic scorers: pure functions from policy outputs to one score per goal.
 
-Every scorer takes the policies' outputs on the observed states, stacked over
-goals, and the observed actions, and returns one score per goal; higher means
-the observations fit that goal's policy better.
+A recognizer that supports pluggable scoring exposes its goal policies' outputs
+on the observed states as a :class:`PolicyOutput` (action probabilities, mean
+and std, or Q-values, stacked over goals); a :class:`Scorer` turns them and the
+observed actions into one score per goal, higher meaning a better fit.
 
-Shapes: ``K`` goals, ``T`` observed steps, ``A`` actions (discrete) or action
-dimensions (continuous).
+Built-in scorers: ``mse`` (GRAIL's default), ``wasserstein`` (DRACO's), ``kl``
+(GRAQL's) and ``loglik``. More come from the entry-point group
+``grail_bench.scorers``, each pointing at a :class:`Scorer`.
+
+Shapes: ``K`` goals, ``T`` observed steps, ``A`` discrete actions or ``D``
+action dimensions.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from typing import Callable
+
 import numpy as np
+from scipy.special import erf
 
 EPS = 1e-8
+GROUP = "grail_bench.scorers"
+OUTPUT_NAMES = {"probs": "action probabilities", "mean": "mean actions", "std": "action std", "q": "Q-values"}
+
+
+@dataclass(frozen=True)
+class PolicyOutput:
+    """Goal policies evaluated on the observed states; fields a recognizer lacks stay ``None``.
+
+    Attributes:
+        probs: ``(K, T, A)`` action probabilities (discrete actions).
+        mean: ``(K, T, D)`` mean actions (continuous actions).
+        std: ``(K, T, D)`` or ``(K, 1, D)`` action standard deviations.
+        q: ``(K, T, A)`` action values.
+    """
+
+    probs: np.ndarray | None = None
+    mean: np.ndarray | None = None
+    std: np.ndarray | None = None
+    q: np.ndarray | None = None
+
+    def exposes(self) -> frozenset[str]:
+        return frozenset(k for k in OUTPUT_NAMES if getattr(self, k) is not None)
+
+
+@dataclass(frozen=True)
+class Scorer:
+    """A named scoring function and the outputs it can work from.
+
+    Attributes:
+        name: Registry name (``--scorer NAME``).
+        fn: ``fn(output, actions) -> (K,)`` scores.
+        needs: Alternative sets of :class:`PolicyOutput` fields; any one suffices.
+        description: One line for ``grail-bench list scorers``.
+    """
+
+    name: str
+    fn: Callable[[PolicyOutput, np.ndarray], np.ndarray]
+    needs: tuple[frozenset[str], ...]
+    description: str
+
+    def can_serve(self, exposes: frozenset[str]) -> bool:
+        return any(need <= exposes for need in self.needs)
+
+    def needs_text(self) -> str:
+        return " or ".join(" and ".join(OUTPUT_NAMES[n] for n in sorted(need)) for need in self.needs)
+
+
+# ----------------------------------------------------------------------------- pure functions
 
 
 def one_hot(actions: np.ndarray, n: int) -> np.ndarray:
     """``(T,)`` integer actions -> ``(T, n)`` one-hot rows."""
-    out = np.zeros((len(actions), n))
+    out = np.zeros((len(actions), n), dtype=np.float32)
     out[np.arange(len(actions)), actions] = 1.0
     return out
 
@@ -43,11 +101,6 @@ def neg_kl(probs: np.ndarray, actions: np.ndarray, *, eps: float = 0.01) -> np.n
     The pseudo-policy of each observed step puts ``1 - eps`` on the observed
     action and spreads ``eps`` over the others.
 
-    Args:
-        probs: ``(K, T, A)`` action probabilities of each goal's policy.
-        actions: ``(T,)`` observed discrete actions.
-        eps: Mass the pseudo-policy leaves to unobserved actions.
-
     Returns:
         ``(K,)`` scores, ``-mean_t KL(p_obs,t || probs[k, t])``.
     """
@@ -56,3 +109,116 @@ def neg_kl(probs: np.ndarray, actions: np.ndarray, *, eps: float = 0.01) -> np.n
     pseudo[np.arange(len(actions)), actions] = 1.0 - eps
     log_ratio = np.log(pseudo)[None] - np.log(np.clip(probs, EPS, None))
     return -np.mean(np.sum(pseudo[None] * log_ratio, axis=-1), axis=1)
+
+
+def neg_wasserstein_discrete(probs: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Minus the mean 1-Wasserstein distance between each step's categorical
+    policy and the point mass on the observed action, actions placed at their
+    indices on the real line (as ``scipy.stats.wasserstein_distance`` would):
+    ``W1 = sum_i p_i |i - a|``."""
+    distance = np.abs(np.arange(probs.shape[-1])[None, :] - actions[:, None])  # (T, A)
+    return -np.mean(np.sum(probs * distance[None], axis=-1), axis=1)
+
+
+def neg_wasserstein_gaussian(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Minus the mean (over steps and action dimensions) 1-Wasserstein distance
+    between ``N(mean, std^2)`` and the point mass on the observed action, in
+    closed form: ``E|X - a| = s*sqrt(2/pi)*exp(-z^2/2) + (a - m)*erf(z/sqrt(2))``
+    with ``z = (a - m) / s``."""
+    diff = actions[None] - mean
+    std = np.broadcast_to(std, diff.shape)
+    z = diff / std
+    w1 = std * np.sqrt(2 / np.pi) * np.exp(-0.5 * z * z) + diff * erf(z / np.sqrt(2))
+    return -np.mean(w1, axis=(1, 2))
+
+
+def loglik_discrete(probs: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Mean log-probability of the observed actions, ``(K,)``."""
+    picked = probs[:, np.arange(len(actions)), actions]
+    return np.mean(np.log(np.clip(picked, EPS, None)), axis=1)
+
+
+def loglik_gaussian(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Mean (over steps) Gaussian log-density of the observed actions, summed over dimensions."""
+    std = np.broadcast_to(std, mean.shape)
+    z = (actions[None] - mean) / std
+    logpdf = -0.5 * z * z - np.log(std) - 0.5 * np.log(2 * np.pi)
+    return np.mean(np.sum(logpdf, axis=-1), axis=1)
+
+
+def posterior(scores: np.ndarray, n_steps: int) -> np.ndarray:
+    """Posterior over goals from mean log-likelihoods: softmax of their sums (uniform prior)."""
+    logits = scores * n_steps
+    logits = logits - logits.max()
+    e = np.exp(logits)
+    return e / e.sum()
+
+
+# ----------------------------------------------------------------------------- adapters and registry
+
+
+def _mse(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+    if out.probs is not None:
+        return neg_mse(out.probs, one_hot(actions.astype(np.int64), out.probs.shape[-1]))
+    return neg_mse(out.mean, actions.reshape(len(actions), -1).astype(out.mean.dtype))
+
+
+def _wasserstein(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+    if out.probs is not None:
+        return neg_wasserstein_discrete(out.probs, actions.astype(np.int64))
+    return neg_wasserstein_gaussian(out.mean, out.std, actions.reshape(len(actions), -1))
+
+
+def _kl(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+    return neg_kl(out.probs, actions.astype(np.int64))
+
+
+def _loglik(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+    if out.probs is not None:
+        return loglik_discrete(out.probs, actions.astype(np.int64))
+    return loglik_gaussian(out.mean, out.std, actions.reshape(len(actions), -1))
+
+
+_PROBS, _GAUSS = frozenset({"probs"}), frozenset({"mean", "std"})
+BUILTIN: dict[str, Scorer] = {
+    s.name: s for s in (
+        Scorer("mse", _mse, (_PROBS, frozenset({"mean"})),
+               "negative MSE between the policy's action (probabilities vs one-hot, or mean) and the observed one (GRAIL)"),
+        Scorer("wasserstein", _wasserstein, (_PROBS, _GAUSS),
+               "negative 1-Wasserstein distance between the action distribution and the observed action (DRACO)"),
+        Scorer("kl", _kl, (_PROBS,),
+               "negative KL between the observed pseudo-policy and the policy's action probabilities (GRAQL)"),
+        Scorer("loglik", _loglik, (_PROBS, _GAUSS),
+               "mean log-likelihood of the observed actions; also yields a posterior, its Brier score and NLL"),
+    )
+}
+
+
+class UnknownScorerError(KeyError):
+    """No scorer is registered under the requested name."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def available_scorers() -> dict[str, str]:
+    """Scorer names and what provides them (plugins are not imported)."""
+    out = {name: "built-in" for name in BUILTIN}
+    for ep in entry_points(group=GROUP):
+        if ep.name in out:
+            raise ValueError(f"scorer name {ep.name!r} is registered twice: {out[ep.name]} and {ep.value}")
+        out[ep.name] = ep.value
+    return out
+
+
+def get_scorer(name: str) -> Scorer:
+    """The scorer registered under ``name``."""
+    if name in BUILTIN:
+        return BUILTIN[name]
+    for ep in entry_points(group=GROUP):
+        if ep.name == name:
+            scorer = ep.load()
+            if not isinstance(scorer, Scorer):
+                raise TypeError(f"scorer entry point {ep.value} is not a grail_bench.scoring.Scorer")
+            return scorer
+    raise UnknownScorerError(f"unknown scorer {name!r}; available: {', '.join(available_scorers())}")

@@ -65,10 +65,11 @@ _CREATE = (
 
 def default_store_path() -> Path:
     """Where results go unless ``--store`` or ``GRAIL_BENCH_STORE`` says otherwise."""
+    from grail_bench.paths import data_dir
+
     if os.environ.get("GRAIL_BENCH_STORE"):
         return Path(os.environ["GRAIL_BENCH_STORE"]).expanduser()
-    base = Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
-    return base / "grail-bench" / "results.sqlite"
+    return data_dir() / "results.sqlite"
 
 
 class ResultsStore:

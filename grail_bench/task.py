@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
@@ -72,6 +73,10 @@ class GRTask:
         env.unwrapped.task = self
         return env
 
+    def env_factory(self) -> EnvFactory:
+        """``factory(goal) -> env`` with a :attr:`EnvFactory.cache_key` naming the domain env."""
+        return EnvFactory(self)
+
     def generate_demos(self, seed: int, n_demos: int | None = None) -> Demos:
         """Generate demonstrations for every goal.
 
@@ -105,6 +110,23 @@ class GRTask:
         return train, test
 
 
+class EnvFactory:
+    """Builds a task's goal envs; what the harness hands to ``Recognizer.fit``.
+
+    Attributes:
+        cache_key: JSON naming the domain and its env parameters (not the
+            regime): recognizers that learn from interaction alone may use it
+            to reuse trained models across the regimes of a domain.
+    """
+
+    def __init__(self, task: GRTask) -> None:
+        self._task = task
+        self.cache_key = json.dumps({"domain": task.domain, "env": dict(task.env_params)}, sort_keys=True)
+
+    def __call__(self, goal: Sequence[float]) -> gym.Env:
+        return self._task.make_env(goal)
+
+
 def _task_from_kwargs(kwargs: Mapping[str, Any], overrides: Mapping[str, Any]) -> tuple[GRTask, dict[str, Any]]:
     """Build a task from registered kwargs plus user overrides.
 
@@ -114,20 +136,28 @@ def _task_from_kwargs(kwargs: Mapping[str, Any], overrides: Mapping[str, Any]) -
     spec = get_domain(kwargs["domain"])
     regime_names = set(spec.regimes[kwargs["regime"]])
     params, env_params, env_only = dict(kwargs["params"]), dict(kwargs["env"]), {}
+    counts = {"n_demos": kwargs["n_demos"], "n_train": kwargs["n_train"]}
     for name, value in overrides.items():
-        if name in regime_names:
+        if name in counts:
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ValueError(f"{kwargs['task_id']}: {name} must be a positive integer, got {value!r}")
+            counts[name] = value
+        elif name in regime_names:
             params[name] = value
         elif name in spec.env_defaults:
             env_params[name] = value
         elif name in ("render_mode", "goal"):
             env_only[name] = value
         else:
-            known = sorted(regime_names | set(spec.env_defaults) | {"render_mode", "goal"})
+            known = sorted(regime_names | set(spec.env_defaults) | {"render_mode", "goal", *counts})
             raise TypeError(f"{kwargs['task_id']} got an unknown parameter {name!r}; known: {', '.join(known)}")
+    if counts["n_train"] >= counts["n_demos"]:
+        raise ValueError(f"{kwargs['task_id']}: n_train ({counts['n_train']}) must be smaller than "
+                         f"n_demos ({counts['n_demos']})")
     task = GRTask(
         id=kwargs["task_id"], domain=kwargs["domain"], regime=kwargs["regime"],
         goals=tuple(tuple(g) for g in kwargs["goals"]), params=params, env_params=env_params,
-        n_demos=kwargs["n_demos"], n_train=kwargs["n_train"],
+        n_demos=counts["n_demos"], n_train=counts["n_train"],
         observability=tuple(kwargs["observability"]), description=kwargs.get("description", ""),
     )
     return task, env_only

@@ -50,4 +50,16 @@ def toy_plugin(tmp_path, monkeypatch):
     return root
 
 
-FAST = {"bc": {"n_epochs": 3}, "graql": {"episodes": 200}}
+FAST = {
+    "bc": {"n_epochs": 3},
+    "graql": {"episodes": 200},
+    "gail": {"total_timesteps": 512, "n_envs": 4, "n_steps": 64, "n_epochs": 2},
+    "airl": {"total_timesteps": 512, "n_envs": 4, "n_steps": 64, "n_epochs": 2},
+    "draco": {"ppo_steps": 1024, "sac_steps": 300},
+}
+
+
+@pytest.fixture(autouse=True)
+def _private_cache(tmp_path_factory, monkeypatch):
+    """Trained-model caches go to a per-session folder, never the user's."""
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))

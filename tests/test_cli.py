@@ -82,6 +82,8 @@ def test_rerun_reuses_stored_seeds(tmp_path):
         (["run", "-r", "bc", "--set", "bc.n_epochz=3"], "n_epochz"),
         (["run", "-r", "bc", "--set", "graql.episodes=3"], "not being run"),
         (["list", "goals"], "cannot list"),
+        (["run", "-r", "bc", "--param", "colour=3"], "unknown parameter 'colour'"),
+        (["run", "-r", "bc", "--param", "n_train=20"], "n_train (20) must be smaller"),
     ],
 )
 def test_bad_input_gives_one_line_and_exit_2(args, message, tmp_path):
@@ -130,3 +132,25 @@ def test_leaderboard_with_reference(tmp_path):
     assert out.returncode == 2 and "malformed reference row" in out.stderr
     out = cli(["leaderboard", "--reference", str(tmp_path / "missing.csv")], tmp_path, **env)
     assert out.returncode == 2 and "cannot read" in out.stderr
+
+
+def test_scorers_listed_and_validated(tmp_path):
+    out = cli(["list", "scorers"], tmp_path)
+    assert out.returncode == 0 and "wasserstein" in out.stdout and "loglik" in out.stdout
+    out = cli(["run", "-r", "bc", "--scorer", "nope"], tmp_path)
+    assert out.returncode == 2 and "unknown scorer 'nope'" in out.stderr and out.stderr.count("\n") == 1
+
+
+def test_ablation_table_markdown_and_plot(tmp_path):
+    out = cli(["run", "-r", "bc", "--set", "bc.n_epochs=3", "--scorer", "mse", "--scorer", "loglik",
+               "--seeds", "1", "-o", "0.3", "--no-progress"], tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "bc/mse" in out.stdout and "bc/loglik" in out.stdout
+    png, md = tmp_path / "ablation.png", tmp_path / "ABLATION.md"
+    out = cli(["leaderboard", "--ablation", "--plot", str(png), "--markdown", str(md)], tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    text = md.read_text()
+    assert "| GRAIL/MiniGrid-Biased-v0 | bc | loglik |" in text and "| GRAIL/MiniGrid-Biased-v0 | bc | mse |" in text
+    out = cli(["leaderboard", "--scorer", "mse"], tmp_path)
+    assert "bc/mse" in out.stdout and "bc/loglik" not in out.stdout

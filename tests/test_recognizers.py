@@ -151,3 +151,22 @@ def test_duplicate_entry_point_names_are_rejected(toy_plugin, tmp_path, monkeypa
     monkeypatch.syspath_prepend(str(other))
     with pytest.raises(ValueError, match="registered twice"):
         available_recognizers()
+
+
+def test_policy_bank_matches_sac_actor():
+    from stable_baselines3 import SAC
+
+    from grail_bench.domains.panda_reach import GRPandaReachEnv
+    from grail_bench.recognizers.policy_bank import PolicyBank
+
+    env = GRPandaReachEnv()
+    models = [SAC("MlpPolicy", env, policy_kwargs={"net_arch": [16, 16]}, seed=s, device="cpu") for s in (0, 1)]
+    obs = np.random.default_rng(0).normal(size=(5, 6)).astype(np.float32) * 0.1
+    bank = PolicyBank([m.policy for m in models])
+    mean, std = bank.mean_std(obs)
+    for k, model in enumerate(models):
+        with torch.no_grad():
+            expected = model.policy.actor(torch.as_tensor(obs), deterministic=True).numpy()
+            _, log_std, _ = model.policy.actor.get_action_dist_params(torch.as_tensor(obs))
+        np.testing.assert_allclose(mean[k], expected, rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(std[k], (1 - expected ** 2) * np.exp(log_std.numpy()), rtol=1e-5, atol=1e-6)

@@ -133,3 +133,36 @@ def test_end_to_end_bc_beats_chance_on_biased_task():
     assert all(r["f1_mean"] > 0.8 for r in bc), bc  # chance is 0.5
     assert all(0 <= r["f1_mean"] <= 1 for r in records)
     assert all(r["fit_seconds_per_goal"] > 0 and r["score_us_per_observation"] > 0 for r in records)
+
+
+def test_several_scorers_share_one_fit_and_loglik_reports_calibration(tmp_path):
+    from grail_bench.evaluation.runner import RecognizerSpec
+
+    records = evaluate(TASK_ID, [RecognizerSpec("bc", {"n_epochs": 3}, ("mse", "wasserstein", "loglik"))],
+                       seeds=1, observability=[0.3])
+    by_scorer = {r["scorer"]: r for r in records}
+    assert set(by_scorer) == {"mse", "wasserstein", "loglik"}
+    assert len({r["fit_seconds_per_goal"] for r in records}) == 1  # one fit
+    assert by_scorer["mse"]["brier_mean"] is None
+    assert 0 <= by_scorer["loglik"]["brier_mean"] <= 2 and by_scorer["loglik"]["nll_mean"] >= 0
+
+
+def test_scorers_need_a_recognizer_that_has_them(spy):
+    from grail_bench.evaluation.runner import RecognizerSpec
+
+    with pytest.raises(ValueError, match="no pluggable scorers"):
+        evaluate(TASK_ID, [RecognizerSpec("spy", {}, ("mse",))], seeds=1)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["gail", "airl"])
+def test_end_to_end_adversarial_beats_chance_on_biased_task(name, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    budget = {"total_timesteps": 8192, "n_envs": 8, "n_steps": 64}
+    records = evaluate(TASK_ID, [(name, budget)], seeds=2)
+    assert np.mean([r["f1_mean"] for r in records]) > 0.6, records  # chance is 0.5
+    assert list(tmp_path.iterdir()) == [], "imitation and SB3 must not leave logs behind"

@@ -60,6 +60,18 @@ DOMAINS: dict[str, DomainSpec] = {
             "suboptimal": {"turn_prob": 0.3},
         },
     ),
+    "panda_reach": DomainSpec(
+        name="panda_reach",
+        env_factory="grail_bench.domains.panda_reach:make_env",
+        demo_generator="grail_bench.demos.panda_reach:generate_demos",
+        goal_dim=3,
+        env_defaults={"max_steps": 50, "distance_threshold": 0.05},
+        regimes={
+            "optimal": {"expert": "sac", "expert_steps": 15000},
+            "gaussian": {"expert": "sac", "expert_steps": 15000, "sigma": 0.1},
+            "uniform": {"expert": "sac", "expert_steps": 15000, "half_width": 0.1},
+        },
+    ),
 }
 
 

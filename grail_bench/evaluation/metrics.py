@@ -26,6 +26,20 @@ def classification(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int)
             "recall": float(recall), "f1": float(f1)}
 
 
+def calibration(loglik: np.ndarray, n_steps: int, label: int) -> tuple[float, float]:
+    """Brier score and negative log-likelihood of the posterior over goals.
+
+    The posterior is the softmax of summed log-likelihoods (mean ``loglik``
+    times the ``n_steps`` observed), i.e. Bayes' rule with a uniform prior.
+    """
+    from grail_bench.scoring import posterior
+
+    p = posterior(loglik, n_steps)
+    target = np.zeros_like(p)
+    target[label] = 1.0
+    return float(np.sum((p - target) ** 2)), float(-np.log(max(p[label], 1e-12)))
+
+
 def summarize(values: Sequence[float], confidence: float = 0.95) -> dict[str, float]:
     """Mean, sample standard deviation and a Student-t confidence interval.
 

@@ -14,21 +14,26 @@ from grail_bench.evaluation.protocol import SAMPLINGS, observe, parse_observabil
 from grail_bench.recognizers.base import Recognizer, RecognizerError, recognizer_config
 from grail_bench.recognizers.registry import make_recognizer
 from grail_bench.store import ResultRow, ResultsStore, config_hash, package_versions
-from grail_bench.task import GRTask, make_task
+from grail_bench.task import Demos, GRTask, make_task
 
 RECORD_KEYS = (
     "task", "recognizer", "scorer", "sampling", "observability", "n_seeds", "f1_mean", "f1_std",
     "f1_ci95_low", "f1_ci95_high", "accuracy_mean", "precision_mean", "recall_mean",
-    "fit_seconds_per_goal", "score_us_per_observation", "tie_rate", "config_hash",
+    "fit_seconds_per_goal", "score_us_per_observation", "tie_rate", "brier_mean", "nll_mean", "config_hash",
 )
+DEFAULT_SCORER = "default"  # the label of recognizers without pluggable scorers
 
 
 @dataclass(frozen=True)
 class RecognizerSpec:
-    """A recognizer name, its constructor config and the identity of its results."""
+    """A recognizer name, its constructor config and the scorers to judge it with.
+
+    An empty ``scorers`` means the recognizer's own default scorer.
+    """
 
     name: str
     config: Mapping[str, Any] = field(default_factory=dict)
+    scorers: tuple[str, ...] = ()
 
 
 def _spec(item: str | RecognizerSpec | tuple[str, Mapping[str, Any]]) -> RecognizerSpec:
@@ -40,13 +45,26 @@ def _spec(item: str | RecognizerSpec | tuple[str, Mapping[str, Any]]) -> Recogni
     return RecognizerSpec(name, dict(config))
 
 
-def _identity(task: GRTask, spec: RecognizerSpec, recognizer: Recognizer) -> tuple[str, str, str]:
-    """``(scorer, config JSON, config hash)`` of a recognizer on a task."""
-    scorer = str(getattr(recognizer, "scorer", "default"))
+def _identity(task: GRTask, spec: RecognizerSpec, recognizer: Recognizer) -> tuple[list[str], str, str]:
+    """``(scorers, config JSON, config hash)`` of a recognizer on a task.
+
+    The hash covers the fitted configuration (recognizer hyperparameters and
+    task parameters), not the scorer, which has its own column.
+    """
+    own = str(getattr(recognizer, "scorer", DEFAULT_SCORER))
+    scorers = list(spec.scorers) or [own]
+    if scorers != [own]:
+        if not hasattr(recognizer, "check_scorer"):
+            raise ValueError(f"recognizer {spec.name!r} has no pluggable scorers; it scores with {own!r} only")
+        env = task.make_env()
+        action_space = env.action_space
+        env.close()
+        for name in scorers:
+            recognizer.check_scorer(name, action_space)
     config = {"recognizer": spec.name, "config": recognizer_config(recognizer) or dict(spec.config),
-              "scorer": scorer, "task": {"params": dict(task.params), "env": dict(task.env_params),
-                                         "n_demos": task.n_demos, "n_train": task.n_train}}
-    return scorer, json.dumps(config, sort_keys=True, default=str), config_hash(config)
+              "task": {"params": dict(task.params), "env": dict(task.env_params),
+                       "n_demos": task.n_demos, "n_train": task.n_train}}
+    return scorers, json.dumps(config, sort_keys=True, default=str), config_hash(config)
 
 
 def _check_scores(name: str, scores: Any, goals: Sequence[tuple]) -> np.ndarray:
@@ -59,44 +77,62 @@ def _check_scores(name: str, scores: Any, goals: Sequence[tuple]) -> np.ndarray:
 
 
 def run_seed(task: GRTask, spec: RecognizerSpec, seed: int, levels: Sequence[float], sampling: str,
-             versions: str) -> list[ResultRow]:
-    """Fit one recognizer on one seed's training demos and score every level.
+             versions: str, demos: Demos | None = None) -> list[ResultRow]:
+    """Fit one recognizer on one seed's training demos, then score every level with every scorer.
 
     The recognizer never sees the true goal: it gets the training demos per
     goal, an env factory, and observations stripped of infos, scored in a
-    seeded random order across goals.
+    seeded random order across goals. With the ``loglik`` scorer the scores
+    also give a posterior over goals, whose Brier score and NLL are recorded.
+
+    Args:
+        demos: The seed's demonstrations, if already generated.
     """
     recognizer = make_recognizer(spec.name, **spec.config)
-    scorer, config_json, chash = _identity(task, spec, recognizer)
-    train, test = task.split(task.generate_demos(seed))
+    scorers, config_json, chash = _identity(task, spec, recognizer)
+    train, test = task.split(demos if demos is not None else task.generate_demos(seed))
     start = time.perf_counter()
-    recognizer.fit(train, task.make_env, seed=seed)
-    fit_per_goal = (time.perf_counter() - start) / len(task.goals)
+    recognizer.fit(train, task.env_factory(), seed=seed)
+    fit_seconds = getattr(recognizer, "fit_seconds", None)  # training time of reloaded models, if reported
+    fit_per_goal = (fit_seconds if fit_seconds is not None else time.perf_counter() - start) / len(task.goals)
 
     rng = np.random.default_rng([seed, 1])
     labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
     rows = []
     for level in levels:
         order = rng.permutation(len(labelled))
-        y_true, y_pred, ties, elapsed_ns = [], [], 0, 0
-        for j in order:
-            label, traj = labelled[j]
-            observed = observe(traj, level, sampling, rng)
-            t0 = time.perf_counter_ns()
-            scores = recognizer.score(observed)
-            elapsed_ns += time.perf_counter_ns() - t0
-            pred, tied = metrics.predict(_check_scores(spec.name, scores, task.goals))
-            y_true.append(label)
-            y_pred.append(pred)
-            ties += tied
-        m = metrics.classification(y_true, y_pred, len(task.goals))
-        rows.append(ResultRow(
-            task=task.id, recognizer=spec.name, scorer=scorer, config_hash=chash, seed=seed,
-            observability=level, sampling=sampling, n_observations=len(y_true), n_ties=ties,
-            fit_seconds_per_goal=fit_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
-            config=config_json, versions=versions, **m,
-        ))
+        observations = [(labelled[j][0], observe(labelled[j][1], level, sampling, rng)) for j in order]
+        for scorer in scorers:
+            # The recognizer's own score() unless scorers were asked for by name.
+            score = (lambda obs, s=scorer: recognizer.score_with(obs, s)) if spec.scorers else recognizer.score
+            y_true, y_pred, ties, elapsed_ns, brier, nll = [], [], 0, 0, [], []
+            for label, observed in observations:
+                t0 = time.perf_counter_ns()
+                scores = score(observed)
+                elapsed_ns += time.perf_counter_ns() - t0
+                values = _check_scores(spec.name, scores, task.goals)
+                pred, tied = metrics.predict(values)
+                y_true.append(label)
+                y_pred.append(pred)
+                ties += tied
+                if scorer == "loglik":
+                    b, n = metrics.calibration(values, len(observed.acts), label)
+                    brier.append(b)
+                    nll.append(n)
+            m = metrics.classification(y_true, y_pred, len(task.goals))
+            rows.append(ResultRow(
+                task=task.id, recognizer=spec.name, scorer=scorer, config_hash=chash, seed=seed,
+                observability=level, sampling=sampling, n_observations=len(y_true), n_ties=ties,
+                fit_seconds_per_goal=fit_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
+                config=config_json, versions=versions,
+                brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None, **m,
+            ))
     return rows
+
+
+def _mean_or_none(values: list[float | None]) -> float | None:
+    present = [v for v in values if v is not None]
+    return float(np.mean(present)) if present else None
 
 
 def aggregate(rows: Iterable[ResultRow]) -> list[dict[str, Any]]:
@@ -118,6 +154,8 @@ def aggregate(rows: Iterable[ResultRow]) -> list[dict[str, Any]]:
             "fit_seconds_per_goal": float(np.mean([r.fit_seconds_per_goal for r in group])),
             "score_us_per_observation": float(np.mean([r.score_us_per_observation for r in group])),
             "tie_rate": sum(r.n_ties for r in group) / n_obs if n_obs else 0.0,
+            "brier_mean": _mean_or_none([r.brier for r in group]),
+            "nll_mean": _mean_or_none([r.nll for r in group]),
             "config_hash": chash,
         })
     return sorted(records, key=lambda r: (r["task"], r["recognizer"], r["scorer"], r["observability"]))
@@ -132,6 +170,7 @@ def evaluate(
     sampling: str = "prefix",
     store: ResultsStore | None = None,
     progress: bool = False,
+    task_params: Mapping[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Benchmark recognizers on one task.
 
@@ -140,17 +179,20 @@ def evaluate(
 
     Args:
         task_id: A ``GRAIL/`` ID.
-        recognizers: Names, ``(name, config)`` pairs or :class:`RecognizerSpec`.
+        recognizers: Names, ``(name, config)`` pairs or :class:`RecognizerSpec`
+            (which also selects scorers).
         seeds: ``n`` for seeds ``0..n-1``, or explicit seeds.
         observability: Fractions observed; defaults to the task's.
         sampling: ``"prefix"`` (the paper's) or ``"random"``.
         store: Where rows go; an in-memory store if ``None``.
         progress: Show a progress bar.
+        task_params: Task overrides, as ``gym.make`` accepts them (e.g.
+            ``{"turn_prob": 0.5}`` or ``{"n_demos": 20, "n_train": 14}``).
 
     Returns:
         One record per recognizer and observability level (keys: :data:`RECORD_KEYS`).
     """
-    task = make_task(task_id)
+    task = make_task(task_id, **dict(task_params or {}))
     levels = parse_observability(observability) if observability is not None else task.observability
     seed_values = seed_list(seeds)
     if sampling not in SAMPLINGS:
@@ -161,28 +203,33 @@ def evaluate(
     store = store if store is not None else ResultsStore(":memory:")
     versions = package_versions()
 
-    plan = []  # (spec, seed) still to run
-    identities = []  # (scorer, config hash) per spec; also fails fast on unknown names
+    plan: dict[int, list[RecognizerSpec]] = {}  # seed -> specs still to run on it
+    identities = []  # (scorers, config hash) per spec; also fails fast on bad names and scorers
     for spec in specs:
-        scorer, _, chash = _identity(task, spec, make_recognizer(spec.name, **spec.config))
-        identities.append((scorer, chash))
-        done = store.completed(task.id, spec.name, scorer, chash, sampling)
-        plan += [(spec, seed) for seed in seed_values if not all((seed, lv) in done for lv in levels)]
+        scorers, _, chash = _identity(task, spec, make_recognizer(spec.name, **spec.config))
+        identities.append((scorers, chash))
+        done = [store.completed(task.id, spec.name, scorer, chash, sampling) for scorer in scorers]
+        for seed in seed_values:
+            if not all((seed, lv) in d for lv in levels for d in done):
+                plan.setdefault(seed, []).append(spec)
 
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, disable=not progress, transient=False) as bar:
-        job = bar.add_task(f"{task.id}", total=len(plan))
-        for spec, seed in plan:
-            bar.update(job, description=f"{task.id}: fitting and scoring {spec.name} (seed {seed})")
-            store.add(run_seed(task, spec, seed, levels, sampling, versions))
-            bar.advance(job)
+        job = bar.add_task(f"{task.id}", total=sum(len(v) for v in plan.values()))
+        for seed, todo in plan.items():
+            bar.update(job, description=f"{task.id}: demonstrations (seed {seed})")
+            demos = task.generate_demos(seed)  # once per seed, shared by every recognizer
+            for spec in todo:
+                bar.update(job, description=f"{task.id}: fitting and scoring {spec.name} (seed {seed})")
+                store.add(run_seed(task, spec, seed, levels, sampling, versions, demos))
+                bar.advance(job)
         bar.update(job, description=f"{task.id}: done")
 
     rows = []
-    for spec, (scorer, chash) in zip(specs, identities):
-        rows += [r for r in store.rows(task=task.id, recognizer=spec.name, scorer=scorer, config_hash=chash,
+    for spec, (scorers, chash) in zip(specs, identities):
+        rows += [r for r in store.rows(task=task.id, recognizer=spec.name, scorer=scorers, config_hash=chash,
                                        sampling=sampling, seed=seed_values)
                  if r.observability in levels]
     return aggregate(rows)

@@ -30,3 +30,17 @@ def single_thread() -> Iterator[None]:
 def goal_seeds(seed: int, n: int) -> list[int]:
     """``n`` independent 31-bit seeds derived from ``seed``, one per goal."""
     return [int(s.generate_state(1)[0] >> 1) for s in np.random.SeedSequence(seed).spawn(n)]
+
+
+@contextlib.contextmanager
+def scratch_logger() -> Iterator[HierarchicalLogger]:
+    """A silent logger for imitation's adversarial trainers.
+
+    Their ``accumulate_means`` insists on a folder; it lives in a temporary
+    directory removed on exit, so nothing is left in the working directory
+    or ``$TMPDIR``.
+    """
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="grail-bench-") as folder:
+        yield HierarchicalLogger(Logger(folder=folder, output_formats=[]), format_strs=[])

@@ -22,6 +22,10 @@ class Recognizer(Protocol):
 
     Attributes:
         name: Short name, as registered (e.g. ``"bc"``).
+
+    A recognizer that reloads cached models may also set ``fit_seconds`` in
+    ``fit``: the training time its models cost, which the harness then reports
+    instead of the (much shorter) loading time.
     """
 
     name: str
@@ -32,7 +36,9 @@ class Recognizer(Protocol):
         Args:
             demos: The training demonstrations of every candidate goal.
             env_factory: ``env_factory(goal)`` builds the domain env pursuing
-                ``goal`` (for methods that learn from interaction).
+                ``goal`` (for methods that learn from interaction). The
+                harness's factory also has a ``cache_key`` string naming the
+                domain env, for reusing models across regimes.
             seed: Seed for everything random in fitting.
         """
         ...

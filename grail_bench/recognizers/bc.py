@@ -31,15 +31,16 @@ class BCRecognizer(PolicyRecognizer):
         batch_size: Paper: 8.
         learning_rate: Paper: 1e-3 (Adam).
         ent_weight: imitation's entropy regulariser weight (its default).
+        scorer: Default ``"mse"`` (the paper's); any scorer the policies can serve.
     """
 
     name = "bc"
 
     def __init__(self, *, n_epochs: int = 25, batch_size: int = 8, learning_rate: float = 1e-3,
-                 ent_weight: float = 1e-3) -> None:
+                 ent_weight: float = 1e-3, scorer: str | None = None) -> None:
         if n_epochs < 1 or batch_size < 1 or learning_rate <= 0:
             raise ValueError("bc: n_epochs and batch_size must be positive, learning_rate > 0")
-        super().__init__(n_epochs=n_epochs, batch_size=batch_size, learning_rate=learning_rate,
+        super().__init__(scorer, n_epochs=n_epochs, batch_size=batch_size, learning_rate=learning_rate,
                          ent_weight=ent_weight)
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,

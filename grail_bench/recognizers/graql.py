@@ -8,9 +8,10 @@ import numpy as np
 from gymnasium import spaces
 from imitation.data.types import Trajectory
 
-from grail_bench import scoring
 from grail_bench.recognizers._torch import goal_seeds
 from grail_bench.recognizers.base import EnvFactory, Goal, observed_arrays
+from grail_bench.recognizers.scored import ScoredRecognizer
+from grail_bench.scoring import PolicyOutput
 
 
 def state_index(obs: np.ndarray, space: spaces.Space) -> np.ndarray:
@@ -24,7 +25,7 @@ def n_states(space: spaces.Space) -> int:
     return int(np.prod(space.nvec)) if isinstance(space, spaces.MultiDiscrete) else int(space.n)
 
 
-class GRAQLRecognizer:
+class GRAQLRecognizer(ScoredRecognizer):
     """GRAQL: Q-learning on the environment's own reward, then KL scoring.
 
     It learns from interaction only (the demonstrations are ignored), so the
@@ -43,22 +44,22 @@ class GRAQLRecognizer:
         epsilon_start: Initial exploration rate of the epsilon-greedy policy.
         epsilon_end: Final exploration rate, reached after 80 % of the episodes.
         temperature: Of the softmax turning Q-values into a policy.
-        pseudo_eps: Mass the observed pseudo-policy leaves to unobserved actions.
+        scorer: Default ``"kl"`` (GRAQL's); it exposes softmax(Q) probabilities and Q-values.
     """
 
     name = "graql"
-    scorer = "kl"
+    default_scorer = "kl"
 
     def __init__(self, *, episodes: int = 5000, alpha: float = 0.5, gamma: float = 0.9,
                  epsilon_start: float = 1.0, epsilon_end: float = 0.05, temperature: float = 1.0,
-                 pseudo_eps: float = 0.01) -> None:
+                 scorer: str | None = None) -> None:
+        super().__init__(scorer)
         if episodes < 1 or not 0 < alpha <= 1 or not 0 < gamma <= 1 or temperature <= 0:
             raise ValueError("graql: need episodes >= 1, alpha and gamma in (0, 1], temperature > 0")
         self.config: dict[str, Any] = dict(
             episodes=episodes, alpha=alpha, gamma=gamma, epsilon_start=epsilon_start,
-            epsilon_end=epsilon_end, temperature=temperature, pseudo_eps=pseudo_eps,
+            epsilon_end=epsilon_end, temperature=temperature,
         )
-        self.goals: list[Goal] = []
         self.q: np.ndarray | None = None  # (K, S, A)
         self.visited: np.ndarray | None = None  # (K, S)
         self.observation_space: spaces.Space | None = None
@@ -123,11 +124,12 @@ class GRAQLRecognizer:
         probs[unvisited] = 1.0 / probs.shape[-1]
         return probs
 
-    def score(self, observed: Trajectory) -> dict[Goal, float]:
-        """Minus the mean KL between the observed pseudo-policy and each goal's softmax policy."""
+    def exposes(self, action_space: Any) -> frozenset[str]:
+        return frozenset({"probs", "q"})
+
+    def policy_output(self, observed: Trajectory) -> tuple[PolicyOutput, np.ndarray]:
         if self.q is None:
             raise RuntimeError("graql: call fit() before score()")
         obs, acts = observed_arrays(observed, self.observation_space, self.action_space)
-        probs = self.policy_probs(obs)
-        scores = scoring.neg_kl(probs, acts.astype(np.int64), eps=self.config["pseudo_eps"])
-        return dict(zip(self.goals, scores.tolist()))
+        idx = state_index(obs, self.observation_space)
+        return PolicyOutput(probs=self.policy_probs(obs), q=self.q[:, idx, :]), acts

@@ -9,12 +9,13 @@ import numpy as np
 import torch
 from gymnasium import spaces
 from imitation.data.types import Trajectory
-from stable_baselines3.common.policies import ActorCriticPolicy
+from stable_baselines3.common.policies import BasePolicy
 
-from grail_bench import scoring
 from grail_bench.recognizers._torch import goal_seeds, single_thread
 from grail_bench.recognizers.base import EnvFactory, Goal, observed_arrays
 from grail_bench.recognizers.policy_bank import PolicyBank
+from grail_bench.recognizers.scored import ScoredRecognizer
+from grail_bench.scoring import PolicyOutput
 
 
 def until_success(traj: Trajectory) -> Trajectory:
@@ -31,26 +32,25 @@ def until_success(traj: Trajectory) -> Trajectory:
     return traj
 
 
-class PolicyRecognizer(abc.ABC):
+class PolicyRecognizer(ScoredRecognizer):
     """Base of recognizers that learn one SB3 policy per goal.
 
-    Subclasses implement :meth:`train_policy`; scoring is shared: the
-    negative MSE between each policy's action (probability vector against the
-    one-hot observed action for discrete actions, mean action for continuous
-    ones) and the observed action, for all goals in one batched pass.
+    Subclasses implement :meth:`train_policy`. Scoring is shared and runs all
+    goals in one batched pass; the default scorer is the negative MSE between
+    each policy's action (probability vector against the one-hot observed
+    action for discrete actions, mean action for continuous ones) and the
+    observed action. Discrete policies expose action probabilities, continuous
+    ones their mean and std.
     """
 
-    name: str = ""
-    scorer: str = "mse"
-
-    def __init__(self, **config: Any) -> None:
+    def __init__(self, scorer: str | None = None, **config: Any) -> None:
+        super().__init__(scorer)
         self.config = dict(config)
-        self.goals: list[Goal] = []
         self.bank: PolicyBank | None = None
 
     @abc.abstractmethod
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
-                     seed: int) -> ActorCriticPolicy:
+                     seed: int) -> BasePolicy:
         """Train and return the policy of one goal."""
 
     def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int) -> None:
@@ -65,18 +65,17 @@ class PolicyRecognizer(abc.ABC):
         self.goals = list(demos)
         self.bank = PolicyBank(policies)
 
-    def score(self, observed: Trajectory) -> dict[Goal, float]:
-        """Negative MSE of every goal's policy on the observed steps."""
+    def exposes(self, action_space: Any) -> frozenset[str]:
+        return frozenset({"probs"}) if isinstance(action_space, spaces.Discrete) else frozenset({"mean", "std"})
+
+    def policy_output(self, observed: Trajectory) -> tuple[PolicyOutput, np.ndarray]:
         if self.bank is None:
             raise RuntimeError(f"{self.name}: call fit() before score()")
         obs, acts = observed_arrays(observed, self.bank.observation_space, self.bank.action_space)
         if self.bank.discrete:
-            predicted = self.bank.action_probs(obs)
-            target = scoring.one_hot(acts.astype(np.int64), predicted.shape[-1])
-        else:
-            predicted = self.bank.forward(obs)
-            target = acts.reshape(len(acts), -1).astype(np.float64)
-        return dict(zip(self.goals, scoring.neg_mse(predicted, target).tolist()))
+            return PolicyOutput(probs=self.bank.action_probs(obs)), acts
+        mean, std = self.bank.mean_std(obs)
+        return PolicyOutput(mean=mean, std=std), acts
 
 
 def spaces_of(env_factory: EnvFactory, goal: Goal) -> tuple[spaces.Space, spaces.Space]:

@@ -8,12 +8,13 @@ these small MLPs, so the actor weights of the K SB3 policies are stacked into
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from gymnasium import spaces
-from stable_baselines3.common.policies import ActorCriticPolicy
+from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
 from stable_baselines3.common.torch_layers import FlattenExtractor
+from stable_baselines3.sac.policies import SACPolicy
 from torch import nn
 
 _ACTIVATIONS = {nn.Tanh: np.tanh, nn.ReLU: lambda x: np.maximum(x, 0.0), nn.Identity: lambda x: x}
@@ -39,61 +40,77 @@ def preprocess(obs: np.ndarray, space: spaces.Space) -> np.ndarray:
     raise TypeError(f"unsupported observation space {space}")
 
 
+def _stack(modules_per_policy: list[list[nn.Module]]) -> list[tuple[np.ndarray, np.ndarray, Callable]]:
+    """Stack ``Linear`` (+ activation) sequences of K policies into ``(K, in, out)`` weights."""
+    layers = []
+    first = modules_per_policy[0]
+    i = 0
+    while i < len(first):
+        if not isinstance(first[i], nn.Linear):
+            raise TypeError(f"unsupported actor layer {first[i]!r}")
+        act = _ACTIVATIONS.get(type(first[i + 1])) if i + 1 < len(first) else None
+        weights = np.stack([m[i].weight.detach().numpy().T for m in modules_per_policy]).astype(np.float32)
+        biases = np.stack([m[i].bias.detach().numpy() for m in modules_per_policy])[:, None, :].astype(np.float32)
+        layers.append((weights, biases, act or _ACTIVATIONS[nn.Identity]))
+        i += 2 if act else 1
+    return layers
+
+
+def _apply(x: np.ndarray, layers: list[tuple[np.ndarray, np.ndarray, Callable]]) -> np.ndarray:
+    for weights, biases, activation in layers:
+        x = activation(np.matmul(x, weights) + biases)
+    return x
+
+
 class PolicyBank:
-    """The actors of K same-architecture SB3 ``ActorCriticPolicy`` objects, stacked.
+    """The actors of K same-architecture SB3 policies, stacked.
+
+    Supports ``ActorCriticPolicy`` (PPO, BC, GAIL, AIRL generators: a trunk, an
+    action head, a state-independent log-std for continuous actions) and SAC
+    policies (a trunk, a mean head, a state-dependent log-std head, tanh
+    squashing).
 
     Args:
         policies: One trained policy per goal, all with the same architecture.
     """
 
-    def __init__(self, policies: Sequence[ActorCriticPolicy]) -> None:
+    def __init__(self, policies: Sequence[BasePolicy]) -> None:
         if not policies:
             raise ValueError("a policy bank needs at least one policy")
         first = policies[0]
-        if not isinstance(first.features_extractor, FlattenExtractor):
-            raise TypeError("PolicyBank supports flat (FlattenExtractor) policies only")
         self.observation_space = first.observation_space
         self.action_space = first.action_space
         self.discrete = isinstance(self.action_space, spaces.Discrete)
-        self.layers: list[tuple[np.ndarray, np.ndarray]] = []
-        self.activations = []
-        per_policy = [self._actor_layers(p) for p in policies]
-        for depth, (linear, act) in enumerate(per_policy[0]):
-            weights = np.stack([pl[depth][0].weight.detach().numpy().T for pl in per_policy]).astype(np.float32)
-            biases = np.stack([pl[depth][0].bias.detach().numpy() for pl in per_policy])[:, None, :].astype(np.float32)
-            self.layers.append((weights, biases))
-            self.activations.append(act)
-        self.log_std = (
-            np.stack([p.log_std.detach().numpy() for p in policies]).astype(np.float32)
-            if hasattr(first, "log_std") and not self.discrete else None
-        )
-
-    @staticmethod
-    def _actor_layers(policy: ActorCriticPolicy) -> list[tuple[nn.Linear, object]]:
-        modules = list(policy.mlp_extractor.policy_net) + [policy.action_net, nn.Identity()]
-        layers, i = [], 0
-        while i < len(modules) - 1:
-            linear = modules[i]
-            if not isinstance(linear, nn.Linear):
-                raise TypeError(f"unsupported actor layer {linear!r}")
-            nxt = modules[i + 1]
-            if type(nxt) in _ACTIVATIONS and i + 1 < len(modules) - 1:
-                layers.append((linear, _ACTIVATIONS[type(nxt)]))
-                i += 2
-            else:
-                layers.append((linear, _ACTIVATIONS[nn.Identity]))
-                i += 1
-        return layers
+        self.squash = isinstance(first, SACPolicy)
+        if self.squash:
+            actors = [p.actor for p in policies]
+            extractor = first.actor.features_extractor
+            self.trunk = _stack([list(a.latent_pi) for a in actors])
+            self.head = _stack([[a.mu] for a in actors])
+            self.log_std_head = _stack([[a.log_std] for a in actors])
+            self.log_std = None
+        elif isinstance(first, ActorCriticPolicy):
+            extractor = first.features_extractor
+            self.trunk = _stack([list(p.mlp_extractor.policy_net) for p in policies])
+            self.head = _stack([[p.action_net] for p in policies])
+            self.log_std_head = None
+            self.log_std = (np.stack([p.log_std.detach().numpy() for p in policies]).astype(np.float32)
+                            if not self.discrete else None)
+        else:
+            raise TypeError(f"unsupported policy type {type(first).__name__}")
+        if not isinstance(extractor, FlattenExtractor):
+            raise TypeError("PolicyBank supports flat (FlattenExtractor) policies only")
 
     def __len__(self) -> int:
-        return self.layers[0][0].shape[0]
+        return self.head[0][0].shape[0]
+
+    def _latent(self, obs: np.ndarray) -> np.ndarray:
+        return _apply(preprocess(obs, self.observation_space)[None], self.trunk)
 
     def forward(self, obs: np.ndarray) -> np.ndarray:
-        """Action logits (discrete) or mean actions (continuous), ``(K, T, A)``."""
-        x = preprocess(obs, self.observation_space)[None]
-        for (weights, biases), activation in zip(self.layers, self.activations):
-            x = activation(np.matmul(x, weights) + biases)
-        return x
+        """Action logits (discrete) or deterministic actions (continuous), ``(K, T, A)``."""
+        out = _apply(self._latent(obs), self.head)
+        return np.tanh(out) if self.squash else out
 
     def action_probs(self, obs: np.ndarray) -> np.ndarray:
         """Softmax action probabilities, ``(K, T, A)``; discrete actions only."""
@@ -101,3 +118,20 @@ class PolicyBank:
         logits -= logits.max(axis=-1, keepdims=True)
         e = np.exp(logits)
         return e / e.sum(axis=-1, keepdims=True)
+
+    def mean_std(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean action and its standard deviation per dimension, ``(K, T, D)`` each.
+
+        For squashed (SAC) policies the mean is ``tanh(mu)`` and the std is
+        carried through the tanh to first order: ``(1 - tanh(mu)^2) * std``.
+        """
+        latent = self._latent(obs)
+        mu = _apply(latent, self.head)
+        if self.log_std_head is not None:
+            std = np.exp(np.clip(_apply(latent, self.log_std_head), -20.0, 2.0))  # SB3's clamp
+        else:
+            std = np.broadcast_to(np.exp(self.log_std)[:, None, :], mu.shape)
+        if self.squash:
+            mean = np.tanh(mu)
+            return mean, (1.0 - mean * mean) * std
+        return mu, std

@@ -77,3 +77,84 @@ def test_minigrid_env_step(benchmark):
             env.reset()
 
     benchmark(step)
+
+
+# --- scorers side by side (same policies, same observation) ---------------------------------
+
+
+@pytest.mark.parametrize("scorer", ["mse", "wasserstein", "kl", "loglik"])
+def test_bc_score_by_scorer(benchmark, bc, scorer):
+    benchmark.group = "scorer (BC policies, 30 steps, 6 goals)"
+    scores = benchmark(bc.score_with, thirty_steps(), scorer)
+    assert len(scores) == 6
+
+
+@pytest.mark.parametrize("scorer", ["mse", "wasserstein"])
+def test_scorer_function_only(benchmark, bc, scorer):
+    """The scoring arithmetic alone, on precomputed policy outputs."""
+    from grail_bench.scoring import get_scorer
+
+    benchmark.group = "scorer arithmetic only"
+    output, actions = bc.policy_output(thirty_steps())
+    fn = get_scorer(scorer).fn
+    assert benchmark(fn, output, actions).shape == (6,)
+
+
+# --- PandaReach ----------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def panda():
+    task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", expert="scripted", n_demos=24, n_train=16)
+    train, test = task.split(task.generate_demos(seed=0))
+    return task, train, test
+
+
+def test_panda_env_step(benchmark):
+    from grail_bench.domains.panda_reach import GRPandaReachEnv
+
+    env = GRPandaReachEnv()
+    env.reset(seed=0)
+    actions = np.random.default_rng(0).uniform(-1, 1, size=(4096, 3)).astype(np.float32)
+    state = {"i": 0}
+
+    def step():
+        i = state["i"] = (state["i"] + 1) % len(actions)
+        if env.step(actions[i])[3]:
+            env.reset()
+
+    benchmark(step)
+
+
+@pytest.mark.parametrize("name, config", [("bc", {"n_epochs": 5}), ("draco", {"sac_steps": 300})])
+def test_panda_score_2_percent_4_goals(benchmark, panda, name, config):
+    from grail_bench.evaluation.protocol import observe
+
+    task, train, test = panda
+    rec = make_recognizer(name, **config)
+    rec.fit(train, task.make_env, seed=0)
+    observed = observe(test[task.goals[0]][0], 0.02)
+    benchmark.group = "PandaReach scoring (2 %, 4 goals)"
+    assert len(benchmark(rec.score, observed)) == 4
+
+
+def test_panda_sac_expert_training_one_goal(benchmark):
+    from grail_bench.demos.panda_reach import SAC_NET
+    from grail_bench.domains.panda_reach import GRPandaReachEnv
+    from grail_bench.rl import learn, make_sac
+
+    env = GRPandaReachEnv()
+    benchmark.pedantic(lambda: learn(make_sac(env, SAC_NET, seed=0), 15_000), rounds=1, iterations=1)
+
+
+@pytest.mark.parametrize("name", ["gail", "airl"])
+def test_adversarial_fit_one_goal_minigrid(benchmark, name):
+    """Default budget (40 000 generator steps); targets: GAIL <= 30 s, AIRL <= 60 s per goal."""
+    rec = make_recognizer(name)
+    goal = TASK.goals[0]
+
+    def fit():
+        with single_thread():  # as PolicyRecognizer.fit trains
+            rec.train_policy(goal, TRAIN[goal], TASK.make_env, 0)
+
+    benchmark.pedantic(fit, rounds=1, iterations=1)

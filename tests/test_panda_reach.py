@@ -1,0 +1,166 @@
+"""PandaReach: the goal pin, experts, noise regimes and an end-to-end run."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+import grail_bench
+from grail_bench.demos.panda_reach import scripted_expert
+from grail_bench.domains.panda_reach import GOALS, GRPandaReachEnv
+from grail_bench.evaluation import evaluate
+
+PANDA_IDS = [t for t in grail_bench.task_ids() if t.startswith("GRAIL/PandaReach")]
+
+
+def test_ids_and_goals():
+    assert set(PANDA_IDS) == {f"GRAIL/PandaReach-{r}-v0" for r in
+                              ("Optimal", "Gaussian-0.1", "Gaussian-0.3", "Uniform-0.1", "Uniform-0.3")}
+    task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0")
+    assert task.goals == GOALS and (task.n_demos, task.n_train, task.observability) == (200, 150, (0.02,))
+    dists = [np.linalg.norm(np.subtract(a, b)) for i, a in enumerate(GOALS) for b in GOALS[i + 1:]]
+    assert min(dists) >= 4 * 0.05  # well separated against the success radius
+
+
+def drive(env, target, steps=30):
+    policy = scripted_expert(target)
+    obs, _ = env.reset(seed=0)
+    info = {}
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+    return obs, reward, terminated, truncated, info
+
+
+@pytest.mark.parametrize("goal", [GOALS[0], GOALS[3]])
+def test_goal_pin_drives_reward_termination_and_target(goal):
+    env = GRPandaReachEnv(goal)
+    for seed in (0, 1, 2):  # every reset keeps the pin (re-sampling would break it)
+        obs, _ = env.reset(seed=seed)
+        assert np.allclose(env._env.task.get_goal(), goal)
+        assert np.allclose(env._env.sim.get_base_position("target"), goal, atol=1e-6)
+    _, reward, terminated, truncated, info = env.step(np.zeros(3))
+    assert reward == pytest.approx(-np.linalg.norm(env.ee_position - goal), abs=1e-5)
+    obs, reward, terminated, truncated, info = drive(env, goal)
+    assert info["is_success"] and not terminated  # fixed horizon: success does not end the episode
+    other = GOALS[1] if goal != GOALS[1] else GOALS[0]
+    _, reward, _, _, info = drive(env, other)
+    assert not info["is_success"], "success must be judged against the pinned goal"
+    assert reward == pytest.approx(-np.linalg.norm(env.ee_position - goal), abs=1e-5)
+
+
+def test_observation_hides_the_goal_and_horizon_is_fixed():
+    env = GRPandaReachEnv(GOALS[2], max_steps=7)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (6,) and env.action_space.shape == (3,)
+    for t in range(1, 8):
+        obs, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        assert not terminated and truncated == (t == 7)
+    assert not np.any([np.allclose(obs[:3], g) for g in GOALS[:2]])
+
+
+def test_bad_goal_and_action():
+    with pytest.raises(ValueError, match="outside"):
+        GRPandaReachEnv((1.0, 0.0, 0.1))
+    env = GRPandaReachEnv()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="invalid action"):
+        env.step([0.1, np.nan, 0.0])
+
+
+def test_scripted_demos_reach_every_goal():
+    task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0", expert="scripted")
+    for goal, trajs in task.generate_demos(seed=0, n_demos=2).items():
+        for traj in trajs:
+            assert traj.obs.shape == (51, 6) and traj.acts.shape == (50, 3)
+            assert traj.infos[-1]["is_success"]
+            assert np.linalg.norm(traj.obs[-1][:3] - goal) < 0.05
+
+
+@pytest.mark.parametrize("regime, dist", [("Gaussian-0.1", stats.norm(0, 0.1)), ("Uniform-0.1", stats.uniform(-0.1, 0.2)),
+                                          ("Gaussian-0.3", stats.norm(0, 0.3)), ("Uniform-0.3", stats.uniform(-0.3, 0.6))])
+def test_noise_has_the_configured_distribution(regime, dist):
+    task = grail_bench.make_task(f"GRAIL/PandaReach-{regime}-v0", expert="scripted")
+    noise = []
+    for goal, trajs in task.generate_demos(seed=3, n_demos=4).items():
+        expert = scripted_expert(goal)
+        for traj in trajs:
+            for obs, act in zip(traj.obs[:-1], traj.acts):
+                clean = expert(obs)
+                unclipped = np.abs(act) < 1.0  # clipping at the box edge alters the noise
+                noise += list((act - clean)[unclipped & (np.abs(clean) < 0.1)])
+    assert len(noise) > 300
+    assert stats.kstest(noise, dist.cdf).pvalue > 0.01
+    other = stats.uniform(-0.3, 0.6) if "Gaussian" in regime else stats.norm(0, 0.3)
+    assert stats.kstest(noise, other.cdf).pvalue < 0.01 or "0.1" in regime
+
+
+def test_optimal_regime_adds_no_noise():
+    task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0", expert="scripted")
+    goal = task.goals[0]
+    traj = task.generate_demos(seed=0, n_demos=1)[goal][0]
+    expert = scripted_expert(goal)
+    assert np.allclose([expert(o) for o in traj.obs[:-1]], traj.acts)
+
+
+def test_noisy_demos_are_seeded():
+    task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.3-v0", expert="scripted")
+    a, b, c = (task.generate_demos(seed=s, n_demos=1) for s in (5, 5, 6))
+    g = task.goals[1]
+    assert np.array_equal(a[g][0].acts, b[g][0].acts) and not np.array_equal(a[g][0].acts, c[g][0].acts)
+
+
+@pytest.mark.slow
+def test_sac_expert_reaches_its_goal():
+    from grail_bench.demos.panda_reach import generate_demos
+
+    task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0")
+    goal = task.goals[2]
+    (traj,) = generate_demos(task, goal, 1, np.random.default_rng(0))  # trains and caches one SAC expert
+    reached = [t for t, info in enumerate(traj.infos) if info["is_success"]]
+    assert reached and reached[0] < 10, "the SAC expert must reach its goal within 10 steps"
+    assert np.linalg.norm(traj.obs[-1][:3] - goal) < 0.1, "and stay near it"
+
+
+@pytest.mark.slow
+def test_end_to_end_bc_beats_chance_with_scripted_expert():
+    records = evaluate("GRAIL/PandaReach-Gaussian-0.1-v0", [("bc", {"n_epochs": 5}), ("draco", {"sac_steps": 300})],
+                       seeds=1, task_params={"expert": "scripted", "n_demos": 12, "n_train": 8})
+    bc = next(r for r in records if r["recognizer"] == "bc")
+    assert bc["f1_mean"] > 0.5  # chance is 0.25
+    draco = next(r for r in records if r["recognizer"] == "draco")
+    assert draco["scorer"] == "wasserstein" and 0 <= draco["f1_mean"] <= 1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["gail", "airl"])
+def test_adversarial_grail_runs_on_continuous_actions(name):
+    from grail_bench.recognizers import make_recognizer
+    from grail_bench.evaluation.protocol import observe
+
+    task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", expert="scripted", n_demos=6, n_train=4)
+    train, test = task.split(task.generate_demos(seed=0))
+    rec = make_recognizer(name, total_timesteps=512, n_envs=4, n_steps=64, n_epochs=2)
+    rec.fit(train, task.env_factory(), seed=0)
+    assert rec.exposes(task.make_env().action_space) == {"mean", "std"}
+    for scorer in ("mse", "wasserstein", "loglik"):
+        scores = rec.score_with(observe(test[task.goals[0]][0], 0.02), scorer)
+        assert set(scores) == set(task.goals) and all(np.isfinite(list(scores.values())))
+
+
+def test_corrupt_cache_is_one_line_in_the_cli(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from grail_bench.cache import cached_state_dict
+
+    code = ("import warnings, torch\nfrom grail_bench.cli import _one_line_warnings\n_one_line_warnings()\n"
+            "from grail_bench.cache import cached_state_dict\n"
+            f"cached_state_dict('m', {{'k': 1}}, lambda: {{'w': torch.ones(1)}}, root=__import__('pathlib').Path({str(tmp_path)!r}))\n")
+    cached_state_dict("m", {"k": 1}, lambda: {"w": __import__("torch").ones(1)}, root=tmp_path)
+    for f in (tmp_path / "m").glob("*.pt"):
+        f.write_bytes(b"junk")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**os.environ, "COLUMNS": "300"})
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.count("\n") == 1 and out.stderr.startswith("warning: cached model") and "retraining" in out.stderr
