@@ -28,9 +28,9 @@ class Board:
 
     title: str
     columns: list[str]
-    rows: list[tuple[int, float]] = field(default_factory=list)
-    cells: dict[tuple[int, float, str], dict[str, Any]] = field(default_factory=dict)
-    reported: dict[tuple[int, float, str], str] = field(default_factory=dict)
+    rows: list[tuple[int, str, float]] = field(default_factory=list)  # (goals, task, observability)
+    cells: dict[tuple[int, str, float, str], dict[str, Any]] = field(default_factory=dict)
+    reported: dict[tuple[int, str, float, str], str] = field(default_factory=dict)
 
 
 def _task_facts(task_id: str) -> tuple[str, int]:
@@ -81,7 +81,7 @@ def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, s
         label = column_label(r, multi_config)
         if label not in board.columns:
             board.columns.append(label)
-        row = (n_goals, r["observability"])
+        row = (n_goals, r["task"], r["observability"])
         if row not in board.rows:
             board.rows.append(row)
         board.cells[(*row, label)] = r
@@ -96,15 +96,21 @@ def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, s
 
 
 def _has_reported(board: Board, column: str) -> bool:
-    return any(key[2] == column for key in board.reported)
+    return any(key[-1] == column for key in board.reported)
 
 
-def _best(board: Board, row: tuple[int, float]) -> float | None:
+def short_name(task_id: str) -> str:
+    """``GRAIL/MiniGrid-Optimal-4Goals-v0`` -> ``MiniGrid-Optimal-4Goals``."""
+    name = task_id.removeprefix("GRAIL/")
+    return name.rsplit("-v", 1)[0] if "-v" in name else name
+
+
+def _best(board: Board, row: tuple[int, str, float]) -> float | None:
     means = [board.cells[(*row, c)]["f1_mean"] for c in board.columns if (*row, c) in board.cells]
     return max(means) if means else None
 
 
-def _cell(board: Board, row: tuple[int, float], column: str) -> tuple[str, bool]:
+def _cell(board: Board, row: tuple[int, str, float], column: str) -> tuple[str, bool]:
     record = board.cells.get((*row, column))
     if record is None:
         return "–", False
@@ -117,6 +123,7 @@ def rich_tables(boards: list[Board]) -> list[Table]:
     tables = []
     for board in boards:
         table = Table(title=f"F1 (mean ± std over seeds): {board.title}")
+        table.add_column("task")
         table.add_column("goals", justify="right")
         table.add_column("obs", justify="right")
         for c in board.columns:
@@ -130,7 +137,7 @@ def rich_tables(boards: list[Board]) -> list[Table]:
                 cells.append(f"[bold]{text}[/]" if best else text)
                 if _has_reported(board, c):
                     cells.append(board.reported.get((*row, c), "–"))
-            table.add_row(str(row[0]), f"{row[1]:.0%}", *cells)
+            table.add_row(short_name(row[1]), str(row[0]), f"{row[2]:.0%}", *cells)
         tables.append(table)
     return tables
 
@@ -142,7 +149,7 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
              "Columns marked *(paper)* are the values the GRAIL paper (AAMAS 2026) reports, transcribed",
              "from its tables and text; they were not produced by grail-bench.", ""]
     for board in boards:
-        header = ["goals", "obs"]
+        header = ["task", "goals", "obs"]
         for c in board.columns:
             header.append(c)
             if _has_reported(board, c):
@@ -150,7 +157,7 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
         lines += [f"## {board.title}", "", "| " + " | ".join(header) + " |",
                   "|" + "---|" * len(header)]
         for row in board.rows:
-            cells = [str(row[0]), f"{row[1]:.0%}"]
+            cells = [short_name(row[1]), str(row[0]), f"{row[2]:.0%}"]
             for c in board.columns:
                 text, best = _cell(board, row, c)
                 cells.append(f"**{text}**" if best else text)
@@ -247,6 +254,7 @@ def ablation_plot(rows: list[dict[str, Any]], path: str | Path) -> None:
     import numpy as np
 
     tasks = sorted({r["task"] for r in rows})
+    colours = {name: f"C{i}" for i, name in enumerate(sorted({r["scorer"] for r in rows}))}  # one per scorer
     fig, axes = plt.subplots(len(tasks), 2, figsize=(11, 3.2 * len(tasks)), squeeze=False)
     for ax_f1, ax_time, task in zip(axes[:, 0], axes[:, 1], tasks):
         mine = [r for r in rows if r["task"] == task]
@@ -261,8 +269,8 @@ def ablation_plot(rows: list[dict[str, Any]], path: str | Path) -> None:
                     xs.append(j + i * width)
                     f1s.append(hit[0]["f1_overall"])
                     times.append(hit[0]["score_us"])
-            ax_f1.bar(xs, f1s, width, label=scorer)
-            ax_time.bar(xs, times, width, label=scorer)
+            ax_f1.bar(xs, f1s, width, label=scorer, color=colours[scorer])
+            ax_time.bar(xs, times, width, label=scorer, color=colours[scorer])
         for ax, ylabel in ((ax_f1, "F1 (mean over observability)"), (ax_time, "scoring µs / observation")):
             ax.set_xticks(np.arange(len(recs)) + 0.4 - width / 2, recs)
             ax.set_ylabel(ylabel)

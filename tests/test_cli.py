@@ -57,7 +57,7 @@ def test_plugin_runs_end_to_end_and_reaches_the_leaderboard(tmp_path):
     out = cli(["leaderboard", "--markdown", str(md)], tmp_path, **env)
     assert out.returncode == 0, out.stderr
     text = md.read_text()
-    assert "| 2 | 20% | **1.00 ± 0.00** |" in text and "toy" in text
+    assert "| MiniGrid-Biased | 2 | 20% | **1.00 ± 0.00** |" in text and "toy" in text
 
 
 def test_rerun_reuses_stored_seeds(tmp_path):
