@@ -170,3 +170,26 @@ def test_policy_bank_matches_sac_actor():
             _, log_std, _ = model.policy.actor.get_action_dist_params(torch.as_tensor(obs))
         np.testing.assert_allclose(mean[k], expected, rtol=1e-5, atol=1e-6)
         np.testing.assert_allclose(std[k], (1 - expected ** 2) * np.exp(log_std.numpy()), rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["bc", "gail", "draco"])
+def test_trained_policies_are_cached_and_reloaded(name, monkeypatch):
+    factory = TASK.env_factory()
+    first = make_recognizer(name, **FAST[name])
+    first.fit(TRAIN, factory, seed=4)
+    observed = observe(TEST[(7, 1)][0], 0.3)
+    expected = first.score(observed)
+
+    calls = []
+    second = make_recognizer(name, **FAST[name])
+    original = second.train_policy
+    monkeypatch.setattr(second, "train_policy", lambda *a, **k: calls.append(1) or original(*a, **k))
+    second.fit(TRAIN, factory, seed=4)
+    assert calls == [] and second.score(observed) == expected
+    assert second.fit_seconds == pytest.approx(first.fit_seconds)  # what training cost, not loading
+
+    other_task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0")
+    other_train, _ = other_task.split(other_task.generate_demos(seed=0))
+    second.fit(other_train, other_task.env_factory(), seed=4)
+    # Imitation learners retrain on other demonstrations; DRACO ignores them and reuses its policies.
+    assert calls == ([] if name == "draco" else [1, 1])

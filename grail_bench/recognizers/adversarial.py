@@ -62,14 +62,24 @@ class AdversarialRecognizer(PolicyRecognizer):
                          n_disc_updates_per_round=n_disc_updates_per_round,
                          gen_replay_buffer_capacity=gen_replay_buffer_capacity, demo_batch_size=demo_batch_size)
 
+    def _generator(self, goal: Goal, env_factory: EnvFactory, n_envs: int, seed: int = 0) -> PPO:
+        cfg = self.config
+        venv = DummyVecEnv([lambda: env_factory(goal) for _ in range(n_envs)])
+        venv.seed(seed)
+        return PPO("MlpPolicy", venv, batch_size=cfg["batch_size"], gamma=cfg["gamma"],
+                   learning_rate=cfg["learning_rate"], n_steps=cfg["n_steps"], n_epochs=cfg["n_epochs"],
+                   seed=seed, verbose=0, device="cpu")
+
+    def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
+        generator = self._generator(goal, env_factory, n_envs=1)
+        generator.get_env().close()
+        return generator.policy
+
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> ActorCriticPolicy:
         cfg = self.config
-        venv = DummyVecEnv([lambda: env_factory(goal) for _ in range(cfg["n_envs"])])
-        venv.seed(seed)
-        generator = PPO("MlpPolicy", venv, batch_size=cfg["batch_size"], gamma=cfg["gamma"],
-                        learning_rate=cfg["learning_rate"], n_steps=cfg["n_steps"], n_epochs=cfg["n_epochs"],
-                        seed=seed, verbose=0, device="cpu")
+        generator = self._generator(goal, env_factory, cfg["n_envs"], seed)
+        venv = generator.get_env()
         reward_net = self.reward_net_cls(venv.observation_space, venv.action_space,
                                          normalize_input_layer=RunningNorm)
         demo_batch = min(cfg["demo_batch_size"], sum(len(t.acts) for t in demos))

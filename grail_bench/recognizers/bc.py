@@ -43,13 +43,17 @@ class BCRecognizer(PolicyRecognizer):
         super().__init__(scorer, n_epochs=n_epochs, batch_size=batch_size, learning_rate=learning_rate,
                          ent_weight=ent_weight)
 
+    def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
+        observation_space, action_space = spaces_of(env_factory, goal)
+        return FeedForward32Policy(observation_space=observation_space, action_space=action_space,
+                                   lr_schedule=lambda _: self.config["learning_rate"])
+
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> ActorCriticPolicy:
-        observation_space, action_space = spaces_of(env_factory, goal)
         transitions = rollout.flatten_trajectories([until_success(t) for t in demos])
         batch_size = min(self.config["batch_size"], len(transitions))
-        policy = FeedForward32Policy(observation_space=observation_space, action_space=action_space,
-                                     lr_schedule=lambda _: self.config["learning_rate"])
+        policy = self.new_policy(goal, env_factory)
+        observation_space, action_space = policy.observation_space, policy.action_space
         trainer = bc.BC(
             observation_space=observation_space, action_space=action_space, demonstrations=transitions,
             rng=np.random.default_rng(seed), policy=policy, batch_size=batch_size,

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-import time
-from importlib.metadata import version
 from typing import Sequence
 
 from gymnasium import spaces
 from imitation.data.types import Trajectory
+from stable_baselines3 import SAC
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 
-from grail_bench.cache import cached_state_dict
 from grail_bench.recognizers.base import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer
 from grail_bench.rl import learn, make_ppo, make_sac
@@ -19,9 +18,8 @@ from grail_bench.rl import learn, make_ppo, make_sac
 class DRACORecognizer(PolicyRecognizer):
     """DRACO: SAC (continuous actions) or PPO (discrete) per goal, on the env's own reward.
 
-    It learns from interaction only (the demonstrations are ignored). When the
-    env factory has a ``cache_key`` (the harness's does), trained policies are
-    cached on disk and reused by every regime of the domain.
+    It learns from interaction only (the demonstrations are ignored), so its
+    cached policies are reused by every regime of the domain.
 
     Args:
         sac_steps: SAC steps per goal (continuous actions).
@@ -32,6 +30,7 @@ class DRACORecognizer(PolicyRecognizer):
 
     name = "draco"
     default_scorer = "wasserstein"
+    uses_demos = False
 
     def __init__(self, *, sac_steps: int = 15_000, ppo_steps: int = 100_000, net_arch: Sequence[int] = (64, 64),
                  scorer: str | None = None) -> None:
@@ -39,31 +38,22 @@ class DRACORecognizer(PolicyRecognizer):
             raise ValueError("draco: step budgets must be positive")
         super().__init__(scorer, sac_steps=sac_steps, ppo_steps=ppo_steps, net_arch=list(net_arch))
 
-    def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
-                     seed: int) -> BasePolicy:
-        cfg = self.config
+    def _model(self, goal: Goal, env_factory: EnvFactory, seed: int = 0) -> BaseAlgorithm:
         env = env_factory(goal)
-        continuous = isinstance(env.action_space, spaces.Box)
-        if continuous:
-            model, steps = make_sac(env, cfg["net_arch"], seed), cfg["sac_steps"]
-        else:
-            model, steps = make_ppo(lambda: env_factory(goal), cfg["net_arch"], seed), cfg["ppo_steps"]
-        cache_key = getattr(env_factory, "cache_key", None)
-        if cache_key is None:
-            start = time.perf_counter()
-            learn(model, steps)
-            seconds = time.perf_counter() - start
-        else:
-            key = {"env": cache_key, "goal": list(goal), "seed": seed, "config": cfg,
-                   "versions": [version("stable-baselines3"), version("torch")]}
-            state, seconds = cached_state_dict(f"draco-{'sac' if continuous else 'ppo'}", key,
-                                               lambda: learn(model, steps))
-            model.policy.load_state_dict(state)
-        self.fit_seconds += seconds
+        if isinstance(env.action_space, spaces.Box):
+            return make_sac(env, self.config["net_arch"], seed)
         env.close()
+        return make_ppo(lambda: env_factory(goal), self.config["net_arch"], seed)
+
+    def new_policy(self, goal: Goal, env_factory: EnvFactory) -> BasePolicy:
+        model = self._model(goal, env_factory)
+        model.get_env().close()
         return model.policy
 
-    def fit(self, demos, env_factory, *, seed: int) -> None:
-        """Train (or reload) one policy per goal; :attr:`fit_seconds` is what training cost."""
-        self.fit_seconds = 0.0
-        super().fit(demos, env_factory, seed=seed)
+    def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
+                     seed: int) -> BasePolicy:
+        model = self._model(goal, env_factory, seed)
+        steps = self.config["sac_steps"] if isinstance(model, SAC) else self.config["ppo_steps"]
+        learn(model, steps)
+        model.get_env().close()
+        return model.policy

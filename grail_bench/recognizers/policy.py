@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import abc
+import hashlib
+import time
+from importlib.metadata import version
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -11,6 +14,7 @@ from gymnasium import spaces
 from imitation.data.types import Trajectory
 from stable_baselines3.common.policies import BasePolicy
 
+from grail_bench.cache import cached_state_dict
 from grail_bench.recognizers._torch import goal_seeds, single_thread
 from grail_bench.recognizers.base import EnvFactory, Goal, observed_arrays
 from grail_bench.recognizers.policy_bank import PolicyBank
@@ -43,10 +47,18 @@ class PolicyRecognizer(ScoredRecognizer):
     ones their mean and std.
     """
 
+    #: Whether the policies are learned from the demonstrations (their digest then keys the cache).
+    uses_demos: bool = True
+
     def __init__(self, scorer: str | None = None, **config: Any) -> None:
         super().__init__(scorer)
         self.config = dict(config)
         self.bank: PolicyBank | None = None
+        self.fit_seconds = 0.0
+
+    @abc.abstractmethod
+    def new_policy(self, goal: Goal, env_factory: EnvFactory) -> BasePolicy:
+        """An untrained policy of the architecture :meth:`train_policy` returns."""
 
     @abc.abstractmethod
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
@@ -54,16 +66,47 @@ class PolicyRecognizer(ScoredRecognizer):
         """Train and return the policy of one goal."""
 
     def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int) -> None:
-        """Train one policy per goal (see :class:`grail_bench.Recognizer`)."""
+        """Train one policy per goal (see :class:`grail_bench.Recognizer`).
+
+        When ``env_factory`` has a ``cache_key`` (the harness's does), trained
+        policies are cached on disk and reloaded by later fits of the same
+        configuration; :attr:`fit_seconds` is then what training cost.
+        """
         if len(demos) < 2:
             raise ValueError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
+        self.fit_seconds = 0.0
         policies = []
         with single_thread():
             for goal, goal_seed in zip(demos, goal_seeds(seed, len(demos))):
                 torch.manual_seed(goal_seed)
-                policies.append(self.train_policy(goal, demos[goal], env_factory, goal_seed))
+                policies.append(self._policy(goal, demos[goal], env_factory, goal_seed))
         self.goals = list(demos)
         self.bank = PolicyBank(policies)
+
+    def _policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory, seed: int) -> BasePolicy:
+        cache_key = getattr(env_factory, "cache_key", None)
+        if cache_key is None:
+            start = time.perf_counter()
+            policy = self.train_policy(goal, demos, env_factory, seed)
+            self.fit_seconds += time.perf_counter() - start
+            return policy
+        key = {"recognizer": self.name, "config": self.config, "env": cache_key, "goal": list(goal), "seed": seed,
+               "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}
+        if self.uses_demos:
+            key["demos"] = demos_digest(demos)
+        trained: dict[str, BasePolicy] = {}
+
+        def train() -> dict[str, Any]:
+            trained["policy"] = self.train_policy(goal, demos, env_factory, seed)
+            return trained["policy"].state_dict()
+
+        state, seconds = cached_state_dict(f"policy-{self.name}", key, train)
+        self.fit_seconds += seconds
+        if "policy" in trained:
+            return trained["policy"]
+        policy = self.new_policy(goal, env_factory)
+        policy.load_state_dict(state)
+        return policy
 
     def exposes(self, action_space: Any) -> frozenset[str]:
         return frozenset({"probs"}) if isinstance(action_space, spaces.Discrete) else frozenset({"mean", "std"})
@@ -76,6 +119,15 @@ class PolicyRecognizer(ScoredRecognizer):
             return PolicyOutput(probs=self.bank.action_probs(obs)), acts
         mean, std = self.bank.mean_std(obs)
         return PolicyOutput(mean=mean, std=std), acts
+
+
+def demos_digest(demos: Sequence[Trajectory]) -> str:
+    """SHA-256 of the demonstrations' states and actions."""
+    digest = hashlib.sha256()
+    for traj in demos:
+        digest.update(np.ascontiguousarray(traj.obs).tobytes())
+        digest.update(np.ascontiguousarray(traj.acts).tobytes())
+    return digest.hexdigest()
 
 
 def spaces_of(env_factory: EnvFactory, goal: Goal) -> tuple[spaces.Space, spaces.Space]:
