@@ -20,7 +20,7 @@ from importlib.metadata import entry_points
 from typing import Callable
 
 import numpy as np
-from scipy.special import erf
+from scipy.special import erf, softmax
 
 EPS = 1e-8
 GROUP = "grail_bench.scorers"
@@ -148,10 +148,7 @@ def loglik_gaussian(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> n
 
 def posterior(scores: np.ndarray, n_steps: int) -> np.ndarray:
     """Posterior over goals from mean log-likelihoods: softmax of their sums (uniform prior)."""
-    logits = scores * n_steps
-    logits = logits - logits.max()
-    e = np.exp(logits)
-    return e / e.sum()
+    return softmax(scores * n_steps)
 
 
 # ----------------------------------------------------------------------------- adapters and registry

@@ -77,7 +77,7 @@ def test_policy_bank_matches_sb3_policies():
     obs = TEST[(7, 1)][0].obs[:20]
     bank_probs = rec.bank.action_probs(obs)
     env = TASK.make_env()
-    for k, goal in enumerate(TASK.goals):
+    for goal in TASK.goals:
         # Re-train the same goal's policy to compare against torch directly.
         policy = rec.train_policy(goal, TRAIN[goal], TASK.make_env, seed=11)
         from grail_bench.recognizers.policy_bank import PolicyBank

@@ -7,6 +7,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from gymnasium import spaces
 from imitation.data.types import Trajectory
+from scipy.special import softmax
 
 from grail_bench.recognizers._torch import goal_seeds
 from grail_bench.recognizers.base import EnvFactory, Goal, observed_arrays
@@ -115,13 +116,11 @@ class GRAQLRecognizer(ScoredRecognizer):
 
     def policy_probs(self, obs: np.ndarray) -> np.ndarray:
         """softmax(Q / temperature) at each observed state, uniform where unvisited; ``(K, T, A)``."""
-        idx = state_index(obs, self.observation_space)
-        q = self.q[:, idx, :] / self.config["temperature"]
-        q -= q.max(axis=-1, keepdims=True)
-        e = np.exp(q)
-        probs = e / e.sum(axis=-1, keepdims=True)
-        unvisited = ~self.visited[:, idx]
-        probs[unvisited] = 1.0 / probs.shape[-1]
+        return self._probs_at(state_index(obs, self.observation_space))
+
+    def _probs_at(self, idx: np.ndarray) -> np.ndarray:
+        probs = softmax(self.q[:, idx, :] / self.config["temperature"], axis=-1)
+        probs[~self.visited[:, idx]] = 1.0 / probs.shape[-1]
         return probs
 
     def exposes(self, action_space: Any) -> frozenset[str]:
@@ -132,4 +131,4 @@ class GRAQLRecognizer(ScoredRecognizer):
             raise RuntimeError("graql: call fit() before score()")
         obs, acts = observed_arrays(observed, self.observation_space, self.action_space)
         idx = state_index(obs, self.observation_space)
-        return PolicyOutput(probs=self.policy_probs(obs), q=self.q[:, idx, :]), acts
+        return PolicyOutput(probs=self._probs_at(idx), q=self.q[:, idx, :]), acts

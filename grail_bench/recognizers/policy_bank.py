@@ -12,6 +12,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 from gymnasium import spaces
+from scipy.special import softmax
 from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
 from stable_baselines3.common.torch_layers import FlattenExtractor
 from stable_baselines3.sac.policies import SACPolicy
@@ -114,10 +115,7 @@ class PolicyBank:
 
     def action_probs(self, obs: np.ndarray) -> np.ndarray:
         """Softmax action probabilities, ``(K, T, A)``; discrete actions only."""
-        logits = self.forward(obs)
-        logits -= logits.max(axis=-1, keepdims=True)
-        e = np.exp(logits)
-        return e / e.sum(axis=-1, keepdims=True)
+        return softmax(self.forward(obs), axis=-1)
 
     def mean_std(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean action and its standard deviation per dimension, ``(K, T, D)`` each.
