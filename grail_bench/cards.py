@@ -32,9 +32,9 @@ ID_PATTERN = re.compile(r"^GRAIL/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
 FILE_KEYS = {"domain", "description", "defaults", "task"}
 TASK_KEYS = {
     "id", "regime", "goals", "params", "env", "n_demos", "n_train",
-    "observability", "description",
+    "observability", "protocol", "description",
 }
-DEFAULT_FIELDS = {"n_demos": 10, "n_train": 7, "observability": [0.1, 0.2, 0.3]}
+DEFAULT_FIELDS = {"n_demos": 10, "n_train": 7, "observability": [0.1, 0.2, 0.3], "protocol": "subset"}
 
 
 class CardError(ValueError):
@@ -54,6 +54,7 @@ class TaskCard:
     n_demos: int
     n_train: int
     observability: tuple[float, ...]
+    protocol: str
     description: str
     source: str
 
@@ -69,12 +70,20 @@ class TaskCard:
             "n_demos": self.n_demos,
             "n_train": self.n_train,
             "observability": list(self.observability),
+            "protocol": self.protocol,
             "description": self.description,
         }
 
 
 def _fail(source: str, where: str, why: str) -> CardError:
     return CardError(f"{source}: {where}: {why}")
+
+
+def _known_protocol(name: str) -> bool:
+    """Built in, or registered by a plugin (entry points are read only for unknown names)."""
+    from grail_bench.evaluation.protocol import BUILTIN, available_protocols
+
+    return name in BUILTIN or name in available_protocols()
 
 
 def _number(value: Any) -> bool:
@@ -125,6 +134,9 @@ def _validate_task(raw: dict[str, Any], domain: str, defaults: dict[str, Any],
     obs = merged["observability"]
     if not isinstance(obs, list) or not obs or not all(_number(p) and 0 < p <= 1 for p in obs):
         raise _fail(source, f"{where}.observability", "expected a non-empty list of fractions in (0, 1]")
+    protocol = merged["protocol"]
+    if not isinstance(protocol, str) or not _known_protocol(protocol):
+        raise _fail(source, f"{where}.protocol", f"unknown observation protocol {protocol!r}")
     description = merged.get("description", "")
     if not isinstance(description, str):
         raise _fail(source, f"{where}.description", "expected a string")
@@ -133,7 +145,7 @@ def _validate_task(raw: dict[str, Any], domain: str, defaults: dict[str, Any],
         id=task_id, domain=domain, regime=regime, goals=goal_tuples,
         params={**spec.regimes[regime], **params}, env={**spec.env_defaults, **env},
         n_demos=n_demos, n_train=n_train, observability=tuple(float(p) for p in obs),
-        description=description, source=source,
+        protocol=protocol, description=description, source=source,
     )
 
 

@@ -32,12 +32,13 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     from gymnasium.error import Error as GymError
 
     from grail_bench.cards import CardError
+    from grail_bench.evaluation.protocol import UnknownProtocolError
     from grail_bench.recognizers import RecognizerError, UnknownRecognizerError
     from grail_bench.scoring import UnknownScorerError
     from grail_bench.store import StoreError
 
-    return (GymError, CardError, UnknownRecognizerError, UnknownScorerError, RecognizerError, StoreError,
-            ValueError, TypeError)
+    return (GymError, CardError, UnknownRecognizerError, UnknownScorerError, UnknownProtocolError, RecognizerError,
+            StoreError, ValueError, TypeError)
 
 
 def _open_store(path: Optional[Path]):
@@ -52,14 +53,14 @@ def _tasks_table() -> Table:
 
     table = Table(title="GRAIL/ tasks")
     table.add_column("task", no_wrap=True, style="bold")
-    for col in ("domain", "regime", "goals", "demos/goal (train/test)", "observability"):
+    for col in ("domain", "regime", "goals", "demos/goal (train/test)", "observability", "protocol"):
         table.add_column(col)
     for task_id in task_ids():
         task = make_task(task_id)
         goals = " ".join("(" + ",".join(f"{c:g}" for c in g) + ")" for g in task.goals)
         table.add_row(task_id, task.domain, task.regime, goals,
                       f"{task.n_demos} ({task.n_train}/{task.n_demos - task.n_train})",
-                      ", ".join(f"{p:.0%}" for p in task.observability))
+                      ", ".join(f"{p:.0%}" for p in task.observability), task.protocol)
     return table
 
 
@@ -142,7 +143,11 @@ def run(
     seeds: int = typer.Option(3, "--seeds", "-s", min=1, help="Seeds 0..N-1 (the paper uses 10)."),
     observability: Optional[str] = typer.Option(None, "--observability", "-o",
                                                 help="Comma-separated fractions, e.g. 0.1,0.2,0.3 (default: the task's)."),
-    sampling: str = typer.Option("prefix", help="prefix (the paper's) or random (an ordered random subset)."),
+    protocol: Optional[str] = typer.Option(
+        None, "--protocol", "-p", help="Observation protocol (see `grail-bench protocols`; default: the task's)."),
+    rounding: str = typer.Option("ceil", help="Observed pairs k = ceil(p*T) (ceil) or gr_libs' int(p*T) (floor)."),
+    sampling: Optional[str] = typer.Option(None, "--sampling", hidden=True,
+                                           help="Deprecated alias of --protocol (random = subset)."),
     scorer: Optional[List[str]] = typer.Option(None, "--scorer",
                                                help="Scorer; repeat for several (default: each recognizer's own)."),
     settings: Optional[List[str]] = typer.Option(None, "--set", help="Recognizer hyperparameter, e.g. bc.n_epochs=50."),
@@ -158,12 +163,18 @@ def run(
     from grail_bench.leaderboard import build_boards, rich_tables
 
     names = list(dict.fromkeys(recognizer or DEFAULT_RECOGNIZERS))
+    if sampling is not None:
+        if protocol is not None:
+            raise fail("give --protocol only (--sampling is its deprecated alias)")
+        err_console.print("warning: --sampling is deprecated; use --protocol", highlight=False)
+        protocol = {"random": "subset"}.get(sampling, sampling)
     try:
         config = _parse_settings(settings or [], names)
         with _open_store(store_path) as store:
             scorers = tuple(dict.fromkeys(scorer or []))
             records = evaluate(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
-                               observability=observability, sampling=sampling, store=store, progress=progress,
+                               observability=observability, protocol=protocol, rounding=rounding, store=store,
+                               progress=progress,
                                task_params=_parse_params(params or []))
             where = store.path
     except _user_errors() as exc:
@@ -194,7 +205,10 @@ def leaderboard(
     task: Optional[List[str]] = typer.Option(None, "--task", "-t", help="Only these tasks."),
     scorer: Optional[List[str]] = typer.Option(
         None, "--scorer", help="Only these scorers (NAME), or recognizer/scorer pairs (e.g. bc/mse)."),
-    sampling: str = typer.Option("prefix", help="Which observation sampling to show."),
+    protocol: Optional[List[str]] = typer.Option(
+        None, "--protocol", "-p", help="Only these observation protocols (as stored, e.g. subset, prefix+floor)."),
+    ceiling_samples: int = typer.Option(2000, min=2, help="Monte Carlo samples of the Bayes ceilings (cached)."),
+    no_ceiling: bool = typer.Option(False, "--no-ceiling", help="Do not compute or show Bayes ceilings."),
     ablation: bool = typer.Option(False, "--ablation", help="Compare scorers: F1 and scoring time per scorer."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="With --ablation: also write a PNG plot here."),
 ) -> None:
@@ -211,7 +225,7 @@ def leaderboard(
     try:
         ref = read_reference(reference) if reference else None
         with _open_store(path) as store:
-            where = {"sampling": sampling} | ({"task": task} if task else {})
+            where = ({"protocol": protocol} if protocol else {}) | ({"task": task} if task else {})
             records = [r for r in aggregate(store.rows(**where))
                        if not scorer or r["scorer"] in scorer or f"{r['recognizer']}/{r['scorer']}" in scorer]
     except OSError as exc:
@@ -235,13 +249,76 @@ def leaderboard(
             ablation_plot(rows, plot)
             console.print(f"plot written to {plot}", highlight=False)
         return
-    boards = build_boards(records, ref)
+    try:
+        boards = build_boards(records, ref, None if no_ceiling else ceiling_samples)
+    except _user_errors() as exc:
+        raise fail(str(exc)) from None
     for table in rich_tables(boards):
         console.print(table)
     if markdown_path is not None:
         markdown_path.parent.mkdir(parents=True, exist_ok=True)
         markdown_path.write_text(markdown(boards, records), encoding="utf-8")
         console.print(f"Markdown written to {markdown_path}", highlight=False)
+
+
+@app.command()
+def protocols() -> None:
+    """List the observation protocols (built in and from the entry-point group grail_bench.protocols)."""
+    from grail_bench.evaluation.protocol import BUILTIN, available_protocols, get_protocol
+
+    table = Table(title="observation protocols (entry-point group grail_bench.protocols)")
+    table.add_column("name", style="bold")
+    table.add_column("leaks the goal")
+    table.add_column("what a recognizer observes")
+    try:
+        for name, target in available_protocols().items():
+            chosen = BUILTIN.get(name) or get_protocol(name)
+            table.add_row(name, "yes" if chosen.leaks_goal else "no",
+                          chosen.description + ("" if name in BUILTIN else f" ({target})"))
+    except _user_errors() as exc:
+        raise fail(str(exc)) from None
+    console.print(table)
+    console.print("k = max(1, ceil(p * T)) pairs, or floor with --rounding floor (gr_libs' int(p * T)).",
+                  highlight=False)
+
+
+@app.command()
+def ceiling(
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID (MiniGrid)."),
+    protocol: Optional[str] = typer.Option(None, "--protocol", "-p", help="Observation protocol (default: the task's)."),
+    observability: Optional[str] = typer.Option(None, "--observability", "-o",
+                                                help="Comma-separated fractions (default: the task's)."),
+    rounding: str = typer.Option("ceil", help="ceil or floor, as for `run`."),
+    method: str = typer.Option("auto", help="auto (exact where it can enumerate), exact or monte-carlo."),
+    samples: int = typer.Option(2000, min=2, help="Monte Carlo observations."),
+    seed: int = typer.Option(0, min=0, help="Monte Carlo seed."),
+    params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, e.g. turn_pattern=around-and-back."),
+    json_path: Optional[Path] = typer.Option(None, "--json", help="Also write the ceilings to this JSON file."),
+) -> None:
+    """The Bayes ceiling: the best accuracy any recognizer can reach under a protocol and level."""
+    from grail_bench.evaluation.ceiling import bayes_ceiling
+    from grail_bench.evaluation.protocol import parse_observability
+    from grail_bench.task import make_task
+
+    try:
+        gr_task = make_task(task, **_parse_params(params or []))
+        levels = parse_observability(observability) if observability else gr_task.observability
+        name = protocol or gr_task.protocol
+        results = [bayes_ceiling(gr_task, name, level, rounding=rounding, method=method, samples=samples, seed=seed)
+                   for level in levels]
+    except _user_errors() as exc:
+        raise fail(str(exc)) from None
+    table = Table(title=f"Bayes ceiling (accuracy): {task}")
+    for col in ("protocol", "obs", "ceiling", "std. error", "chance", "method"):
+        table.add_column(col)
+    for c in results:
+        table.add_row(c.protocol, f"{c.observability:.0%}", f"{c.accuracy:.3f}",
+                      f"{c.stderr:.3f}" if c.method == "monte-carlo" else "exact", f"{c.chance:.3f}",
+                      c.method + (f" ({c.samples} samples)" if c.samples else ""))
+    console.print(table)
+    if json_path is not None:
+        json_path.write_text(json.dumps([c.as_dict() for c in results], indent=2) + "\n", encoding="utf-8")
+        console.print(f"ceilings written to {json_path}", highlight=False)
 
 
 def _one_line_warnings() -> None:

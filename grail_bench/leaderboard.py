@@ -1,10 +1,13 @@
 """Paper-style tables from the results store: terminal (rich) and Markdown.
 
 One table per domain and regime, like the paper's Table 2: a row per goal
-count and observability level, a column per recognizer (``name/scorer`` when a
-recognizer was run with several scorers), cells ``mean ± std`` of F1 over
-seeds, the best mean of each row in bold. Values the paper reports can be
-shown beside ours from a CSV (``task,recognizer,observability,f1``).
+count, observation protocol and observability level, a column per recognizer
+(``name/scorer`` when a recognizer was run with several scorers), cells
+``mean ± std`` of F1 over seeds, the best mean of each row in bold. Values the
+paper reports can be shown beside ours from a CSV
+(``task,recognizer,observability,f1``), on the rows of each task's default
+protocol only. Where a task has a Bayes ceiling (MiniGrid), each row shows it
+and each cell its normalised F1, ``(F1 - chance) / (ceiling - chance)``.
 """
 
 from __future__ import annotations
@@ -22,26 +25,50 @@ PAPER_NAMES = {"bc": "BC-GRAIL", "gail": "GAIL-GRAIL", "airl": "AIRL-GRAIL", "gr
 PAPER_SCORERS = {"bc": "mse", "gail": "mse", "airl": "mse", "graql": "kl", "draco": "wasserstein"}
 
 
+Row = tuple[int, str, str, float]  # (goals, task, protocol, observability)
+MARKS = {"inside": "=", "above": "▲", "below": "▼"}  # our mean against the paper's 95 % interval
+
+
+@dataclass(frozen=True)
+class Reported:
+    """A value the paper reports: its text and, where the appendix gives it, its 95 % interval."""
+
+    text: str
+    ci95: tuple[float, float] | None = None
+
+    def place(self, mean: float) -> str | None:
+        """``"inside"``, ``"above"`` or ``"below"`` the interval (None without one)."""
+        if self.ci95 is None:
+            return None
+        low, high = self.ci95
+        return "below" if mean < low - 1e-9 else "above" if mean > high + 1e-9 else "inside"
+
+    def __str__(self) -> str:
+        return self.text + (f" [{self.ci95[0]:.2f}, {self.ci95[1]:.2f}]" if self.ci95 else "")
+
+
 @dataclass
 class Board:
     """One table: a domain and regime, its rows and columns."""
 
     title: str
     columns: list[str]
-    rows: list[tuple[int, str, float]] = field(default_factory=list)  # (goals, task, observability)
-    cells: dict[tuple[int, str, float, str], dict[str, Any]] = field(default_factory=dict)
-    reported: dict[tuple[int, str, float, str], str] = field(default_factory=dict)
+    rows: list[Row] = field(default_factory=list)
+    cells: dict[tuple[int, str, str, float, str], dict[str, Any]] = field(default_factory=dict)
+    reported: dict[tuple[int, str, str, float, str], Reported] = field(default_factory=dict)
+    ceilings: dict[Row, Any] = field(default_factory=dict)  # Row -> grail_bench.evaluation.ceiling.Ceiling
 
 
-def _task_facts(task_id: str) -> tuple[str, int]:
-    """``("minigrid / optimal", n_goals)`` for a task (its ID if no longer registered)."""
+def _task(task_id: str, params: dict[str, Any] | None = None):
+    """The registered task (with the parameters a run used), or None for a stored task whose card is gone."""
+    from gymnasium.error import Error as GymError
+
     from grail_bench.task import make_task
 
     try:
-        task = make_task(task_id)
-    except Exception:  # noqa: BLE001 - a stored task whose card is gone still gets a table
-        return task_id, 0
-    return f"{task.domain} / {task.regime}", len(task.goals)
+        return make_task(task_id, **(params or {}))
+    except (GymError, ValueError, TypeError):
+        return None
 
 
 def column_label(record: dict[str, Any], multi_config: set[tuple[str, str]]) -> str:
@@ -54,21 +81,44 @@ def column_label(record: dict[str, Any], multi_config: set[tuple[str, str]]) -> 
     return label
 
 
-def read_reference(path: str | Path) -> dict[tuple[str, str, float], str]:
-    """Reported values: ``{(task, recognizer, observability): "0.93 ± 0.20"}``."""
+def read_reference(path: str | Path) -> dict[tuple[str, str, float], Reported]:
+    """Reported values by ``(task, recognizer, observability)``.
+
+    The CSV has columns ``task,recognizer,observability,f1`` and optionally
+    ``ci95`` (``[low; high]``).
+    """
     out = {}
     with open(path, newline="", encoding="utf-8") as fh:
         for row in csv.DictReader(line for line in fh if not line.startswith("#")):
             try:
-                out[(row["task"], row["recognizer"], round(float(row["observability"]), 6))] = row["f1"].strip()
-            except (KeyError, ValueError) as exc:
+                ci_text = (row.get("ci95") or "").strip().strip("[]")
+                ci = tuple(float(v) for v in ci_text.split(";")) if ci_text else None
+                if ci is not None and (len(ci) != 2 or ci[0] > ci[1]):
+                    raise ValueError(f"ci95 must be [low; high], got {row['ci95']!r}")
+                out[(row["task"], row["recognizer"], round(float(row["observability"]), 6))] = Reported(
+                    row["f1"].strip(), ci)
+            except (KeyError, ValueError, AttributeError) as exc:
                 raise ValueError(f"{path}: malformed reference row {row}: {exc}") from None
     return out
 
 
-def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, str, float], str] | None = None) -> list[Board]:
-    """Group aggregated records into tables (see module docstring)."""
+def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, str, float], str] | None = None,
+                 ceiling_samples: int | None = 2000) -> list[Board]:
+    """Group aggregated records into tables (see module docstring).
+
+    Args:
+        records: Aggregated records (:func:`grail_bench.evaluation.runner.aggregate`).
+        reference: Reported values to show beside ours.
+        ceiling_samples: Monte Carlo samples of the Bayes ceilings (computed
+            once, then cached on disk); None shows no ceilings.
+    """
+    from grail_bench.evaluation.ceiling import cached_ceiling
+
     records = list(records)
+    tasks = {t: _task(t) for t in {r["task"] for r in records}}
+    params_by_row = defaultdict(list)  # the task parameters each row's runs used
+    for r in records:
+        params_by_row[(r["task"], r["protocol"], r["observability"])].append(r.get("task_params") or {})
     configs = defaultdict(set)
     for r in records:
         configs[(r["task"], r["recognizer"], r["scorer"])].add(r["config_hash"])
@@ -76,16 +126,25 @@ def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, s
 
     boards: dict[str, Board] = {}
     for r in records:
-        title, n_goals = _task_facts(r["task"])
+        task = tasks[r["task"]]
+        title = f"{task.domain} / {task.regime}" if task else r["task"]
         board = boards.setdefault(title, Board(title=title, columns=[]))
         label = column_label(r, multi_config)
         if label not in board.columns:
             board.columns.append(label)
-        row = (n_goals, r["task"], r["observability"])
+        row = (len(task.goals) if task else 0, r["task"], r["protocol"], r["observability"])
         if row not in board.rows:
             board.rows.append(row)
+            used = params_by_row[(r["task"], r["protocol"], r["observability"])]
+            # A row whose runs used different task parameters has no single ceiling.
+            run_task = _task(r["task"], used[0]) if task is not None and all(p == used[0] for p in used) else None
+            if run_task is not None and ceiling_samples is not None:
+                ceiling = cached_ceiling(run_task, r["protocol"], r["observability"], samples=ceiling_samples)
+                if ceiling is not None:
+                    board.ceilings[row] = ceiling
         board.cells[(*row, label)] = r
-        if reference and PAPER_SCORERS.get(r["recognizer"], r["scorer"]) == r["scorer"]:
+        paper_protocol = task is not None and r["protocol"] == task.protocol
+        if reference and paper_protocol and PAPER_SCORERS.get(r["recognizer"], r["scorer"]) == r["scorer"]:
             reported = reference.get((r["task"], r["recognizer"], round(r["observability"], 6)))
             if reported:
                 board.reported[(*row, label)] = reported
@@ -105,65 +164,99 @@ def short_name(task_id: str) -> str:
     return name.rsplit("-v", 1)[0] if "-v" in name else name
 
 
-def _best(board: Board, row: tuple[int, str, float]) -> float | None:
+def _best(board: Board, row: Row) -> float | None:
     means = [board.cells[(*row, c)]["f1_mean"] for c in board.columns if (*row, c) in board.cells]
     return max(means) if means else None
 
 
-def _cell(board: Board, row: tuple[int, str, float], column: str) -> tuple[str, bool]:
+def _cell(board: Board, row: Row, column: str) -> tuple[str, bool]:
+    from grail_bench.evaluation.ceiling import normalised
+
     record = board.cells.get((*row, column))
     if record is None:
         return "–", False
     text = f"{record['f1_mean']:.2f} ± {record['f1_std']:.2f}"
+    reported = board.reported.get((*row, column))
+    place = reported.place(record["f1_mean"]) if reported else None
+    if place:
+        text += f" {MARKS[place]}"
+    ceiling = board.ceilings.get(row)
+    if ceiling is not None:
+        norm = normalised(record["f1_mean"], ceiling.accuracy, ceiling.chance)
+        text += f" [{norm:.2f}]" if norm is not None else ""
     return text, record["f1_mean"] == _best(board, row)
+
+
+def _ceiling_text(board: Board, row: Row) -> str:
+    ceiling = board.ceilings.get(row)
+    if ceiling is None:
+        return "–"
+    return f"{ceiling.accuracy:.2f}" + (f" ± {ceiling.stderr:.2f}" if ceiling.method == "monte-carlo" else "")
+
+
+def _grid(board: Board, paper_label: Any = str) -> tuple[list[str], list[list[tuple[str, bool]]]]:
+    """The table model both renderers draw: a header and, per row, ``(text, best)`` cells."""
+    header = ["task", "goals", "protocol", "obs", "ceiling"]
+    for c in board.columns:
+        header.append(c)
+        if _has_reported(board, c):
+            header.append(paper_label(c))
+    rows = []
+    for row in board.rows:
+        cells = [(short_name(row[1]), False), (str(row[0]), False), (row[2], False), (f"{row[3]:.0%}", False),
+                 (_ceiling_text(board, row), False)]
+        for c in board.columns:
+            cells.append(_cell(board, row, c))
+            if _has_reported(board, c):
+                cells.append((str(board.reported.get((*row, c), "–")), False))
+        rows.append(cells)
+    return header, rows
 
 
 def rich_tables(boards: list[Board]) -> list[Table]:
     """Terminal tables (best mean per row in bold)."""
     tables = []
     for board in boards:
-        table = Table(title=f"F1 (mean ± std over seeds): {board.title}")
-        table.add_column("task")
-        table.add_column("goals", justify="right")
-        table.add_column("obs", justify="right")
-        for c in board.columns:
-            table.add_column(c, justify="center")
-            if _has_reported(board, c):
-                table.add_column(f"{c} (paper)", justify="center", style="dim")
-        for row in board.rows:
-            cells = []
-            for c in board.columns:
-                text, best = _cell(board, row, c)
-                cells.append(f"[bold]{text}[/]" if best else text)
-                if _has_reported(board, c):
-                    cells.append(board.reported.get((*row, c), "–"))
-            table.add_row(short_name(row[1]), str(row[0]), f"{row[2]:.0%}", *cells)
+        header, rows = _grid(board, lambda c: f"{c} (paper)")
+        table = Table(title=f"F1 (mean ± std over seeds) [normalised F1]: {board.title}")
+        for name in header:
+            table.add_column(name, justify="center", style="dim" if name.endswith("(paper)") else None)
+        for cells in rows:
+            table.add_row(*(f"[bold]{text}[/]" if best else text for text, best in cells))
         tables.append(table)
     return tables
+
+
+def placement_counts(boards: list[Board]) -> dict[str, int]:
+    """How many of our cells fall inside, above and below the paper's 95 % intervals."""
+    counts = {place: 0 for place in MARKS}
+    for board in boards:
+        for key, reported in board.reported.items():
+            place = reported.place(board.cells[key]["f1_mean"])
+            if place:
+                counts[place] += 1
+    return counts
 
 
 def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
     """The leaderboard as Markdown, with seeds and timings under each table."""
     lines = ["# grail-bench leaderboard", "",
-             "F1 of each recognizer, mean ± std over seeds (best of each row in bold).",
+             "F1 of each recognizer, mean ± std over seeds (best of each row in bold). Where the task has a",
+             "Bayes ceiling (the best accuracy any recognizer can reach under that protocol and level; ± its",
+             "Monte Carlo standard error), the cell adds the normalised F1 in brackets,",
+             "(F1 - chance) / (ceiling - chance).",
              "Columns marked *(paper)* are the values the GRAIL paper (AAMAS 2026) reports, transcribed",
-             "from its tables and text; they were not produced by grail-bench.", ""]
+             "from its tables and text; they were not produced by grail-bench, and are shown on the rows",
+             "of each task's default protocol only.", ""]
+    counts = placement_counts(boards)
+    if any(counts.values()):
+        lines += [f"Against the paper's 95 % intervals (appendix tables): our mean is inside (=) in {counts['inside']} "
+                  f"cells, above (▲) in {counts['above']}, below (▼) in {counts['below']}.", ""]
     for board in boards:
-        header = ["task", "goals", "obs"]
-        for c in board.columns:
-            header.append(c)
-            if _has_reported(board, c):
-                header.append(f"{PAPER_NAMES.get(c.split('/')[0], c)} *(paper)*")
-        lines += [f"## {board.title}", "", "| " + " | ".join(header) + " |",
-                  "|" + "---|" * len(header)]
-        for row in board.rows:
-            cells = [short_name(row[1]), str(row[0]), f"{row[2]:.0%}"]
-            for c in board.columns:
-                text, best = _cell(board, row, c)
-                cells.append(f"**{text}**" if best else text)
-                if _has_reported(board, c):
-                    cells.append(board.reported.get((*row, c), "–"))
-            lines.append("| " + " | ".join(cells) + " |")
+        header, rows = _grid(board, lambda c: f"{PAPER_NAMES.get(c.split('/')[0], c)} *(paper)*")
+        lines += [f"## {board.title}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        lines += ["| " + " | ".join(f"**{text}**" if best else text for text, best in cells) + " |"
+                  for cells in rows]
         lines.append("")
     lines += ["## Runs and timings", "",
               "| task | recognizer | scorer | seeds | fit s/goal | score µs/observation | ties |",

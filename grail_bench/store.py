@@ -1,7 +1,7 @@
 """The results store: an embedded SQLite database, the only code that touches it.
 
 One row per (task, recognizer, scorer, config hash, seed, observability,
-sampling). Rows are written in one transaction per fitted seed with
+observation protocol). Rows are written in one transaction per fitted seed with
 ``INSERT OR IGNORE``, in WAL mode with a busy timeout, so an interrupted run
 keeps what it finished and concurrent writers lose nothing.
 
@@ -18,8 +18,8 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
-SCHEMA_VERSION = 1
-KEY = ("task", "recognizer", "scorer", "config_hash", "seed", "observability", "sampling")
+SCHEMA_VERSION = 2
+KEY = ("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol")
 
 
 class StoreError(RuntimeError):
@@ -36,7 +36,7 @@ class ResultRow:
     config_hash: str
     seed: int
     observability: float
-    sampling: str
+    protocol: str
     accuracy: float
     precision: float
     recall: float
@@ -53,7 +53,7 @@ class ResultRow:
 
 _COLUMNS = [f.name for f in fields(ResultRow)]
 _TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash": "TEXT", "seed": "INTEGER",
-          "observability": "REAL", "sampling": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
+          "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
           "config": "TEXT", "versions": "TEXT"}
 _CREATE = (
     "CREATE TABLE IF NOT EXISTS results ("
@@ -97,6 +97,8 @@ class ResultsStore:
             if self.path != ":memory:":
                 self._conn.execute("PRAGMA journal_mode=WAL")
             with self._conn:
+                if tables and version < 2:
+                    _migrate_v1(self._conn)
                 self._conn.execute(_CREATE)
                 self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
         except sqlite3.Error as exc:
@@ -147,10 +149,24 @@ class ResultsStore:
         except sqlite3.Error as exc:
             raise StoreError(f"cannot read results store {self.path}: {exc}") from None
 
-    def completed(self, task: str, recognizer: str, scorer: str, config_hash: str, sampling: str) -> set[tuple[int, float]]:
+    def completed(self, task: str, recognizer: str, scorer: str, config_hash: str,
+                  protocol: str) -> set[tuple[int, float]]:
         """``(seed, observability)`` pairs already stored for one configuration."""
         return {(r.seed, r.observability) for r in
-                self.rows(task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash, sampling=sampling)}
+                self.rows(task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash, protocol=protocol)}
+
+
+def _migrate_v1(conn: sqlite3.Connection) -> None:
+    """Schema 1 -> 2: the ``sampling`` column becomes ``protocol``; every row is kept.
+
+    ``prefix`` rows keep their name (the prefix is drawn without randomness).
+    ``random`` rows keep theirs too, as a legacy protocol: they drew from a
+    stream shared across levels, so they must not count as finished ``subset``
+    cells of a resumed run.
+    """
+    columns = {r[1] for r in conn.execute("PRAGMA table_info(results)")}
+    if "sampling" in columns and "protocol" not in columns:
+        conn.execute("ALTER TABLE results RENAME COLUMN sampling TO protocol")
 
 
 def config_hash(payload: dict[str, Any]) -> str:

@@ -6,9 +6,8 @@ import json
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
-import numpy as np
-
 from grail_bench.domains import get_domain, load_object
+from grail_bench.seeding import DEMOS, goal_rng
 
 if TYPE_CHECKING:
     import gymnasium as gym
@@ -32,6 +31,8 @@ class GRTask:
         n_demos: Demonstrations generated per goal.
         n_train: How many of them form the training split.
         observability: Default observability levels of the task.
+        protocol: Default observation protocol (see
+            :mod:`grail_bench.evaluation.protocol`).
         description: One line for humans.
     """
 
@@ -44,6 +45,7 @@ class GRTask:
     n_demos: int = 10
     n_train: int = 7
     observability: tuple[float, ...] = (0.1, 0.2, 0.3)
+    protocol: str = "subset"
     description: str = ""
 
     def __hash__(self) -> int:
@@ -80,8 +82,9 @@ class GRTask:
     def generate_demos(self, seed: int, n_demos: int | None = None) -> Demos:
         """Generate demonstrations for every goal.
 
-        The same seed always gives identical demonstrations; each goal draws
-        from its own child of ``np.random.SeedSequence(seed)``.
+        The same seed always gives identical demonstrations. Each goal draws
+        from a stream keyed by ``(seed, goal)`` (:mod:`grail_bench.seeding`),
+        so a goal's demonstrations are the same in every task that has it.
 
         Args:
             seed: Seed of the demonstration generator.
@@ -92,11 +95,7 @@ class GRTask:
         """
         generator = load_object(get_domain(self.domain).demo_generator)
         n = self.n_demos if n_demos is None else n_demos
-        children = np.random.SeedSequence(seed).spawn(len(self.goals))
-        return {
-            goal: generator(self, goal, n, np.random.default_rng(child))
-            for goal, child in zip(self.goals, children)
-        }
+        return {goal: generator(self, goal, n, goal_rng(seed, goal, DEMOS)) for goal in self.goals}
 
     def split(self, demos: Demos) -> tuple[Demos, Demos]:
         """Split each goal's demonstrations into the first ``n_train`` and the rest."""
@@ -158,7 +157,8 @@ def _task_from_kwargs(kwargs: Mapping[str, Any], overrides: Mapping[str, Any]) -
         id=kwargs["task_id"], domain=kwargs["domain"], regime=kwargs["regime"],
         goals=tuple(tuple(g) for g in kwargs["goals"]), params=params, env_params=env_params,
         n_demos=counts["n_demos"], n_train=counts["n_train"],
-        observability=tuple(kwargs["observability"]), description=kwargs.get("description", ""),
+        observability=tuple(kwargs["observability"]), protocol=kwargs.get("protocol", "subset"),
+        description=kwargs.get("description", ""),
     )
     return task, env_only
 
@@ -167,7 +167,7 @@ def make_registered_env(**kwargs: Any) -> gym.Env:
     """Gymnasium entry point of every ``GRAIL/`` ID (see :mod:`grail_bench.registration`)."""
     registered = {k: kwargs.pop(k) for k in
                   ("task_id", "domain", "regime", "goals", "params", "env", "n_demos",
-                   "n_train", "observability", "description")}
+                   "n_train", "observability", "protocol", "description") if k in kwargs}
     task, env_only = _task_from_kwargs(registered, kwargs)
     goal = env_only.pop("goal", None)
     return task.make_env(goal, **env_only)

@@ -19,8 +19,9 @@ params = { turn_prob = 0.5 }
 def test_good_card_merges_defaults():
     (card,) = parse_card(GOOD, "good.toml")
     assert card.id == "GRAIL/Test-v0"
-    assert card.params == {"turn_prob": 0.5}
+    assert card.params == {"turn_prob": 0.5, "turn_pattern": "left-right"}
     assert card.env["max_steps"] == 60
+    assert card.protocol == "subset"
     assert (card.n_demos, card.n_train) == (10, 7)
     assert card.observability == (0.1, 0.2, 0.3)
 
@@ -35,6 +36,8 @@ def test_shipped_cards_load():
     "text, where",
     [
         ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "lazy"\ngoals = [[7,1],[7,7]]', "task[0].regime"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\nprotocol = "middle"',
+         "task[0].protocol"),
         ('domain = "minigrid"\n[[task]]\nid = "bad id"\nregime = "optimal"\ngoals = [[7,1],[7,7]]', "task[0].id"),
         ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1]]', "task[0].goals"),
         ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1,2],[7,7,2]]', "task[0].goals"),

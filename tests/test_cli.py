@@ -57,7 +57,9 @@ def test_plugin_runs_end_to_end_and_reaches_the_leaderboard(tmp_path):
     out = cli(["leaderboard", "--markdown", str(md)], tmp_path, **env)
     assert out.returncode == 0, out.stderr
     text = md.read_text()
-    assert "| MiniGrid-Biased | 2 | 20% | **1.00 ± 0.00** |" in text and "toy" in text
+    # The biased routes part at the first step: the ceiling is 1 and the normalised F1 too.
+    assert "| MiniGrid-Biased | 2 | prefix | 20% | 1.00 | **1.00 ± 0.00 [1.00]** |" in text and "toy" in text
+    assert {r["protocol"] for r in records} == {"prefix"}  # the biased task's default protocol
 
 
 def test_rerun_reuses_stored_seeds(tmp_path):
@@ -78,7 +80,11 @@ def test_rerun_reuses_stored_seeds(tmp_path):
         (["run", "-r", "nope"], "unknown recognizer 'nope'"),
         (["run", "-r", "bc", "--observability", "0.1,1.5"], "observability 1.5 must be a fraction"),
         (["run", "-r", "bc", "--observability", "lots"], "is not a number"),
-        (["run", "-r", "bc", "--sampling", "middle"], "unknown sampling"),
+        (["run", "-r", "bc", "--protocol", "middle"], "unknown observation protocol 'middle'"),
+        (["run", "-r", "bc", "--rounding", "half"], "unknown rounding 'half'"),
+        (["ceiling", "-t", "GRAIL/PandaReach-Optimal-v0"], "needs a demonstrator with a known likelihood"),
+        (["ceiling", "-t", "GRAIL/MiniGrid-Optimal-v0", "-p", "horizon-subset", "--method", "exact"],
+         "cannot enumerate"),
         (["run", "-r", "bc", "--set", "bc.n_epochz=3"], "n_epochz"),
         (["run", "-r", "bc", "--set", "graql.episodes=3"], "not being run"),
         (["list", "goals"], "cannot list"),
@@ -154,3 +160,40 @@ def test_ablation_table_markdown_and_plot(tmp_path):
     assert "| GRAIL/MiniGrid-Biased-v0 | bc | loglik |" in text and "| GRAIL/MiniGrid-Biased-v0 | bc | mse |" in text
     out = cli(["leaderboard", "--scorer", "mse"], tmp_path)
     assert "bc/mse" in out.stdout and "bc/loglik" not in out.stdout
+
+
+def test_protocols_are_listed(tmp_path):
+    out = cli(["protocols"], tmp_path)
+    assert out.returncode == 0, out.stderr
+    for name in ("subset", "prefix", "horizon-subset", "horizon-prefix"):
+        assert name in out.stdout
+    assert "leaks" in out.stdout
+
+
+def test_ceiling_command_matches_the_library(tmp_path):
+    from grail_bench.evaluation.ceiling import bayes_ceiling
+
+    path = tmp_path / "ceiling.json"
+    out = cli(["ceiling", "-t", "GRAIL/MiniGrid-Optimal-6Goals-v0", "--protocol", "prefix", "--observability",
+               "0.1,0.3", "--json", str(path)], tmp_path)
+    assert out.returncode == 0, out.stderr
+    records = json.loads(path.read_text())
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0")
+    assert [r["accuracy"] for r in records] == [bayes_ceiling(task, "prefix", p).accuracy for p in (0.1, 0.3)]
+    assert {r["method"] for r in records} == {"exact"} and "0.444" in out.stdout
+
+
+def test_protocol_flag_and_deprecated_sampling_alias(tmp_path):
+    site = install_plugin(tmp_path / "site")
+    env = {"PYTHONPATH": str(site)}
+    out = cli(["run", "-r", "toy", "--seeds", "1", "--protocol", "subset", "--rounding", "floor", "--no-progress",
+               "--json", str(tmp_path / "a.json")], tmp_path, **env)
+    assert out.returncode == 0, out.stderr
+    assert {r["protocol"] for r in json.loads((tmp_path / "a.json").read_text())} == {"subset+floor"}
+    out = cli(["run", "-r", "toy", "--seeds", "1", "--sampling", "random", "--no-progress",
+               "--json", str(tmp_path / "b.json")], tmp_path, **env)
+    assert out.returncode == 0, out.stderr
+    assert "--sampling is deprecated" in out.stderr
+    assert {r["protocol"] for r in json.loads((tmp_path / "b.json").read_text())} == {"subset"}
+    out = cli(["leaderboard", "--protocol", "subset+floor"], tmp_path, **env)
+    assert out.returncode == 0 and "subset+floor" in out.stdout and "│ subset " not in out.stdout

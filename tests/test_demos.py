@@ -70,8 +70,9 @@ def test_biased_demos_follow_their_route():
 
 
 @pytest.mark.parametrize("turn_prob", [0.0, 0.3, 1.0])
-def test_suboptimal_demos_keep_the_path_and_add_turns(turn_prob):
-    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0", turn_prob=turn_prob)
+@pytest.mark.parametrize("pattern, width", [("around-and-back", 4), ("left-right", 2)])
+def test_suboptimal_demos_keep_the_path_and_add_turns(turn_prob, pattern, width):
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0", turn_prob=turn_prob, turn_pattern=pattern)
     total_extra = 0
     for goal, trajs in task.generate_demos(seed=2).items():
         shortest = bfs_length(goal)
@@ -79,13 +80,15 @@ def test_suboptimal_demos_keep_the_path_and_add_turns(turn_prob):
             check_demo_shape(task, goal, traj)
             t = steps_to_goal(traj)
             acts = traj.acts[:t].tolist()
-            # Remove each inserted excursion (turn around, turn back): 4 turns netting 0.
+            # Remove each inserted excursion: turns netting 0 (around and back: LL/RR then LL/RR;
+            # left-right: LR or RL). A shortest path never holds such a window.
             core, i = [], 0
             while i < len(acts):
-                window = acts[i:i + 4]
-                if (len(window) == 4 and all(a in (LEFT, RIGHT) for a in window)
-                        and window[0] == window[1] and window[2] == window[3]):
-                    i += 4
+                window = acts[i:i + width]
+                turns = len(window) == width and all(a in (LEFT, RIGHT) for a in window)
+                if turns and (window[0] == window[1] and window[2] == window[3] if width == 4
+                              else window[0] != window[1]):
+                    i += width
                     continue
                 core.append(acts[i])
                 i += 1
@@ -95,7 +98,7 @@ def test_suboptimal_demos_keep_the_path_and_add_turns(turn_prob):
             assert len(moved) == core.count(FORWARD)
             total_extra += t - shortest
             if turn_prob == 1.0:
-                assert t == 5 * shortest
+                assert t == (width + 1) * shortest
     if turn_prob == 0.0:
         assert total_extra == 0
     else:

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from grail_bench.leaderboard import build_boards, markdown
+from grail_bench.leaderboard import Reported, build_boards, markdown, placement_counts
 
 
-def record(task, rec, scorer, obs, f1):
+def record(task, rec, scorer, obs, f1, protocol="subset"):
     return {"task": task, "recognizer": rec, "scorer": scorer, "observability": obs, "f1_mean": f1, "f1_std": 0.1,
+            "protocol": protocol,
             "config_hash": "abcdef123456", "n_seeds": 2, "fit_seconds_per_goal": 1.0,
             "score_us_per_observation": 10.0, "tie_rate": 0.0}
 
@@ -18,14 +19,40 @@ def test_tasks_with_equal_goal_counts_get_their_own_rows():
     (board,) = build_boards(records)
     assert board.title == "panda_reach / gaussian" and len(board.rows) == 2
     text = markdown([board], records)
-    assert "| PandaReach-Gaussian-0.1 | 4 | 2% | **0.90 ± 0.10** | – |" in text
-    assert "| PandaReach-Gaussian-0.3 | 4 | 2% | 0.60 ± 0.10 | **0.70 ± 0.10** |" in text
+    assert "| PandaReach-Gaussian-0.1 | 4 | subset | 2% | – | **0.90 ± 0.10** | – |" in text  # no ceiling
+    assert "| PandaReach-Gaussian-0.3 | 4 | subset | 2% | – | 0.60 ± 0.10 | **0.70 ± 0.10** |" in text
 
 
 def test_reported_values_sit_beside_the_papers_scorer_only():
     records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.5),
                record("GRAIL/MiniGrid-Optimal-v0", "bc", "wasserstein", 0.1, 0.4)]
-    (board,) = build_boards(records, {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): "0.73 ± 0.33"})
+    reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
+    (board,) = build_boards(records, reference, ceiling_samples=None)
     text = markdown([board], records)
-    assert "| MiniGrid-Optimal | 2 | 10% | **0.50 ± 0.10** | 0.73 ± 0.33 | 0.40 ± 0.10 |" in text
+    assert "| MiniGrid-Optimal | 2 | subset | 10% | – | **0.50 ± 0.10 =** | 0.73 ± 0.33 [0.49, 0.90] | 0.40 ± 0.10 |" \
+        in text
     assert text.count("*(paper)*") == 2  # the header note and one column
+    assert placement_counts([board]) == {"inside": 1, "above": 0, "below": 0}
+
+
+def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise():
+    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.3, protocol="prefix"),
+               record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.95)]
+    reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
+    (board,) = build_boards(records, reference, ceiling_samples=50)
+    text = markdown([board], records)
+    # Prefix at 10 %: ceiling 2/3 exactly, so 0.30 normalises to (0.3 - 0.5) / (2/3 - 0.5) = -1.2.
+    assert "| MiniGrid-Optimal | 2 | prefix | 10% | 0.67 | **0.30 ± 0.10 [-1.20]** | – |" in text
+    assert "| MiniGrid-Optimal | 2 | subset | 10% | 0.97 | **0.95 ± 0.10 ▲ [0.96]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
+    assert placement_counts([board]) == {"inside": 0, "above": 1, "below": 0}
+
+
+def test_ceilings_use_the_task_parameters_of_the_run():
+    plain = record("GRAIL/MiniGrid-Suboptimal-v0", "bc", "mse", 0.2, 0.9, protocol="prefix")
+    no_turns = {**plain, "task_params": {"turn_prob": 0.0}}
+    (board,) = build_boards([no_turns], ceiling_samples=50)
+    (ceiling,) = board.ceilings.values()
+    assert ceiling.method == "exact" and round(ceiling.accuracy, 2) == 0.75  # as the optimal task
+    mixed = [no_turns, {**plain, "recognizer": "graql", "task_params": {"turn_prob": 0.5}}]
+    (board,) = build_boards(mixed, ceiling_samples=50)
+    assert board.ceilings == {}  # runs with different parameters share no ceiling

@@ -34,19 +34,6 @@ def test_prefix_length_is_ceil_of_fraction_of_goal_horizon(fraction, k):
     assert observed.obs[:, 0].tolist() == list(range(k + 1))
 
 
-def test_random_sampling_is_ordered_subset_within_goal_horizon(rng):
-    observed = observe(demo(T=10), 0.5, "random", rng)
-    steps = observed.obs[:-1, 0]
-    assert len(steps) == 5 and np.all(np.diff(steps) > 0) and steps.max() < 10
-    assert observed.obs[-1, 0] == steps[-1] + 1
-    assert observed.acts.tolist() == (steps % 4).tolist()
-
-
-def test_observe_rejects_unknown_sampling():
-    with pytest.raises(ValueError, match="unknown sampling"):
-        observe(demo(), 0.5, "middle")
-
-
 @pytest.mark.parametrize("bad", ["0", "1.5", "abc", "-0.1", "", "nan"])
 def test_parse_observability_rejects(bad):
     with pytest.raises(ValueError):

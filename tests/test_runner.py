@@ -113,15 +113,17 @@ def test_unknown_names_fail_before_any_work(spy):
 def test_bad_arguments():
     with pytest.raises(ValueError, match="observability"):
         evaluate(TASK_ID, ["bc"], observability="0.1,2")
-    with pytest.raises(ValueError, match="sampling"):
-        evaluate(TASK_ID, ["bc"], sampling="middle")
+    with pytest.raises(KeyError, match="unknown observation protocol 'middle'"):
+        evaluate(TASK_ID, ["bc"], protocol="middle")
+    with pytest.raises(ValueError, match="rounding"):
+        evaluate(TASK_ID, ["bc"], rounding="half")
 
 
-def test_random_sampling_is_seeded(spy):
-    evaluate(TASK_ID, ["spy"], seeds=1, sampling="random")
+def test_random_subsets_are_seeded(spy):
+    evaluate(TASK_ID, ["spy"], seeds=1, protocol="subset")
     first = [o.obs.tolist() for o in spy.observed]
     spy.observed.clear()
-    evaluate(TASK_ID, ["spy"], seeds=1, sampling="random")
+    evaluate(TASK_ID, ["spy"], seeds=1, protocol="subset")
     assert [o.obs.tolist() for o in spy.observed] == first
 
 

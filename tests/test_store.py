@@ -12,7 +12,7 @@ from grail_bench.store import ResultRow, ResultsStore, StoreError, default_store
 
 def row(seed: int = 0, observability: float = 0.1, f1: float = 0.5, recognizer: str = "bc") -> ResultRow:
     return ResultRow(task="GRAIL/T-v0", recognizer=recognizer, scorer="mse", config_hash="abc", seed=seed,
-                     observability=observability, sampling="prefix", accuracy=f1, precision=f1, recall=f1, f1=f1,
+                     observability=observability, protocol="prefix", accuracy=f1, precision=f1, recall=f1, f1=f1,
                      n_observations=6, n_ties=0, fit_seconds_per_goal=0.1, score_us_per_observation=10.0,
                      config="{}", versions="{}")
 

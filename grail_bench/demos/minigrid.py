@@ -7,9 +7,12 @@
   not named rank after, in the order N, E, S, W). ``"NE"`` for (7, 1) goes
   north, then east; ``"ES"`` for (7, 7) goes east, then south, as in the paper.
 * ``suboptimal``: a uniformly drawn shortest path; before each of its actions,
-  with probability ``turn_prob``, the agent turns around (two lefts or two
-  rights, equally likely) and turns back (again two lefts or two rights), so
-  it faces its path again: the cells it visits are those of the shortest path.
+  with probability ``turn_prob``, the agent inserts turns that leave its
+  heading unchanged, so the cells it visits are those of the shortest path.
+  ``turn_pattern`` reads the paper's "180-degree turns (left and right)":
+  ``"left-right"`` (the default) is one left and one right in either order
+  (2 actions, 180 degrees of turning in all); ``"around-and-back"`` turns
+  around (two lefts or two rights) and back again (4 actions).
 
 Every demonstration is rolled out in the goal's own env, so observations come
 from the real dynamics; after the goal the agent stays until the horizon.
@@ -29,6 +32,11 @@ if TYPE_CHECKING:
     from grail_bench.task import Goal, GRTask
 
 TURNS = (LEFT, RIGHT)
+# Each pattern's insertions, drawn uniformly; every one leaves the heading unchanged.
+TURN_PATTERNS: dict[str, tuple[tuple[int, ...], ...]] = {
+    "left-right": ((LEFT, RIGHT), (RIGHT, LEFT)),
+    "around-and-back": tuple((a, a, b, b) for a in TURNS for b in TURNS),
+}
 
 
 @lru_cache(maxsize=64)
@@ -112,15 +120,38 @@ def biased_path(model: GridModel, start: State, goal: tuple[int, int], route: st
     return min(all_shortest_paths(model, start, goal), key=key)
 
 
-def insert_turns(actions: list[int], turn_prob: float, rng: np.random.Generator) -> list[int]:
-    """Before each action, with probability ``turn_prob``, turn around and back."""
+def insert_turns(actions: list[int], turn_prob: float, rng: np.random.Generator,
+                 pattern: str = "left-right") -> list[int]:
+    """Before each action, with probability ``turn_prob``, insert one of ``pattern``'s turn sequences."""
+    insertions = TURN_PATTERNS[pattern]
     out: list[int] = []
     for a in actions:
         if rng.random() < turn_prob:
-            around, back = TURNS[int(rng.integers(2))], TURNS[int(rng.integers(2))]
-            out += [around, around, back, back]
+            out += insertions[int(rng.integers(len(insertions)))]
         out.append(a)
     return out
+
+
+def check_params(regime: str, params: dict, n_goals: int) -> None:
+    """Validate a MiniGrid regime's parameters.
+
+    Raises:
+        ValueError: With the parameter's name and what is wrong.
+    """
+    if regime == "biased":
+        routes = params["routes"]
+        if len(routes) != n_goals:
+            raise ValueError(f"'routes' needs one heading order per goal ({n_goals}), got {len(routes)}")
+        for route in routes:
+            if not isinstance(route, str) or not route or set(route.upper()) - set(HEADINGS) \
+                    or len(set(route.upper())) != len(route):
+                raise ValueError(f"route {route!r} must be distinct compass letters among N, E, S, W")
+    elif regime == "suboptimal":
+        p = params["turn_prob"]
+        if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p <= 1.0:
+            raise ValueError(f"turn_prob must be in [0, 1], got {p!r}")
+        if params["turn_pattern"] not in TURN_PATTERNS:
+            raise ValueError(f"turn_pattern must be one of {', '.join(TURN_PATTERNS)}, got {params['turn_pattern']!r}")
 
 
 def rollout(env, actions: list[int]) -> Trajectory:
@@ -146,6 +177,10 @@ def rollout(env, actions: list[int]) -> Trajectory:
 
 def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -> list[Trajectory]:
     """Demonstrations of one goal under the task's regime (see module docstring)."""
+    try:
+        check_params(task.regime, dict(task.params), len(task.goals))
+    except ValueError as exc:
+        raise ValueError(f"{task.id}: {exc}") from None
     env = task.make_env(goal)
     base = env.unwrapped
     start = (*base.start, base.start_dir)
@@ -153,15 +188,10 @@ def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -
     if task.regime == "optimal":
         plans = [sample_shortest_path(base.model, start, g, rng) for _ in range(n)]
     elif task.regime == "biased":
-        routes = task.params["routes"]
-        if len(routes) != len(task.goals):
-            raise ValueError(f"{task.id}: 'routes' needs one heading order per goal ({len(task.goals)}), got {len(routes)}")
-        plans = [biased_path(base.model, start, g, routes[task.goal_index(goal)])] * n
+        plans = [biased_path(base.model, start, g, task.params["routes"][task.goal_index(goal)])] * n
     elif task.regime == "suboptimal":
-        p = float(task.params["turn_prob"])
-        if not 0.0 <= p <= 1.0:
-            raise ValueError(f"{task.id}: turn_prob must be in [0, 1], got {p}")
-        plans = [insert_turns(sample_shortest_path(base.model, start, g, rng), p, rng) for _ in range(n)]
+        p, pattern = float(task.params["turn_prob"]), task.params["turn_pattern"]
+        plans = [insert_turns(sample_shortest_path(base.model, start, g, rng), p, rng, pattern) for _ in range(n)]
     else:
         raise ValueError(f"{task.id}: minigrid has no regime {task.regime!r}")
     demos = [rollout(env, plan) for plan in plans]

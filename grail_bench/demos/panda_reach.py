@@ -6,9 +6,11 @@
 
 Noisy actions are clipped to the action box, and the clipped action is what the
 demonstration records. The expert (``expert`` parameter) is ``"sac"``, a SAC
-agent trained on the goal's dense reward (once per goal and seed, cached on
-disk), or ``"scripted"``, a proportional controller towards the goal, fast
-enough for tests. Each demonstration runs the full horizon.
+agent trained on the goal's dense reward, or ``"scripted"``, a proportional
+controller towards the goal, fast enough for tests. The SAC expert is part of
+the demonstrator: it is trained once per goal with ``expert_seed`` and cached
+on disk; the run seed varies only the demonstrations sampled from it (through
+the action noise). Each demonstration runs the full horizon.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 from imitation.data.types import Trajectory
 
 from grail_bench.domains.panda_reach import GRPandaReachEnv
+from grail_bench.seeding import EXPERT, goal_seed
 
 if TYPE_CHECKING:
     from grail_bench.task import Goal, GRTask
@@ -27,14 +30,14 @@ Policy = Callable[[np.ndarray], np.ndarray]
 SAC_NET = [64, 64]
 
 
-def scripted_expert(goal: Goal, gain: float = 10.0) -> Policy:
-    """Move the end effector straight at the goal: ``clip(gain * (goal - ee), -1, 1)``."""
+def scripted_expert(goal: Goal, gain: float = 10.0, limit: float = 1.0) -> Policy:
+    """Move the end effector straight at the goal: ``clip(gain * (goal - ee), -limit, limit)``."""
     target = np.asarray(goal, dtype=np.float64)
-    return lambda obs: np.clip(gain * (target - obs[:3]), -1.0, 1.0).astype(np.float32)
+    return lambda obs: np.clip(gain * (target - obs[:3]), -limit, limit).astype(np.float32)
 
 
 def sac_expert(task: GRTask, goal: Goal, seed: int) -> Policy:
-    """The goal's SAC expert, trained once per goal, seed and budget, then read from the cache."""
+    """The goal's SAC expert, trained once per goal, expert seed, env and budget, then read from the cache."""
     from importlib.metadata import version
 
     from grail_bench.cache import cached_state_dict
@@ -44,7 +47,9 @@ def sac_expert(task: GRTask, goal: Goal, seed: int) -> Policy:
     env = task.make_env(goal)
     key = {"goal": list(goal), "env": dict(task.env_params), "seed": seed, "steps": steps, "net": SAC_NET,
            "versions": [version("stable-baselines3"), version("torch"), version("panda-gym")]}
-    state, _ = cached_state_dict("panda-sac-expert", key, lambda: learn(make_sac(env, SAC_NET, seed), steps))
+    train_seed = goal_seed(seed, goal, EXPERT)
+    state, _ = cached_state_dict("panda-sac-expert", key,
+                                 lambda: learn(make_sac(env, SAC_NET, train_seed), steps))
     model = make_sac(env, SAC_NET)
     model.policy.load_state_dict(state)
     env.close()
@@ -73,7 +78,7 @@ def rollout(env: GRPandaReachEnv, policy: Policy, noise: Callable[[], np.ndarray
     obs, _ = env.reset(seed=0)
     observations, acts, infos = [obs], [], []
     for _ in range(env.max_steps):
-        action = np.clip(policy(obs) + noise(), -1.0, 1.0).astype(np.float32)
+        action = np.clip(policy(obs) + noise(), -env.max_action, env.max_action).astype(np.float32)
         obs, _, _, truncated, info = env.step(action)
         observations.append(obs)
         acts.append(action)
@@ -86,11 +91,10 @@ def rollout(env: GRPandaReachEnv, policy: Policy, noise: Callable[[], np.ndarray
 
 def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -> list[Trajectory]:
     """Demonstrations of one goal under the task's regime (see module docstring)."""
-    expert_seed = int(rng.integers(1 << 31))  # the same for every regime of a seed and goal
     if task.params["expert"] == "scripted":
-        policy = scripted_expert(goal)
+        policy = scripted_expert(goal, limit=float(task.env_params["max_action"]))
     elif task.params["expert"] == "sac":
-        policy = sac_expert(task, goal, expert_seed)
+        policy = sac_expert(task, goal, int(task.params["expert_seed"]))
     else:
         raise ValueError(f"{task.id}: expert must be 'sac' or 'scripted', got {task.params['expert']!r}")
     noise = noise_sampler(task, rng)

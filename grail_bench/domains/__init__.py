@@ -57,7 +57,8 @@ DOMAINS: dict[str, DomainSpec] = {
             "optimal": {},
             # One preferred heading order per goal, e.g. "NE" = north, then east.
             "biased": {"routes": []},
-            "suboptimal": {"turn_prob": 0.3},
+            # turn_pattern: "left-right" or "around-and-back" (grail_bench.demos.minigrid).
+            "suboptimal": {"turn_prob": 0.3, "turn_pattern": "left-right"},
         },
     ),
     "panda_reach": DomainSpec(
@@ -65,11 +66,12 @@ DOMAINS: dict[str, DomainSpec] = {
         env_factory="grail_bench.domains.panda_reach:make_env",
         demo_generator="grail_bench.demos.panda_reach:generate_demos",
         goal_dim=3,
-        env_defaults={"max_steps": 50, "distance_threshold": 0.05},
+        env_defaults={"max_steps": 50, "distance_threshold": 0.05, "max_action": 1.0},
+        # expert_seed: the SAC expert is part of the demonstrator, trained once per goal with this seed.
         regimes={
-            "optimal": {"expert": "sac", "expert_steps": 15000},
-            "gaussian": {"expert": "sac", "expert_steps": 15000, "sigma": 0.1},
-            "uniform": {"expert": "sac", "expert_steps": 15000, "half_width": 0.1},
+            "optimal": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0},
+            "gaussian": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "sigma": 0.1},
+            "uniform": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "half_width": 0.1},
         },
     ),
 }

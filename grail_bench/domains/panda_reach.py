@@ -9,9 +9,12 @@ displacements in [-1, 1]; the reward is dense (minus the distance to the
 goal). Episodes have a fixed horizon (``max_steps``, 50 as panda-gym's): success
 does not end them, ``info["is_success"]`` reports it.
 
-The four goals sit in the corners of panda-gym's goal box, 0.2-0.35 m apart
-(4-7 times the 5 cm success radius) and in four different directions from the
-start (0.04, 0, 0.2), so every goal has its own motion from the first step.
+The default four goals sit in the corners of panda-gym's goal box, 0.2-0.35 m
+apart (4-7 times the 5 cm success radius) and in four different directions
+from the start (0.04, 0, 0.2), so every goal has its own motion from the first
+step. The baselines' goal set (:data:`ALIGNED_GOALS`) lies outside that box and
+has two goals in nearly the same direction from the start; any goal within
+the arm's reach (:data:`REACH`) is accepted.
 """
 
 from __future__ import annotations
@@ -24,6 +27,11 @@ import numpy as np
 from gymnasium import Env, spaces
 
 GOALS = ((0.10, 0.10, 0.05), (0.10, -0.10, 0.05), (-0.05, 0.10, 0.25), (-0.05, -0.10, 0.25))
+# gr_libs' PandaReach goals, with (-0.5, 0.2, 0.1) moved to (-0.4, 0.2, 0.1): the arm gets no closer than
+# 4.4 cm to the original, at the edge of the 5 cm success radius, so demonstrations hovered there.
+ALIGNED_GOALS = ((-0.5, -0.5, 0.1), (-0.4, 0.2, 0.1), (-0.1, 0.1, 0.1), (0.1, -0.1, 0.1))
+BASE = np.array([-0.6, 0.0, 0.0])  # panda-gym's robot base
+REACH = 0.8  # metres from the base; the Franka arm's reach is 0.855 m
 
 
 @contextlib.contextmanager
@@ -63,13 +71,14 @@ class GRPandaReachEnv(Env):
         goal: The 3-D target this env rewards.
         max_steps: Fixed episode horizon.
         distance_threshold: Success radius in metres (panda-gym's 0.05).
+        max_action: Actions are clipped to ``[-max_action, max_action]`` (gr_libs' set uses 0.5).
         render_mode: ``"rgb_array"`` or ``None`` (pybullet runs headless).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 25}
 
     def __init__(self, goal: Sequence[float] = GOALS[0], *, max_steps: int = 50, distance_threshold: float = 0.05,
-                 render_mode: str | None = None) -> None:
+                 max_action: float = 1.0, render_mode: str | None = None) -> None:
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         target = np.asarray(goal, dtype=np.float64)
@@ -81,15 +90,18 @@ class GRPandaReachEnv(Env):
         self.task = None  # set by GRTask.make_env
         with quiet_native_output():
             self._env = PandaReachEnv(render_mode="rgb_array", reward_type="dense", control_type="ee")
+        if target[2] < 0 or np.linalg.norm(target - BASE) > REACH:
+            raise ValueError(f"goal {self.goal} is out of the arm's reach (above the table, within {REACH} m of "
+                             f"its base {tuple(BASE)})")
+        if not 0 < max_action <= 1:
+            raise ValueError(f"max_action must be in (0, 1], got {max_action}")
+        self.max_action = float(max_action)
         reach = self._env.task
-        low, high = reach.goal_range_low, reach.goal_range_high
-        if np.any(target < low - 1e-9) or np.any(target > high + 1e-9):
-            raise ValueError(f"goal {self.goal} is outside panda-gym's reachable box {low} .. {high}")
         reach.distance_threshold = float(distance_threshold)
         reach._sample_goal = target.copy  # pins reward, termination and the target
         # End-effector position (m) and velocity (m/s): well inside +-10 for this arm.
         self.observation_space = spaces.Box(-10.0, 10.0, shape=(6,), dtype=np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self.action_space = spaces.Box(-self.max_action, self.max_action, shape=(3,), dtype=np.float32)
         self._steps = 0
 
     @property
@@ -107,7 +119,7 @@ class GRPandaReachEnv(Env):
         action = np.asarray(action, dtype=np.float32)
         if action.shape != (3,) or not np.all(np.isfinite(action)):
             raise ValueError(f"invalid action {action!r}; expected 3 finite numbers")
-        obs, reward, terminated, _, info = self._env.step(np.clip(action, -1.0, 1.0))
+        obs, reward, terminated, _, info = self._env.step(np.clip(action, -self.max_action, self.max_action))
         self._steps += 1
         return (obs["observation"].astype(np.float32), float(reward), False, self._steps >= self.max_steps,
                 {"is_success": bool(terminated)})

@@ -1,14 +1,39 @@
-"""What a recognizer observes: observability levels, prefixes and random subsets."""
+"""What a recognizer observes: observability levels and named observation protocols.
+
+A protocol says which ``k`` state-action pairs of a test demonstration a
+recognizer sees at observability ``p``. Built-in protocols:
+
+* ``subset``: an ordered random subset of the path up to the goal (the
+  baselines' gr_libs ``random_subset_with_order`` with ``is_consecutive=False``);
+* ``prefix``: the first ``k`` pairs of the path up to the goal;
+* ``horizon-subset`` and ``horizon-prefix``: the same over the whole padded
+  fixed-horizon episode. Steps after the goal sit on the goal cell (the agent
+  is absorbed there), so these protocols leak the goal.
+
+``k = max(1, ceil(p * T))`` (``rounding="ceil"``) or ``max(1, floor(p * T))``
+(``rounding="floor"``, gr_libs' ``int(p * T)``), ``T`` being the length of the
+span. More protocols come from the entry-point group ``grail_bench.protocols``,
+each an :class:`ObservationProtocol` (or any object with ``name``,
+``description``, ``leaks_goal`` and ``select``).
+"""
 
 from __future__ import annotations
 
 import math
-from typing import Iterable, Sequence
+import warnings
+import zlib
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from typing import TYPE_CHECKING, Iterable, Protocol, Sequence, runtime_checkable
 
 import numpy as np
-from imitation.data.types import Trajectory
 
-SAMPLINGS = ("prefix", "random")
+if TYPE_CHECKING:  # imitation imports torch; task registration reads this module and must stay light
+    from imitation.data.types import Trajectory
+
+GROUP = "grail_bench.protocols"
+ROUNDINGS = ("ceil", "floor")
+LEGACY_NAMES = {"random": "subset"}  # the deprecated ``--sampling random``
 
 
 def parse_observability(values: Iterable[float] | str) -> tuple[float, ...]:
@@ -44,29 +69,168 @@ def goal_horizon(traj: Trajectory) -> int:
     return len(traj.acts)
 
 
-def observe(traj: Trajectory, fraction: float, sampling: str = "prefix",
-            rng: np.random.Generator | None = None) -> Trajectory:
+def n_observed(fraction: float, length: int, rounding: str = "ceil") -> int:
+    """How many pairs of a ``length``-step span are observed at ``fraction`` (at least 1, at most ``length``)."""
+    if rounding not in ROUNDINGS:
+        raise ValueError(f"unknown rounding {rounding!r}; choose one of {', '.join(ROUNDINGS)}")
+    raw = round(fraction * length, 9)  # 0.3 * 10 is 3.0000000000000004 in floating point
+    k = math.ceil(raw) if rounding == "ceil" else math.floor(raw)
+    return min(length, max(1, k))
+
+
+@runtime_checkable
+class ProtocolLike(Protocol):
+    """What the harness needs of an observation protocol."""
+
+    name: str
+    description: str
+    leaks_goal: bool
+
+    def select(self, traj: Trajectory, fraction: float, rng: np.random.Generator,
+               rounding: str = "ceil") -> np.ndarray:
+        """Sorted indices of the observed state-action pairs."""
+
+
+@dataclass(frozen=True)
+class ObservationProtocol:
+    """A built-in protocol: a span of the demonstration and how pairs are picked from it.
+
+    Attributes:
+        name: Registry name, e.g. ``"subset"``.
+        description: One line for ``grail-bench protocols``.
+        span: ``"goal"`` (the path up to reaching the goal) or ``"horizon"``
+            (every step of the fixed-horizon episode).
+        random_subset: Pick an ordered random subset (else the first ``k``).
+        leaks_goal: Whether observations can include steps after the goal.
+    """
+
+    name: str
+    description: str
+    span: str
+    random_subset: bool
+    leaks_goal: bool = False
+
+    def length(self, traj: Trajectory) -> int:
+        """Steps the protocol samples from."""
+        return goal_horizon(traj) if self.span == "goal" else len(traj.acts)
+
+    def select(self, traj: Trajectory, fraction: float, rng: np.random.Generator,
+               rounding: str = "ceil") -> np.ndarray:
+        """Sorted indices of the observed pairs; draws from ``rng`` only for random subsets."""
+        length = self.length(traj)
+        k = n_observed(fraction, length, rounding)
+        if not self.random_subset:
+            return np.arange(k)
+        return np.sort(rng.choice(length, size=k, replace=False))
+
+
+BUILTIN: dict[str, ObservationProtocol] = {p.name: p for p in (
+    ObservationProtocol("subset", "ordered random subset of the path up to the goal (gr_libs, the paper's "
+                        "baselines)", span="goal", random_subset=True),
+    ObservationProtocol("prefix", "the first k pairs of the path up to the goal (the strict online variant)",
+                        span="goal", random_subset=False),
+    ObservationProtocol("horizon-subset", "ordered random subset of the padded fixed-horizon episode "
+                        "(leaks the goal: steps after it sit on the goal cell)", span="horizon",
+                        random_subset=True, leaks_goal=True),
+    ObservationProtocol("horizon-prefix", "the first k pairs of the padded fixed-horizon episode "
+                        "(leaks the goal at high observability)", span="horizon", random_subset=False,
+                        leaks_goal=True),
+)}
+
+
+class UnknownProtocolError(KeyError):
+    """No protocol of that name is built in or registered."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+def available_protocols() -> dict[str, str]:
+    """Protocol names and what provides them (plugins are not imported)."""
+    out = {name: "built-in" for name in BUILTIN}
+    for ep in entry_points(group=GROUP):
+        if ep.name in out:
+            raise ValueError(f"protocol name {ep.name!r} is registered twice: {out[ep.name]} and {ep.value}")
+        out[ep.name] = ep.value
+    return out
+
+
+def canonical_name(name: str) -> str:
+    """The registered name, mapping the deprecated ``random`` to ``subset`` (with a warning)."""
+    if name in LEGACY_NAMES:
+        warnings.warn(f"observation protocol {name!r} is deprecated; use {LEGACY_NAMES[name]!r}",
+                      DeprecationWarning, stacklevel=3)
+        return LEGACY_NAMES[name]
+    return name
+
+
+def get_protocol(name: str) -> ProtocolLike:
+    """The protocol registered under ``name``.
+
+    Raises:
+        UnknownProtocolError: For names neither built in nor registered.
+    """
+    name = canonical_name(name)
+    if name in BUILTIN:
+        return BUILTIN[name]
+    for ep in entry_points(group=GROUP):
+        if ep.name == name:
+            protocol = ep.load()
+            if not isinstance(protocol, ProtocolLike):
+                raise TypeError(f"protocol entry point {ep.value} lacks name, description, leaks_goal or select")
+            return protocol
+    raise UnknownProtocolError(f"unknown observation protocol {name!r}; available: {', '.join(available_protocols())}")
+
+
+def protocol_label(name: str, rounding: str = "ceil") -> str:
+    """What the store and records call a protocol: ``"subset"``, or ``"subset+floor"`` when rounding down."""
+    if rounding not in ROUNDINGS:
+        raise ValueError(f"unknown rounding {rounding!r}; choose one of {', '.join(ROUNDINGS)}")
+    return name if rounding == "ceil" else f"{name}+{rounding}"
+
+
+def parse_label(label: str) -> tuple[str, str]:
+    """``"subset+floor"`` -> ``("subset", "floor")``; the inverse of :func:`protocol_label`."""
+    name, _, rounding = label.partition("+")
+    return name, rounding or "ceil"
+
+
+def cell_rng(seed: int, level: float, label: str) -> np.random.Generator:
+    """The random stream of one (seed, observability level, protocol) cell.
+
+    It depends on nothing else, so running levels together or one at a time,
+    fresh or resumed, draws the same observations.
+    """
+    return np.random.default_rng([int(seed), int(round(level * 1_000_000)), zlib.crc32(label.encode())])
+
+
+def observe(traj: Trajectory, fraction: float, protocol: str | ProtocolLike = "prefix",
+            rng: np.random.Generator | None = None, rounding: str = "ceil") -> Trajectory:
     """The part of a test demonstration a recognizer gets to see.
 
-    ``k = max(1, ceil(fraction * T))`` state-action pairs, where ``T`` is
-    :func:`goal_horizon`: the first ``k`` (``"prefix"``) or ``k`` drawn
-    without replacement and kept in order (``"random"``). Infos are dropped,
-    so nothing about the goal leaks.
+    Infos are dropped, so nothing about the goal leaks through them.
+
+    Args:
+        traj: A test demonstration.
+        fraction: Observability level in (0, 1].
+        protocol: A protocol or its name (see module docstring).
+        rng: Needed by random-subset protocols.
+        rounding: ``"ceil"`` or ``"floor"`` for ``k``.
 
     Returns:
         A trajectory with ``k`` actions and ``k + 1`` states; ``acts[i]`` was
-        taken in ``obs[i]`` (for random subsets ``obs[k]`` follows the last pair).
+        taken in ``obs[i]`` (for subsets ``obs[k]`` follows the last pair).
     """
-    if sampling not in SAMPLINGS:
-        raise ValueError(f"unknown sampling {sampling!r}; choose one of {', '.join(SAMPLINGS)}")
-    horizon = goal_horizon(traj)
-    k = max(1, math.ceil(round(fraction * horizon, 9)))
-    if sampling == "prefix":
-        idx = np.arange(k)
-    else:
-        if rng is None:
-            raise ValueError("random sampling needs an rng")
-        idx = np.sort(rng.choice(horizon, size=k, replace=False))
+    chosen = get_protocol(protocol) if isinstance(protocol, str) else protocol
+    if rng is None:
+        if getattr(chosen, "random_subset", True):
+            raise ValueError(f"observation protocol {chosen.name!r} draws at random and needs an rng")
+        rng = np.random.default_rng(0)  # never drawn from
+    idx = np.asarray(chosen.select(traj, fraction, rng, rounding), dtype=np.int64)
+    if idx.ndim != 1 or len(idx) == 0 or np.any(np.diff(idx) <= 0) or idx[0] < 0 or idx[-1] >= len(traj.acts):
+        raise ValueError(f"protocol {chosen.name!r} selected invalid indices {idx.tolist()}")
+    from imitation.data.types import Trajectory
+
     states = np.concatenate([traj.obs[idx], traj.obs[idx[-1] + 1][None]])
     return Trajectory(obs=states, acts=traj.acts[idx], infos=None, terminal=False)
 

@@ -10,16 +10,19 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from grail_bench.evaluation import metrics
-from grail_bench.evaluation.protocol import SAMPLINGS, observe, parse_observability, seed_list
+from grail_bench.evaluation.protocol import (
+    canonical_name, cell_rng, get_protocol, observe, parse_observability, protocol_label, seed_list,
+)
 from grail_bench.recognizers.base import Recognizer, RecognizerError, recognizer_config
 from grail_bench.recognizers.registry import make_recognizer
 from grail_bench.store import ResultRow, ResultsStore, config_hash, package_versions
 from grail_bench.task import Demos, GRTask, make_task
 
 RECORD_KEYS = (
-    "task", "recognizer", "scorer", "sampling", "observability", "n_seeds", "f1_mean", "f1_std",
+    "task", "recognizer", "scorer", "protocol", "observability", "n_seeds", "f1_mean", "f1_std",
     "f1_ci95_low", "f1_ci95_high", "accuracy_mean", "precision_mean", "recall_mean",
     "fit_seconds_per_goal", "score_us_per_observation", "tie_rate", "brier_mean", "nll_mean", "config_hash",
+    "task_params",
 )
 DEFAULT_SCORER = "default"  # the label of recognizers without pluggable scorers
 
@@ -76,18 +79,25 @@ def _check_scores(name: str, scores: Any, goals: Sequence[tuple]) -> np.ndarray:
     return out
 
 
-def run_seed(task: GRTask, spec: RecognizerSpec, seed: int, levels: Sequence[float], sampling: str,
-             versions: str, demos: Demos | None = None) -> list[ResultRow]:
+def run_seed(task: GRTask, spec: RecognizerSpec, seed: int, levels: Sequence[float], protocol: str,
+             versions: str, demos: Demos | None = None, rounding: str = "ceil") -> list[ResultRow]:
     """Fit one recognizer on one seed's training demos, then score every level with every scorer.
 
     The recognizer never sees the true goal: it gets the training demos per
     goal, an env factory, and observations stripped of infos, scored in a
-    seeded random order across goals. With the ``loglik`` scorer the scores
-    also give a posterior over goals, whose Brier score and NLL are recorded.
+    seeded random order across goals. Each (seed, level, protocol) cell draws
+    its observations from its own random stream (:func:`cell_rng`), so the
+    rows do not depend on which other levels run in the same call. With the
+    ``loglik`` scorer the scores also give a posterior over goals, whose Brier
+    score and NLL are recorded.
 
     Args:
+        protocol: Observation protocol name (see :mod:`grail_bench.evaluation.protocol`).
         demos: The seed's demonstrations, if already generated.
+        rounding: ``"ceil"`` or ``"floor"`` for the number of observed pairs.
     """
+    chosen = get_protocol(protocol)
+    stored_protocol = protocol_label(chosen.name, rounding)
     recognizer = make_recognizer(spec.name, **spec.config)
     scorers, config_json, chash = _identity(task, spec, recognizer)
     train, test = task.split(demos if demos is not None else task.generate_demos(seed))
@@ -96,12 +106,12 @@ def run_seed(task: GRTask, spec: RecognizerSpec, seed: int, levels: Sequence[flo
     fit_seconds = getattr(recognizer, "fit_seconds", None)  # training time of reloaded models, if reported
     fit_per_goal = (fit_seconds if fit_seconds is not None else time.perf_counter() - start) / len(task.goals)
 
-    rng = np.random.default_rng([seed, 1])
     labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
     rows = []
     for level in levels:
+        rng = cell_rng(seed, level, stored_protocol)
         order = rng.permutation(len(labelled))
-        observations = [(labelled[j][0], observe(labelled[j][1], level, sampling, rng)) for j in order]
+        observations = [(labelled[j][0], observe(labelled[j][1], level, chosen, rng, rounding)) for j in order]
         for scorer in scorers:
             # The recognizer's own score() unless scorers were asked for by name.
             score = (lambda obs, s=scorer: recognizer.score_with(obs, s)) if spec.scorers else recognizer.score
@@ -122,12 +132,21 @@ def run_seed(task: GRTask, spec: RecognizerSpec, seed: int, levels: Sequence[flo
             m = metrics.classification(y_true, y_pred, len(task.goals))
             rows.append(ResultRow(
                 task=task.id, recognizer=spec.name, scorer=scorer, config_hash=chash, seed=seed,
-                observability=level, sampling=sampling, n_observations=len(y_true), n_ties=ties,
+                observability=level, protocol=stored_protocol, n_observations=len(y_true), n_ties=ties,
                 fit_seconds_per_goal=fit_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
                 config=config_json, versions=versions,
                 brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None, **m,
             ))
     return rows
+
+
+def _task_params(config_json: str) -> dict[str, Any]:
+    """The regime and env parameters a row was run with (``{}`` for rows without them)."""
+    try:
+        task = json.loads(config_json).get("task", {})
+    except (ValueError, AttributeError):
+        return {}
+    return {**task.get("params", {}), **task.get("env", {})}
 
 
 def _mean_or_none(values: list[float | None]) -> float | None:
@@ -139,13 +158,13 @@ def aggregate(rows: Iterable[ResultRow]) -> list[dict[str, Any]]:
     """Across-seed records (the ``--json`` format), one per configuration and level."""
     groups: dict[tuple, list[ResultRow]] = {}
     for r in rows:
-        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.sampling, r.observability), []).append(r)
+        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability), []).append(r)
     records = []
-    for (task, rec, scorer, chash, sampling, level), group in groups.items():
+    for (task, rec, scorer, chash, protocol, level), group in groups.items():
         f1 = metrics.summarize([r.f1 for r in group])
         n_obs = sum(r.n_observations for r in group)
         records.append({
-            "task": task, "recognizer": rec, "scorer": scorer, "sampling": sampling, "observability": level,
+            "task": task, "recognizer": rec, "scorer": scorer, "protocol": protocol, "observability": level,
             "n_seeds": len(group), "f1_mean": f1["mean"], "f1_std": f1["std"], "f1_ci95_low": f1["ci_low"],
             "f1_ci95_high": f1["ci_high"],
             "accuracy_mean": float(np.mean([r.accuracy for r in group])),
@@ -157,8 +176,9 @@ def aggregate(rows: Iterable[ResultRow]) -> list[dict[str, Any]]:
             "brier_mean": _mean_or_none([r.brier for r in group]),
             "nll_mean": _mean_or_none([r.nll for r in group]),
             "config_hash": chash,
+            "task_params": _task_params(group[0].config),
         })
-    return sorted(records, key=lambda r: (r["task"], r["recognizer"], r["scorer"], r["observability"]))
+    return sorted(records, key=lambda r: (r["task"], r["recognizer"], r["scorer"], r["protocol"], r["observability"]))
 
 
 def evaluate(
@@ -167,7 +187,8 @@ def evaluate(
     *,
     seeds: int | Sequence[int] = 3,
     observability: Iterable[float] | str | None = None,
-    sampling: str = "prefix",
+    protocol: str | None = None,
+    rounding: str = "ceil",
     store: ResultsStore | None = None,
     progress: bool = False,
     task_params: Mapping[str, Any] | None = None,
@@ -183,7 +204,10 @@ def evaluate(
             (which also selects scorers).
         seeds: ``n`` for seeds ``0..n-1``, or explicit seeds.
         observability: Fractions observed; defaults to the task's.
-        sampling: ``"prefix"`` (the paper's) or ``"random"``.
+        protocol: Observation protocol; defaults to the task's (``subset`` for
+            the paper's optimal and suboptimal MiniGrid tasks).
+        rounding: ``"ceil"`` (default) or ``"floor"`` (gr_libs' ``int(p * T)``)
+            for the number of observed pairs.
         store: Where rows go; an in-memory store if ``None``.
         progress: Show a progress bar.
         task_params: Task overrides, as ``gym.make`` accepts them (e.g.
@@ -195,8 +219,8 @@ def evaluate(
     task = make_task(task_id, **dict(task_params or {}))
     levels = parse_observability(observability) if observability is not None else task.observability
     seed_values = seed_list(seeds)
-    if sampling not in SAMPLINGS:
-        raise ValueError(f"unknown sampling {sampling!r}; choose one of {', '.join(SAMPLINGS)}")
+    protocol = get_protocol(canonical_name(protocol or task.protocol)).name
+    label = protocol_label(protocol, rounding)
     specs = [_spec(r) for r in recognizers]
     if not specs:
         raise ValueError("name at least one recognizer")
@@ -208,7 +232,7 @@ def evaluate(
     for spec in specs:
         scorers, _, chash = _identity(task, spec, make_recognizer(spec.name, **spec.config))
         identities.append((scorers, chash))
-        done = [store.completed(task.id, spec.name, scorer, chash, sampling) for scorer in scorers]
+        done = [store.completed(task.id, spec.name, scorer, chash, label) for scorer in scorers]
         for seed in seed_values:
             if not all((seed, lv) in d for lv in levels for d in done):
                 plan.setdefault(seed, []).append(spec)
@@ -223,13 +247,13 @@ def evaluate(
             demos = task.generate_demos(seed)  # once per seed, shared by every recognizer
             for spec in todo:
                 bar.update(job, description=f"{task.id}: fitting and scoring {spec.name} (seed {seed})")
-                store.add(run_seed(task, spec, seed, levels, sampling, versions, demos))
+                store.add(run_seed(task, spec, seed, levels, protocol, versions, demos, rounding))
                 bar.advance(job)
         bar.update(job, description=f"{task.id}: done")
 
     rows = []
     for spec, (scorers, chash) in zip(specs, identities):
         rows += [r for r in store.rows(task=task.id, recognizer=spec.name, scorer=scorers, config_hash=chash,
-                                       sampling=sampling, seed=seed_values)
+                                       protocol=label, seed=seed_values)
                  if r.observability in levels]
     return aggregate(rows)

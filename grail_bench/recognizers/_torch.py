@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 from typing import Iterator
 
-import numpy as np
 import torch
 from imitation.util.logger import HierarchicalLogger
 from stable_baselines3.common.logger import Logger
@@ -25,11 +24,6 @@ def single_thread() -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(before)
-
-
-def goal_seeds(seed: int, n: int) -> list[int]:
-    """``n`` independent 31-bit seeds derived from ``seed``, one per goal."""
-    return [int(s.generate_state(1)[0] >> 1) for s in np.random.SeedSequence(seed).spawn(n)]
 
 
 @contextlib.contextmanager

@@ -9,10 +9,10 @@ from gymnasium import spaces
 from imitation.data.types import Trajectory
 from scipy.special import softmax
 
-from grail_bench.recognizers._torch import goal_seeds
 from grail_bench.recognizers.base import EnvFactory, Goal, observed_arrays
 from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.scoring import PolicyOutput
+from grail_bench.seeding import goal_seed
 
 
 def state_index(obs: np.ndarray, space: spaces.Space) -> np.ndarray:
@@ -69,10 +69,10 @@ class GRAQLRecognizer(ScoredRecognizer):
     def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int) -> None:
         """Learn one Q-table per goal by interacting with ``env_factory(goal)``."""
         tables, visits = [], []
-        for goal, goal_seed in zip(demos, goal_seeds(seed, len(demos))):
+        for goal in demos:
             env = env_factory(goal)
             try:
-                q, v = self._q_learning(env, goal_seed)
+                q, v = self._q_learning(env, goal_seed(seed, goal))
             finally:
                 env.close()
             tables.append(q)

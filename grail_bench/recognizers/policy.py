@@ -15,11 +15,12 @@ from imitation.data.types import Trajectory
 from stable_baselines3.common.policies import BasePolicy
 
 from grail_bench.cache import cached_state_dict
-from grail_bench.recognizers._torch import goal_seeds, single_thread
+from grail_bench.recognizers._torch import single_thread
 from grail_bench.recognizers.base import EnvFactory, Goal, observed_arrays
 from grail_bench.recognizers.policy_bank import PolicyBank
 from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.scoring import PolicyOutput
+from grail_bench.seeding import goal_seed
 
 
 def until_success(traj: Trajectory) -> Trajectory:
@@ -77,9 +78,10 @@ class PolicyRecognizer(ScoredRecognizer):
         self.fit_seconds = 0.0
         policies = []
         with single_thread():
-            for goal, goal_seed in zip(demos, goal_seeds(seed, len(demos))):
-                torch.manual_seed(goal_seed)
-                policies.append(self._policy(goal, demos[goal], env_factory, goal_seed))
+            for goal in demos:
+                own_seed = goal_seed(seed, goal)  # keyed by the goal, not its position in the task
+                torch.manual_seed(own_seed)
+                policies.append(self._policy(goal, demos[goal], env_factory, own_seed))
         self.goals = list(demos)
         self.bank = PolicyBank(policies)
 

@@ -1,0 +1,218 @@
+"""The MiniGrid demonstrators as probability models: what the Bayes ceiling needs.
+
+A demonstration of one goal is a shortest path (uniform among all of them, or
+the one preferred route of the biased regime) with, before each path action
+and with probability ``turn_prob``, one of the regime's turn insertions. An
+observation is a sequence of ``(x, y, direction, action)`` pairs picked by an
+observation protocol from the path up to the goal, or from the whole padded
+horizon, where the agent stays on the goal. :class:`GoalDemonstrator` gives:
+
+* the exact support of the demonstrator when it is small (optimal, biased);
+* samples of observations, drawn exactly as the harness draws them;
+* the exact likelihood of an observation, summed over every path and every
+  insertion pattern by dynamic programming (no enumeration of the insertions).
+
+The dynamics are deterministic, so the state after the last observed pair is
+implied by it and is left out of an observation.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from math import comb
+from typing import TYPE_CHECKING, Iterator
+
+import numpy as np
+
+from grail_bench.demos.minigrid import (
+    TURN_PATTERNS, all_shortest_paths, biased_path, check_params, insert_turns, sample_shortest_path,
+)
+from grail_bench.domains.minigrid import STAY, GridModel, State
+from grail_bench.evaluation.protocol import n_observed
+
+if TYPE_CHECKING:
+    from grail_bench.task import Goal, GRTask
+
+Pair = tuple[int, int, int, int]  # x, y, direction, action
+Observation = tuple[Pair, ...]
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Which pairs a protocol observes: from which span, and how.
+
+    Attributes:
+        horizon: Sample from the padded fixed-horizon episode (else the path up to the goal).
+        random_subset: An ordered random subset (else the first ``k``).
+        level: Observability fraction.
+        rounding: ``"ceil"`` or ``"floor"``.
+    """
+
+    horizon: bool
+    random_subset: bool
+    level: float
+    rounding: str = "ceil"
+
+
+class GoalDemonstrator:
+    """One goal's demonstrator under a task's regime.
+
+    Args:
+        task: A MiniGrid task.
+        goal: One of its goals.
+    """
+
+    def __init__(self, task: GRTask, goal: Goal) -> None:
+        check_params(task.regime, dict(task.params), len(task.goals))
+        env = task.make_env(goal)
+        base = env.unwrapped
+        self.model: GridModel = base.model
+        self.start: State = (*base.start, base.start_dir)
+        self.horizon: int = int(base.max_steps)
+        env.close()
+        self.goal = (int(goal[0]), int(goal[1]))
+        self.regime = task.regime
+        if task.regime == "biased":
+            route = task.params["routes"][task.goal_index(goal)]
+            self.paths = [biased_path(self.model, self.start, self.goal, route)]
+        else:
+            self.paths = all_shortest_paths(self.model, self.start, self.goal)
+        self.turn_prob = float(task.params["turn_prob"]) if task.regime == "suboptimal" else 0.0
+        self.patterns = TURN_PATTERNS[task.params["turn_pattern"]] if task.regime == "suboptimal" else ()
+        self._blocks = [self._path_blocks(path) for path in self.paths]
+
+    # -- the demonstrator's support and samples -------------------------------------------------------------
+
+    @property
+    def deterministic_turns(self) -> bool:
+        """Whether no insertions can happen, so the support is just the paths."""
+        return self.turn_prob == 0.0
+
+    def pairs(self, actions: list[int]) -> list[Pair]:
+        """The ``(x, y, direction, action)`` pairs of an action sequence played from the start."""
+        out, s = [], self.start
+        for a in actions:
+            out.append((*s, a))
+            s = self.model.step(s, a)
+        return out
+
+    def goal_pair(self, actions: list[int]) -> Pair:
+        """The pair repeated after the goal: the final state, staying."""
+        s = self.start
+        for a in actions:
+            s = self.model.step(s, a)
+        return (*s, STAY)
+
+    def support(self) -> Iterator[tuple[list[int], float]]:
+        """Every demonstration (action sequence) with its probability; only without insertions."""
+        if not self.deterministic_turns:
+            raise ValueError("the support of a demonstrator with random turn insertions is not enumerated")
+        weight = 1.0 / len(self.paths)
+        for path in self.paths:
+            yield list(path), weight
+
+    def sample(self, rng: np.random.Generator) -> list[int]:
+        """One demonstration's actions up to the goal, drawn as the task's generator draws it."""
+        if self.regime == "biased":
+            return list(self.paths[0])
+        path = sample_shortest_path(self.model, self.start, self.goal, rng)
+        if self.regime == "suboptimal":
+            path = insert_turns(path, self.turn_prob, rng, _pattern_name(self.patterns))
+        return path
+
+    def span(self, actions: list[int], selection: Selection) -> list[Pair]:
+        """The pairs a protocol samples from: the path, plus the stay-on-goal padding for horizon protocols."""
+        pairs = self.pairs(actions)
+        if selection.horizon:
+            pairs += [self.goal_pair(actions)] * (self.horizon - len(pairs))
+        return pairs
+
+    def observations(self, actions: list[int], selection: Selection) -> Iterator[tuple[Observation, float]]:
+        """Every observation of one demonstration with its probability under the protocol."""
+        pairs = self.span(actions, selection)
+        k = n_observed(selection.level, len(pairs), selection.rounding)
+        if not selection.random_subset:
+            yield tuple(pairs[:k]), 1.0
+            return
+        weight = 1.0 / comb(len(pairs), k)
+        for idx in itertools.combinations(range(len(pairs)), k):
+            yield tuple(pairs[i] for i in idx), weight
+
+    def sample_observation(self, rng: np.random.Generator, selection: Selection) -> Observation:
+        """A demonstration and then its observation, both drawn as the harness draws them."""
+        pairs = self.span(self.sample(rng), selection)
+        k = n_observed(selection.level, len(pairs), selection.rounding)
+        idx = np.sort(rng.choice(len(pairs), size=k, replace=False)) if selection.random_subset else range(k)
+        return tuple(pairs[i] for i in idx)
+
+    # -- exact likelihood ---------------------------------------------------------------------------------
+
+    def _path_blocks(self, path: list[int]) -> list[tuple[list[Pair], list[list[Pair]]]]:
+        """Per path action: its own pair, and the pairs of each insertion followed by it."""
+        blocks, s = [], self.start
+        for a in path:
+            insertions = []
+            for pattern in self.patterns:
+                pairs, t = [], s
+                for turn in pattern:
+                    pairs.append((*t, turn))
+                    t = self.model.step(t, turn)
+                insertions.append([*pairs, (*s, a)])  # the pattern leaves the heading as it was
+            blocks.append(([(*s, a)], insertions))
+            s = self.model.step(s, a)
+        return blocks
+
+    def likelihood(self, observation: Observation, selection: Selection) -> float:
+        """Probability that this goal's demonstrator yields ``observation`` under the protocol."""
+        total = 0.0
+        for path, blocks in zip(self.paths, self._blocks):
+            total += self._path_likelihood(path, blocks, observation, selection)
+        return total / len(self.paths)
+
+    def _path_likelihood(self, path: list[int], blocks: list, obs: Observation, sel: Selection) -> float:
+        # a[m, j]: probability mass of demonstrations with m insertions so far, weighted by the number of
+        # ways the pairs emitted so far match the first j observed pairs (subset) / match them in full
+        # (prefix: j = pairs emitted so far, capped at K).
+        K, L = len(obs), len(path)
+        a = np.zeros((L + 1, K + 1))
+        a[0, 0] = 1.0
+        share = self.turn_prob / len(self.patterns) if self.patterns else 0.0
+        for own, insertions in blocks:
+            nxt = (1.0 - self.turn_prob) * self._emit(a, own, obs, sel.random_subset)
+            for pairs in insertions:
+                nxt[1:] += share * self._emit(a, pairs, obs, sel.random_subset)[:-1]
+            a = nxt
+        pad_pair = self.goal_pair(path)
+        insertion_len = len(self.patterns[0]) if self.patterns else 0
+        out = 0.0
+        for m in range(L + 1):
+            n = L + m * insertion_len
+            pad = self.horizon - n if sel.horizon else 0
+            if pad < 0:
+                continue  # the generator refuses demonstrations longer than the horizon
+            if n_observed(sel.level, n + pad, sel.rounding) != K:
+                continue
+            mass = 0.0
+            for j in range(K + 1):  # the last K - j observed pairs fall in the padding
+                if a[m, j] != 0.0 and all(p == pad_pair for p in obs[j:]):
+                    mass += a[m, j] * (comb(pad, K - j) if sel.random_subset else 1)
+            # Subsets: each size-K index set of the span is equally likely.
+            out += mass / comb(n + pad, K) if sel.random_subset else mass
+        return out
+
+    @staticmethod
+    def _emit(a: np.ndarray, pairs: list[Pair], obs: Observation, subset: bool) -> np.ndarray:
+        K = len(obs)
+        for pair in pairs:
+            match = np.array([o == pair for o in obs], dtype=float)
+            b = a.copy() if subset else np.zeros_like(a)
+            b[:, 1:] += a[:, :-1] * match
+            if not subset:
+                b[:, K] += a[:, K]
+            a = b
+        return a
+
+
+def _pattern_name(patterns: tuple) -> str:
+    return next(name for name, p in TURN_PATTERNS.items() if p == patterns)

@@ -1,0 +1,125 @@
+"""The Bayes ceiling: hand-computed cases, exact against Monte Carlo, the likelihood against brute force."""
+
+from __future__ import annotations
+
+import itertools
+import json
+from collections import defaultdict
+
+import numpy as np
+import pytest
+
+import grail_bench
+from grail_bench.demos.minigrid import TURN_PATTERNS
+from grail_bench.demos.minigrid_likelihood import GoalDemonstrator, Selection
+from grail_bench.domains import DOMAINS
+from grail_bench.evaluation.ceiling import bayes_ceiling, cached_ceiling, normalised
+from grail_bench.task import GRTask
+
+
+def tiny(regime: str = "optimal", **params) -> GRTask:
+    """A 3x3 room, start (1, 2) facing east, goals (3, 1) and (3, 3): the only shortest paths are
+    F F L F and F F R F, so the first two pairs are shared and the last two tell the goals apart."""
+    defaults = DOMAINS["minigrid"].regimes[regime]
+    env = {**DOMAINS["minigrid"].env_defaults, "size": 5, "start": [1, 2], "obstacles": [], "max_steps": 8}
+    return GRTask(id="GRAIL/Tiny-v0", domain="minigrid", regime=regime, goals=((3, 1), (3, 3)),
+                  params={**defaults, **params}, env_params=env)
+
+
+@pytest.mark.parametrize("protocol, level, expected", [
+    ("prefix", 0.5, 0.5),          # k = 2: F F for both goals
+    ("prefix", 0.75, 1.0),         # k = 3: the turn tells them apart
+    ("subset", 0.25, 0.75),        # k = 1 of 4 pairs: 2 shared (1/2 right), 2 telling
+    ("horizon-subset", 0.125, 0.875),  # k = 1 of 8 pairs: 2 shared, 2 telling, 4 on the goal (telling)
+    ("horizon-prefix", 0.25, 0.5),  # k = 2 of 8: still F F
+])
+def test_hand_computed_ceilings(protocol, level, expected):
+    c = bayes_ceiling(tiny(), protocol, level)
+    assert c.method == "exact" and c.stderr == 0.0 and c.chance == 0.5
+    assert c.accuracy == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("task_id, protocol", [("GRAIL/MiniGrid-Optimal-4Goals-v0", "prefix"),
+                                               ("GRAIL/MiniGrid-Optimal-v0", "subset"),
+                                               ("GRAIL/MiniGrid-Biased-v0", "subset")])
+def test_monte_carlo_agrees_with_the_exact_value(task_id, protocol):
+    task = grail_bench.make_task(task_id)
+    exact = bayes_ceiling(task, protocol, 0.2, method="exact")
+    mc = bayes_ceiling(task, protocol, 0.2, method="monte-carlo", samples=200, seed=1)
+    assert mc.method == "monte-carlo" and mc.samples == 200
+    assert abs(mc.accuracy - exact.accuracy) <= 4 * mc.stderr + 1e-9
+
+
+def test_the_paper_protocols_ceilings_on_six_goals():
+    # Known values (leaderboard/README.md): the prefix caps any recognizer far below the paper's 0.87-0.92.
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0")
+    prefix = [bayes_ceiling(task, "prefix", p).accuracy for p in (0.1, 0.2, 0.3)]
+    subset = [bayes_ceiling(task, "subset", p).accuracy for p in (0.1, 0.2, 0.3)]
+    assert np.round(prefix, 2).tolist() == [0.44, 0.53, 0.61]
+    assert np.round(subset, 2).tolist() == [0.80, 0.92, 0.97]
+
+
+def _brute_force_likelihoods(d: GoalDemonstrator, selection: Selection) -> dict:
+    """Enumerate every path and every insertion choice of the tiny task."""
+    out: dict = defaultdict(float)
+    options = [()] + list(d.patterns)
+    for path in d.paths:
+        for choice in itertools.product(range(len(options)), repeat=len(path)):
+            p = 1.0 / len(d.paths)
+            actions = []
+            for a, c in zip(path, choice):
+                p *= (1 - d.turn_prob) if c == 0 else d.turn_prob / len(d.patterns)
+                actions += [*options[c], a]
+            for obs, w in d.observations(actions, selection):
+                out[obs] += p * w
+    return out
+
+
+@pytest.mark.parametrize("pattern", sorted(TURN_PATTERNS))
+@pytest.mark.parametrize("protocol, level", [("subset", 0.15), ("prefix", 0.5), ("horizon-subset", 0.1),
+                                             ("horizon-prefix", 0.6)])
+def test_likelihood_with_turn_insertions_matches_brute_force(pattern, protocol, level):
+    task = tiny("suboptimal", turn_prob=0.4, turn_pattern=pattern)
+    task = GRTask(**{**task.__dict__, "env_params": {**task.env_params, "max_steps": 20}})
+    chosen = grail_bench.evaluation.protocol.BUILTIN[protocol]
+    selection = Selection(horizon=chosen.span == "horizon", random_subset=chosen.random_subset, level=level)
+    d = GoalDemonstrator(task, (3, 1))
+    brute = _brute_force_likelihoods(d, selection)
+    assert sum(brute.values()) == pytest.approx(1.0)
+    observations = list(brute)
+    picked = np.random.default_rng(0).choice(len(observations), size=min(150, len(observations)), replace=False)
+    for i in picked:
+        assert d.likelihood(observations[i], selection) == pytest.approx(brute[observations[i]], rel=1e-9, abs=1e-12)
+    unseen = ((9, 9, 0, 0),) * len(observations[0])  # an observation no demonstration yields
+    assert d.likelihood(unseen, selection) == 0.0
+
+
+def test_suboptimal_ceiling_is_monte_carlo_with_a_standard_error():
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0")
+    c = bayes_ceiling(task, "prefix", 0.3, samples=60, seed=0)
+    assert c.method == "monte-carlo" and c.samples == 60 and 0 < c.stderr < 0.1
+    assert 0.5 <= c.accuracy <= 1.0
+    assert bayes_ceiling(task, "prefix", 0.3, samples=60, seed=0) == c  # seeded
+    with pytest.raises(ValueError, match="cannot enumerate"):
+        bayes_ceiling(task, "prefix", 0.3, method="exact")
+
+
+def test_ceilings_are_cached_and_other_domains_have_none(tmp_path, monkeypatch):
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path))
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0")
+    first = cached_ceiling(task, "subset+floor", 0.2)
+    files = list((tmp_path / "ceilings").glob("*.json"))
+    assert len(files) == 1 and first.protocol == "subset+floor"
+    assert cached_ceiling(task, "subset+floor", 0.2) == first
+    files[0].write_text("{not json")  # a corrupt entry is computed again
+    assert cached_ceiling(task, "subset+floor", 0.2) == first
+    assert json.loads(files[0].read_text())["ceiling"]["accuracy"] == first.accuracy
+    assert cached_ceiling(grail_bench.make_task("GRAIL/PandaReach-Optimal-v0"), "subset", 0.02) is None
+    assert cached_ceiling(task, "random", 0.2) is None  # legacy rows have no ceiling
+
+
+def test_normalised_f1():
+    assert normalised(0.5, 1.0, 0.5) == 0.0
+    assert normalised(1.0, 1.0, 0.5) == 1.0
+    assert normalised(0.75, 0.75, 0.25) == 1.0
+    assert normalised(0.5, 0.5, 0.5) is None
