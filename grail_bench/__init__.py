@@ -14,7 +14,7 @@ from grail_bench.task import GRTask, make_task
 
 __version__ = "0.1.0"
 __all__ = [
-    "GRTask", "Recognizer", "ResultsStore", "__version__", "evaluate", "make_recognizer", "make_task",
+    "GRTask", "Recognizer", "ResultsStore", "__version__", "bayes_ceiling", "evaluate", "make_recognizer", "make_task",
     "observe", "register_envs", "task_ids",
 ]
 
@@ -23,6 +23,7 @@ _LAZY = {
     "make_recognizer": "grail_bench.recognizers.registry",
     "evaluate": "grail_bench.evaluation.runner",
     "observe": "grail_bench.evaluation.protocol",
+    "bayes_ceiling": "grail_bench.evaluation.ceiling",
     "ResultsStore": "grail_bench.store",
 }
 

@@ -179,7 +179,9 @@ def run(
             where = store.path
     except _user_errors() as exc:
         raise fail(str(exc)) from None
-    for table in rich_tables(build_boards(records)):
+    with console.status("Bayes ceilings (computed once, then cached)"):
+        boards = build_boards(records)
+    for table in rich_tables(boards):
         console.print(table)
     timing = Table(title="timings (mean over seeds)")
     for col in ("recognizer", "scorer", "fit s/goal", "score µs/observation"):
@@ -250,7 +252,8 @@ def leaderboard(
             console.print(f"plot written to {plot}", highlight=False)
         return
     try:
-        boards = build_boards(records, ref, None if no_ceiling else ceiling_samples)
+        with console.status("Bayes ceilings (computed once, then cached)"):
+            boards = build_boards(records, ref, None if no_ceiling else ceiling_samples)
     except _user_errors() as exc:
         raise fail(str(exc)) from None
     for table in rich_tables(boards):
@@ -304,8 +307,9 @@ def ceiling(
         gr_task = make_task(task, **_parse_params(params or []))
         levels = parse_observability(observability) if observability else gr_task.observability
         name = protocol or gr_task.protocol
-        results = [bayes_ceiling(gr_task, name, level, rounding=rounding, method=method, samples=samples, seed=seed)
-                   for level in levels]
+        with console.status("computing the Bayes ceiling"):
+            results = [bayes_ceiling(gr_task, name, level, rounding=rounding, method=method, samples=samples,
+                                     seed=seed) for level in levels]
     except _user_errors() as exc:
         raise fail(str(exc)) from None
     table = Table(title=f"Bayes ceiling (accuracy): {task}")

@@ -16,11 +16,12 @@ action dimensions.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from typing import Callable
 
 import numpy as np
 from scipy.special import erf, softmax
+
+from grail_bench import plugins
 
 EPS = 1e-8
 GROUP = "grail_bench.scorers"
@@ -200,22 +201,17 @@ class UnknownScorerError(KeyError):
 
 def available_scorers() -> dict[str, str]:
     """Scorer names and what provides them (plugins are not imported)."""
-    out = {name: "built-in" for name in BUILTIN}
-    for ep in entry_points(group=GROUP):
-        if ep.name in out:
-            raise ValueError(f"scorer name {ep.name!r} is registered twice: {out[ep.name]} and {ep.value}")
-        out[ep.name] = ep.value
-    return out
+    return plugins.available(GROUP, BUILTIN, "scorer")
 
 
 def get_scorer(name: str) -> Scorer:
     """The scorer registered under ``name``."""
     if name in BUILTIN:
         return BUILTIN[name]
-    for ep in entry_points(group=GROUP):
-        if ep.name == name:
-            scorer = ep.load()
-            if not isinstance(scorer, Scorer):
-                raise TypeError(f"scorer entry point {ep.value} is not a grail_bench.scoring.Scorer")
-            return scorer
-    raise UnknownScorerError(f"unknown scorer {name!r}; available: {', '.join(available_scorers())}")
+    found = plugins.load(GROUP, name)
+    if found is None:
+        raise UnknownScorerError(f"unknown scorer {name!r}; available: {', '.join(available_scorers())}")
+    scorer, target = found
+    if not isinstance(scorer, Scorer):
+        raise TypeError(f"scorer entry point {target} is not a grail_bench.scoring.Scorer")
+    return scorer

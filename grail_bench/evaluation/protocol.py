@@ -23,10 +23,11 @@ import math
 import warnings
 import zlib
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Iterable, Protocol, Sequence, runtime_checkable
 
 import numpy as np
+
+from grail_bench import plugins
 
 if TYPE_CHECKING:  # imitation imports torch; task registration reads this module and must stay light
     from imitation.data.types import Trajectory
@@ -147,12 +148,7 @@ class UnknownProtocolError(KeyError):
 
 def available_protocols() -> dict[str, str]:
     """Protocol names and what provides them (plugins are not imported)."""
-    out = {name: "built-in" for name in BUILTIN}
-    for ep in entry_points(group=GROUP):
-        if ep.name in out:
-            raise ValueError(f"protocol name {ep.name!r} is registered twice: {out[ep.name]} and {ep.value}")
-        out[ep.name] = ep.value
-    return out
+    return plugins.available(GROUP, BUILTIN, "protocol")
 
 
 def canonical_name(name: str) -> str:
@@ -173,13 +169,14 @@ def get_protocol(name: str) -> ProtocolLike:
     name = canonical_name(name)
     if name in BUILTIN:
         return BUILTIN[name]
-    for ep in entry_points(group=GROUP):
-        if ep.name == name:
-            protocol = ep.load()
-            if not isinstance(protocol, ProtocolLike):
-                raise TypeError(f"protocol entry point {ep.value} lacks name, description, leaks_goal or select")
-            return protocol
-    raise UnknownProtocolError(f"unknown observation protocol {name!r}; available: {', '.join(available_protocols())}")
+    found = plugins.load(GROUP, name)
+    if found is None:
+        raise UnknownProtocolError(f"unknown observation protocol {name!r}; available: "
+                                   f"{', '.join(available_protocols())}")
+    protocol, target = found
+    if not isinstance(protocol, ProtocolLike):
+        raise TypeError(f"protocol entry point {target} lacks name, description, leaks_goal or select")
+    return protocol
 
 
 def protocol_label(name: str, rounding: str = "ceil") -> str:
