@@ -1,7 +1,7 @@
 """Paper-style tables from the results store: terminal (rich) and Markdown.
 
-One table per domain and regime, like the paper's Table 2: a row per goal
-count, observation protocol and observability level, a column per recognizer
+One table per domain, regime and observation protocol, like the paper's
+Table 2: a row per goal count and observability level, a column per recognizer
 (``name/scorer`` when a recognizer was run with several scorers), cells
 ``mean ± std`` of F1 over seeds, the best mean of each row in bold. Values the
 paper reports can be shown beside ours from a CSV
@@ -128,6 +128,7 @@ def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, s
     for r in records:
         task = tasks[r["task"]]
         title = f"{task.domain} / {task.regime}" if task else r["task"]
+        title += f" ({r['protocol']})"
         board = boards.setdefault(title, Board(title=title, columns=[]))
         label = column_label(r, multi_config)
         if label not in board.columns:
@@ -196,14 +197,14 @@ def _ceiling_text(board: Board, row: Row) -> str:
 
 def _grid(board: Board, paper_label: Any = str) -> tuple[list[str], list[list[tuple[str, bool]]]]:
     """The table model both renderers draw: a header and, per row, ``(text, best)`` cells."""
-    header = ["task", "goals", "protocol", "obs", "ceiling"]
+    header = ["task", "goals", "obs", "ceiling"]
     for c in board.columns:
         header.append(c)
         if _has_reported(board, c):
             header.append(paper_label(c))
     rows = []
     for row in board.rows:
-        cells = [(short_name(row[1]), False), (str(row[0]), False), (row[2], False), (f"{row[3]:.0%}", False),
+        cells = [(short_name(row[1]), False), (str(row[0]), False), (f"{row[3]:.0%}", False),
                  (_ceiling_text(board, row), False)]
         for c in board.columns:
             cells.append(_cell(board, row, c))

@@ -58,7 +58,7 @@ def test_plugin_runs_end_to_end_and_reaches_the_leaderboard(tmp_path):
     assert out.returncode == 0, out.stderr
     text = md.read_text()
     # The biased routes part at the first step: the ceiling is 1 and the normalised F1 too.
-    assert "| MiniGrid-Biased | 2 | prefix | 20% | 1.00 | **1.00 ± 0.00 [1.00]** |" in text and "toy" in text
+    assert "| MiniGrid-Biased | 2 | 20% | 1.00 | **1.00 ± 0.00 [1.00]** |" in text and "toy" in text
     assert {r["protocol"] for r in records} == {"prefix"}  # the biased task's default protocol
 
 
@@ -196,4 +196,4 @@ def test_protocol_flag_and_deprecated_sampling_alias(tmp_path):
     assert "--sampling is deprecated" in out.stderr
     assert {r["protocol"] for r in json.loads((tmp_path / "b.json").read_text())} == {"subset"}
     out = cli(["leaderboard", "--protocol", "subset+floor"], tmp_path, **env)
-    assert out.returncode == 0 and "subset+floor" in out.stdout and "│ subset " not in out.stdout
+    assert out.returncode == 0 and "(subset+floor)" in out.stdout and "(subset)" not in out.stdout

@@ -17,10 +17,10 @@ def test_tasks_with_equal_goal_counts_get_their_own_rows():
                record("GRAIL/PandaReach-Gaussian-0.3-v0", "bc", "mse", 0.02, 0.6),
                record("GRAIL/PandaReach-Gaussian-0.3-v0", "draco", "wasserstein", 0.02, 0.7)]
     (board,) = build_boards(records)
-    assert board.title == "panda_reach / gaussian" and len(board.rows) == 2
+    assert board.title == "panda_reach / gaussian (subset)" and len(board.rows) == 2
     text = markdown([board], records)
-    assert "| PandaReach-Gaussian-0.1 | 4 | subset | 2% | – | **0.90 ± 0.10** | – |" in text  # no ceiling
-    assert "| PandaReach-Gaussian-0.3 | 4 | subset | 2% | – | 0.60 ± 0.10 | **0.70 ± 0.10** |" in text
+    assert "| PandaReach-Gaussian-0.1 | 4 | 2% | – | **0.90 ± 0.10** | – |" in text  # no ceiling
+    assert "| PandaReach-Gaussian-0.3 | 4 | 2% | – | 0.60 ± 0.10 | **0.70 ± 0.10** |" in text
 
 
 def test_reported_values_sit_beside_the_papers_scorer_only():
@@ -29,7 +29,7 @@ def test_reported_values_sit_beside_the_papers_scorer_only():
     reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
     (board,) = build_boards(records, reference, ceiling_samples=None)
     text = markdown([board], records)
-    assert "| MiniGrid-Optimal | 2 | subset | 10% | – | **0.50 ± 0.10 =** | 0.73 ± 0.33 [0.49, 0.90] | 0.40 ± 0.10 |" \
+    assert "| MiniGrid-Optimal | 2 | 10% | – | **0.50 ± 0.10 =** | 0.73 ± 0.33 [0.49, 0.90] | 0.40 ± 0.10 |" \
         in text
     assert text.count("*(paper)*") == 2  # the header note and one column
     assert placement_counts([board]) == {"inside": 1, "above": 0, "below": 0}
@@ -39,12 +39,13 @@ def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise(
     records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.3, protocol="prefix"),
                record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.95)]
     reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
-    (board,) = build_boards(records, reference, ceiling_samples=50)
-    text = markdown([board], records)
+    boards = build_boards(records, reference, ceiling_samples=50)
+    assert [b.title for b in boards] == ["minigrid / optimal (prefix)", "minigrid / optimal (subset)"]
+    text = markdown(boards, records)
     # Prefix at 10 %: ceiling 2/3 exactly, so 0.30 normalises to (0.3 - 0.5) / (2/3 - 0.5) = -1.2.
-    assert "| MiniGrid-Optimal | 2 | prefix | 10% | 0.67 | **0.30 ± 0.10 [-1.20]** | – |" in text
-    assert "| MiniGrid-Optimal | 2 | subset | 10% | 0.97 | **0.95 ± 0.10 ▲ [0.96]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
-    assert placement_counts([board]) == {"inside": 0, "above": 1, "below": 0}
+    assert "| MiniGrid-Optimal | 2 | 10% | 0.67 | **0.30 ± 0.10 [-1.20]** |\n" in text  # no paper column here
+    assert "| MiniGrid-Optimal | 2 | 10% | 0.97 | **0.95 ± 0.10 ▲ [0.96]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
+    assert placement_counts(boards) == {"inside": 0, "above": 1, "below": 0}
 
 
 def test_ceilings_use_the_task_parameters_of_the_run():
