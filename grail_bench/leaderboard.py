@@ -277,20 +277,21 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
 
 
 def ablation_rows(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per task, recognizer and scorer: F1 at each level and mean scoring time.
+    """Per task and protocol, recognizer and scorer: F1 at each level and mean scoring time.
 
     Only recognizers run with more than one scorer on a task are included
     (the paper's Figures 4 and 5).
     """
     scorers = defaultdict(set)
     for r in records:
-        scorers[(r["task"], r["recognizer"])].add(r["scorer"])
+        scorers[(r["task"], r["protocol"], r["recognizer"])].add(r["scorer"])
     out: dict[tuple, dict[str, Any]] = {}
     for r in records:
-        if len(scorers[(r["task"], r["recognizer"])]) < 2:
+        if len(scorers[(r["task"], r["protocol"], r["recognizer"])]) < 2:
             continue
-        row = out.setdefault((r["task"], r["recognizer"], r["scorer"]), {
-            "task": r["task"], "recognizer": r["recognizer"], "scorer": r["scorer"], "f1": {}, "score_us": []})
+        task = f"{r['task']} ({r['protocol']})"  # protocols are compared apart
+        row = out.setdefault((task, r["recognizer"], r["scorer"]), {
+            "task": task, "recognizer": r["recognizer"], "scorer": r["scorer"], "f1": {}, "score_us": []})
         row["f1"][r["observability"]] = (r["f1_mean"], r["f1_std"])
         row["score_us"].append(r["score_us_per_observation"])
         if r.get("brier_mean") is not None:

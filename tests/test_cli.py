@@ -157,7 +157,8 @@ def test_ablation_table_markdown_and_plot(tmp_path):
     assert out.returncode == 0, out.stderr
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = md.read_text()
-    assert "| GRAIL/MiniGrid-Biased-v0 | bc | loglik |" in text and "| GRAIL/MiniGrid-Biased-v0 | bc | mse |" in text
+    assert "| GRAIL/MiniGrid-Biased-v0 (prefix) | bc | loglik |" in text
+    assert "| GRAIL/MiniGrid-Biased-v0 (prefix) | bc | mse |" in text
     out = cli(["leaderboard", "--scorer", "mse"], tmp_path)
     assert "bc/mse" in out.stdout and "bc/loglik" not in out.stdout
 
