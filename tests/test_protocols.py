@@ -150,3 +150,17 @@ def test_a_schema_1_store_is_migrated_without_losing_rows(tmp_path):
 def test_observability_levels_round_trip_through_k():
     # p * T that lands on an integer must not round up because of floating point (0.14 * 50 = 7.000000000000001).
     assert n_observed(0.14, 50) == 7 and math.ceil(0.14 * 50) == 8
+
+
+def test_a_goal_gets_the_same_trained_policy_in_every_goal_set():
+    from grail_bench.evaluation.protocol import observe as see
+
+    fits = {}
+    for task_id in ("GRAIL/MiniGrid-Optimal-4Goals-v0", "GRAIL/MiniGrid-Optimal-6Goals-v0"):
+        task = grail_bench.make_task(task_id)
+        train, test = task.split(task.generate_demos(1))
+        rec = grail_bench.make_recognizer("bc", n_epochs=2)
+        rec.fit(train, task.env_factory(), seed=1)
+        observed = see(test[(7, 3)][0], 1.0, "prefix")
+        fits[task_id] = rec.score_with(observed, "loglik")[(7, 3)]
+    assert len(set(fits.values())) == 1, fits
