@@ -78,8 +78,10 @@ class GoalDemonstrator:
             self.paths = [biased_path(self.model, self.start, self.goal, route)]
         else:
             self.paths = all_shortest_paths(self.model, self.start, self.goal)
-        self.turn_prob = float(task.params["turn_prob"]) if task.regime == "suboptimal" else 0.0
-        self.patterns = TURN_PATTERNS[task.params["turn_pattern"]] if task.regime == "suboptimal" else ()
+        suboptimal = task.regime == "suboptimal"
+        self.turn_prob = float(task.params["turn_prob"]) if suboptimal else 0.0
+        self.pattern = task.params["turn_pattern"] if suboptimal else None
+        self.patterns = TURN_PATTERNS[self.pattern] if suboptimal else ()
         self._blocks = [self._path_blocks(path) for path in self.paths]
 
     # -- the demonstrator's support and samples -------------------------------------------------------------
@@ -118,7 +120,7 @@ class GoalDemonstrator:
             return list(self.paths[0])
         path = sample_shortest_path(self.model, self.start, self.goal, rng)
         if self.regime == "suboptimal":
-            path = insert_turns(path, self.turn_prob, rng, _pattern_name(self.patterns))
+            path = insert_turns(path, self.turn_prob, rng, self.pattern)
         return path
 
     def span(self, actions: list[int], selection: Selection) -> list[Pair]:
@@ -213,6 +215,3 @@ class GoalDemonstrator:
             a = b
         return a
 
-
-def _pattern_name(patterns: tuple) -> str:
-    return next(name for name, p in TURN_PATTERNS.items() if p == patterns)

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from grail_bench.evaluation.protocol import ObservationProtocol, get_protocol, protocol_label
+from grail_bench.evaluation.protocol import ObservationProtocol, get_protocol, n_observed, protocol_label
 
 if TYPE_CHECKING:
     from grail_bench.task import GRTask
@@ -37,6 +37,9 @@ class Ceiling:
     """The Bayes ceiling of a task under one protocol and level.
 
     Attributes:
+        task: The task ID.
+        protocol: The protocol as stored (``"subset"``, ``"prefix+floor"``, ...).
+        observability: The level.
         accuracy: Best achievable expected accuracy.
         stderr: Standard error of a Monte Carlo estimate (0 when exact).
         chance: Accuracy of guessing, ``1 / n_goals``.
@@ -91,14 +94,8 @@ def _exact_size(demonstrators: list, selection) -> int | None:
     for d in demonstrators:
         for actions, _ in d.support():
             n = len(d.span(actions, selection))
-            size += math.comb(n, _k(selection, n)) if selection.random_subset else 1
+            size += math.comb(n, n_observed(selection.level, n, selection.rounding)) if selection.random_subset else 1
     return size
-
-
-def _k(selection, n: int) -> int:
-    from grail_bench.evaluation.protocol import n_observed
-
-    return n_observed(selection.level, n, selection.rounding)
 
 
 def _exact(demonstrators: list, selection) -> float:
