@@ -101,11 +101,21 @@ def all_shortest_paths(model: GridModel, start: State, goal: tuple[int, int]) ->
     return walk(start)
 
 
+def check_route(route: object) -> str:
+    """A heading order such as ``"NE"``, upper-cased.
+
+    Raises:
+        ValueError: Unless it is distinct compass letters among N, E, S, W.
+    """
+    letters = route.upper() if isinstance(route, str) else ""
+    if not letters or set(letters) - set(HEADINGS) or len(set(letters)) != len(letters):
+        raise ValueError(f"route {route!r} must be distinct compass letters among N, E, S, W")
+    return letters
+
+
 def biased_path(model: GridModel, start: State, goal: tuple[int, int], route: str) -> list[int]:
     """The shortest path preferred by a heading order such as ``"NE"``."""
-    route = route.upper()
-    if not route or set(route) - set(HEADINGS) or len(set(route)) != len(route):
-        raise ValueError(f"route {route!r} must be distinct compass letters among N, E, S, W")
+    route = check_route(route)
     order = route + "".join(h for h in "NESW" if h not in route)
     rank = {HEADINGS.index(h): i for i, h in enumerate(order)}
 
@@ -143,9 +153,7 @@ def check_params(regime: str, params: dict, n_goals: int) -> None:
         if len(routes) != n_goals:
             raise ValueError(f"'routes' needs one heading order per goal ({n_goals}), got {len(routes)}")
         for route in routes:
-            if not isinstance(route, str) or not route or set(route.upper()) - set(HEADINGS) \
-                    or len(set(route.upper())) != len(route):
-                raise ValueError(f"route {route!r} must be distinct compass letters among N, E, S, W")
+            check_route(route)
     elif regime == "suboptimal":
         p = params["turn_prob"]
         if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p <= 1.0:

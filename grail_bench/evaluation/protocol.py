@@ -70,10 +70,14 @@ def goal_horizon(traj: Trajectory) -> int:
     return len(traj.acts)
 
 
-def n_observed(fraction: float, length: int, rounding: str = "ceil") -> int:
-    """How many pairs of a ``length``-step span are observed at ``fraction`` (at least 1, at most ``length``)."""
+def _check_rounding(rounding: str) -> None:
     if rounding not in ROUNDINGS:
         raise ValueError(f"unknown rounding {rounding!r}; choose one of {', '.join(ROUNDINGS)}")
+
+
+def n_observed(fraction: float, length: int, rounding: str = "ceil") -> int:
+    """How many pairs of a ``length``-step span are observed at ``fraction`` (at least 1, at most ``length``)."""
+    _check_rounding(rounding)
     raw = round(fraction * length, 9)  # 0.3 * 10 is 3.0000000000000004 in floating point
     k = math.ceil(raw) if rounding == "ceil" else math.floor(raw)
     return min(length, max(1, k))
@@ -181,8 +185,7 @@ def get_protocol(name: str) -> ProtocolLike:
 
 def protocol_label(name: str, rounding: str = "ceil") -> str:
     """What the store and records call a protocol: ``"subset"``, or ``"subset+floor"`` when rounding down."""
-    if rounding not in ROUNDINGS:
-        raise ValueError(f"unknown rounding {rounding!r}; choose one of {', '.join(ROUNDINGS)}")
+    _check_rounding(rounding)
     return name if rounding == "ceil" else f"{name}+{rounding}"
 
 
