@@ -82,7 +82,8 @@ class GoalDemonstrator:
         self.turn_prob = float(task.params["turn_prob"]) if suboptimal else 0.0
         self.pattern = task.params["turn_pattern"] if suboptimal else None
         self.patterns = TURN_PATTERNS[self.pattern] if suboptimal else ()
-        self._blocks = [self._path_blocks(path) for path in self.paths]
+        # Per path: the pairs of each of its actions with and without insertions, and its stay-on-goal pair.
+        self._models = [(path, self._path_blocks(path), self.goal_pair(path)) for path in self.paths]
 
     # -- the demonstrator's support and samples -------------------------------------------------------------
 
@@ -99,11 +100,10 @@ class GoalDemonstrator:
             s = self.model.step(s, a)
         return out
 
-    def goal_pair(self, actions: list[int]) -> Pair:
-        """The pair repeated after the goal: the final state, staying."""
-        s = self.start
-        for a in actions:
-            s = self.model.step(s, a)
+    def goal_pair(self, actions: list[int], pairs: list[Pair] | None = None) -> Pair:
+        """The pair repeated after the goal: the final state, staying (from ``pairs`` if already walked)."""
+        pairs = self.pairs(actions) if pairs is None else pairs
+        s = self.model.step(pairs[-1][:3], pairs[-1][3]) if pairs else self.start
         return (*s, STAY)
 
     def support(self) -> Iterator[tuple[list[int], float]]:
@@ -127,7 +127,7 @@ class GoalDemonstrator:
         """The pairs a protocol samples from: the path, plus the stay-on-goal padding for horizon protocols."""
         pairs = self.pairs(actions)
         if selection.horizon:
-            pairs += [self.goal_pair(actions)] * (self.horizon - len(pairs))
+            pairs += [self.goal_pair(actions, pairs)] * (self.horizon - len(pairs))
         return pairs
 
     def observations(self, actions: list[int], selection: Selection) -> Iterator[tuple[Observation, float]]:
@@ -168,11 +168,12 @@ class GoalDemonstrator:
     def likelihood(self, observation: Observation, selection: Selection) -> float:
         """Probability that this goal's demonstrator yields ``observation`` under the protocol."""
         total = 0.0
-        for path, blocks in zip(self.paths, self._blocks):
-            total += self._path_likelihood(path, blocks, observation, selection)
+        for path, blocks, pad_pair in self._models:
+            total += self._path_likelihood(path, blocks, pad_pair, observation, selection)
         return total / len(self.paths)
 
-    def _path_likelihood(self, path: list[int], blocks: list, obs: Observation, sel: Selection) -> float:
+    def _path_likelihood(self, path: list[int], blocks: list, pad_pair: Pair, obs: Observation,
+                         sel: Selection) -> float:
         # a[m, j]: probability mass of demonstrations with m insertions so far, weighted by the number of
         # ways the pairs emitted so far match the first j observed pairs (subset) / match them in full
         # (prefix: j = pairs emitted so far, capped at K).
@@ -185,7 +186,6 @@ class GoalDemonstrator:
             for pairs in insertions:
                 nxt[1:] += share * self._emit(a, pairs, obs, sel.random_subset)[:-1]
             a = nxt
-        pad_pair = self.goal_pair(path)
         insertion_len = len(self.patterns[0]) if self.patterns else 0
         out = 0.0
         for m in range(L + 1):

@@ -11,7 +11,7 @@ import numpy as np
 
 from grail_bench.evaluation import metrics
 from grail_bench.evaluation.protocol import (
-    canonical_name, cell_rng, get_protocol, observe, parse_observability, protocol_label, seed_list,
+    cell_rng, get_protocol, observe, parse_observability, protocol_label, seed_list,
 )
 from grail_bench.recognizers.base import Recognizer, RecognizerError, recognizer_config
 from grail_bench.recognizers.registry import make_recognizer
@@ -219,7 +219,7 @@ def evaluate(
     task = make_task(task_id, **dict(task_params or {}))
     levels = parse_observability(observability) if observability is not None else task.observability
     seed_values = seed_list(seeds)
-    protocol = get_protocol(canonical_name(protocol or task.protocol)).name
+    protocol = get_protocol(protocol or task.protocol).name  # also maps deprecated names, with a warning
     label = protocol_label(protocol, rounding)
     specs = [_spec(r) for r in recognizers]
     if not specs:
