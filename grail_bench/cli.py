@@ -11,6 +11,8 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from grail_bench.errors import UserError
+
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="grail-bench: goal-recognition benchmarks on gymnasium.")
 console = Console()
@@ -21,24 +23,17 @@ DEFAULT_TASK = "GRAIL/MiniGrid-Biased-v0"
 DEFAULT_RECOGNIZERS = ["bc", "graql"]
 
 
-def fail(message: str, code: int = EXIT_USAGE) -> typer.Exit:
-    """Print one error line to stderr and return the exit to raise."""
+def fail(message: str) -> typer.Exit:
+    """Print one error line to stderr and return the exit (code 2) to raise."""
     err_console.print(f"error: {message}", highlight=False, markup=False, soft_wrap=True)
-    return typer.Exit(code)
+    return typer.Exit(EXIT_USAGE)
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
-    """Exceptions that mean bad input, reported as one line with exit code 2."""
+    """Exceptions that mean bad input, reported as one line with exit code 2 (anything else is a bug)."""
     from gymnasium.error import Error as GymError
 
-    from grail_bench.cards import CardError
-    from grail_bench.evaluation.protocol import UnknownProtocolError
-    from grail_bench.recognizers import RecognizerError, UnknownRecognizerError
-    from grail_bench.scoring import UnknownScorerError
-    from grail_bench.store import StoreError
-
-    return (GymError, CardError, UnknownRecognizerError, UnknownScorerError, UnknownProtocolError, RecognizerError,
-            StoreError, ValueError, TypeError)
+    return (GymError, UserError)
 
 
 def _open_store(path: Optional[Path]):
@@ -117,9 +112,9 @@ def _parse_settings(settings: List[str], names: List[str]) -> dict[str, dict[str
         key, sep, raw = item.partition("=")
         name, dot, param = key.partition(".")
         if not sep or not dot or not param:
-            raise ValueError(f"--set expects RECOGNIZER.PARAM=VALUE, got {item!r}")
+            raise UserError(f"--set expects RECOGNIZER.PARAM=VALUE, got {item!r}")
         if name not in out:
-            raise ValueError(f"--set {item!r} names recognizer {name!r}, which is not being run")
+            raise UserError(f"--set {item!r} names recognizer {name!r}, which is not being run")
         out[name][param] = _value(raw)
     return out
 
@@ -130,7 +125,7 @@ def _parse_params(params: List[str]) -> dict[str, Any]:
     for item in params:
         key, sep, raw = item.partition("=")
         if not sep or not key:
-            raise ValueError(f"--param expects NAME=VALUE, got {item!r}")
+            raise UserError(f"--param expects NAME=VALUE, got {item!r}")
         out[key] = _value(raw)
     return out
 
@@ -223,7 +218,7 @@ def leaderboard(
 
     path = store_path or default_store_path()
     if not path.exists():
-        raise fail(f"no results store at {path}; run `grail-bench run` first", code=1)
+        raise fail(f"no results store at {path}; run `grail-bench run` first")
     try:
         ref = read_reference(reference) if reference else None
         with _open_store(path) as store:
@@ -235,12 +230,11 @@ def leaderboard(
     except _user_errors() as exc:
         raise fail(str(exc)) from None
     if not records:
-        raise fail(f"no results in {path} yet; run `grail-bench run` first", code=1)
+        raise fail(f"no results in {path} yet; run `grail-bench run` first")
     if ablation:
         rows = ablation_rows(records)
         if not rows:
-            raise fail("no recognizer was run with several scorers; use `grail-bench run --scorer A --scorer B`",
-                       code=1)
+            raise fail("no recognizer was run with several scorers; use `grail-bench run --scorer A --scorer B`")
         console.print(ablation_table(rows))
         if markdown_path is not None:
             markdown_path.parent.mkdir(parents=True, exist_ok=True)

@@ -15,14 +15,13 @@ from __future__ import annotations
 import csv
 from collections import defaultdict
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any, Iterable
 
 from rich.table import Table
 
-PAPER_NAMES = {"bc": "BC-GRAIL", "gail": "GAIL-GRAIL", "airl": "AIRL-GRAIL", "graql": "GRAQL", "draco": "DRACO"}
-# The scorer each method uses in the paper: reported values sit beside that column only.
-PAPER_SCORERS = {"bc": "mse", "gail": "mse", "airl": "mse", "graql": "kl", "draco": "wasserstein"}
+from grail_bench.errors import UserError
 
 
 Row = tuple[int, str, str, float]  # (goals, task, protocol, observability)
@@ -59,6 +58,19 @@ class Board:
     ceilings: dict[Row, Any] = field(default_factory=dict)  # Row -> grail_bench.evaluation.ceiling.Ceiling
 
 
+@lru_cache(maxsize=None)
+def _paper_method(recognizer: str) -> tuple[str, str | None]:
+    """``(published name, published scorer)`` from the recognizer's metadata (its own name and no scorer if
+    it is not registered here)."""
+    from grail_bench.recognizers.registry import UnknownRecognizerError, recognizer_info
+
+    try:
+        info = recognizer_info(recognizer)
+    except UnknownRecognizerError:
+        return recognizer, None
+    return info.paper_name, info.default_scorer
+
+
 def _task(task_id: str, params: dict[str, Any] | None = None):
     """The registered task (with the parameters a run used), or None for a stored task whose card is gone."""
     from gymnasium.error import Error as GymError
@@ -67,7 +79,7 @@ def _task(task_id: str, params: dict[str, Any] | None = None):
 
     try:
         return make_task(task_id, **(params or {}))
-    except (GymError, ValueError, TypeError):
+    except (GymError, UserError):
         return None
 
 
@@ -94,11 +106,11 @@ def read_reference(path: str | Path) -> dict[tuple[str, str, float], Reported]:
                 ci_text = (row.get("ci95") or "").strip().strip("[]")
                 ci = tuple(float(v) for v in ci_text.split(";")) if ci_text else None
                 if ci is not None and (len(ci) != 2 or ci[0] > ci[1]):
-                    raise ValueError(f"ci95 must be [low; high], got {row['ci95']!r}")
+                    raise UserError(f"ci95 must be [low; high], got {row['ci95']!r}")
                 out[(row["task"], row["recognizer"], round(float(row["observability"]), 6))] = Reported(
                     row["f1"].strip(), ci)
             except (KeyError, ValueError, AttributeError) as exc:
-                raise ValueError(f"{path}: malformed reference row {row}: {exc}") from None
+                raise UserError(f"{path}: malformed reference row {row}: {exc}") from None
     return out
 
 
@@ -145,7 +157,7 @@ def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, s
                     board.ceilings[row] = ceiling
         board.cells[(*row, label)] = r
         paper_protocol = task is not None and r["protocol"] == task.protocol
-        if reference and paper_protocol and PAPER_SCORERS.get(r["recognizer"], r["scorer"]) == r["scorer"]:
+        if reference and paper_protocol and _paper_method(r["recognizer"])[1] in (r["scorer"], None):
             reported = reference.get((r["task"], r["recognizer"], round(r["observability"], 6)))
             if reported:
                 board.reported[(*row, label)] = reported
@@ -254,7 +266,7 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
         lines += [f"Against the paper's 95 % intervals (appendix tables): our mean is inside (=) in {counts['inside']} "
                   f"cells, above (▲) in {counts['above']}, below (▼) in {counts['below']}.", ""]
     for board in boards:
-        header, rows = _grid(board, lambda c: f"{PAPER_NAMES.get(c.split('/')[0], c)} *(paper)*")
+        header, rows = _grid(board, lambda c: f"{_paper_method(c.split('/')[0])[0]} *(paper)*")
         lines += [f"## {board.title}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
         lines += ["| " + " | ".join(f"**{text}**" if best else text for text, best in cells) + " |"
                   for cells in rows]

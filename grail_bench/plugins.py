@@ -6,20 +6,23 @@ plugins are imported only when asked for by name.
 
 from __future__ import annotations
 
+import importlib
 from importlib.metadata import entry_points
 from typing import Any, Iterable
+
+from grail_bench.errors import UserError
 
 
 def available(group: str, builtin: Iterable[str], kind: str) -> dict[str, str]:
     """Names and what provides them (``"built-in"`` or the entry point's target), without importing plugins.
 
     Raises:
-        ValueError: If a name is registered twice.
+        UserError: If a name is registered twice.
     """
     out = {name: "built-in" for name in builtin}
     for ep in entry_points(group=group):
         if ep.name in out:
-            raise ValueError(f"{kind} name {ep.name!r} is registered twice: {out[ep.name]} and {ep.value}")
+            raise UserError(f"{kind} name {ep.name!r} is registered twice: {out[ep.name]} and {ep.value}")
         out[ep.name] = ep.value
     return out
 
@@ -30,3 +33,9 @@ def load(group: str, name: str) -> tuple[Any, str] | None:
         if ep.name == name:
             return ep.load(), ep.value
     return None
+
+
+def load_target(target: str) -> Any:
+    """Import ``"package.module:attribute"`` and return the attribute."""
+    module_name, _, attr = target.partition(":")
+    return getattr(importlib.import_module(module_name), attr)

@@ -7,27 +7,37 @@ nothing heavier than the task cards.
 
 from __future__ import annotations
 
-from grail_bench.cards import TaskCard, load_cards
+from typing import TYPE_CHECKING
+
+from grail_bench.cards import load_cards
+
+if TYPE_CHECKING:
+    from grail_bench.task import GRTask
 
 ENTRY_POINT = "grail_bench.task:make_registered_env"
 
 
-def register_envs() -> list[TaskCard]:
+def shipped_tasks() -> dict[str, GRTask]:
+    """Every task of the shipped cards, by ID (parsed once per process)."""
+    return {task.id: task for task in load_cards()}
+
+
+def register_envs() -> list[GRTask]:
     """Register every task card's ID with gymnasium (skipping existing ones).
 
     Returns:
-        The cards, registered or already present.
+        The tasks, registered or already present.
     """
     # Imported here: gymnasium's plugin loader imports this module while
     # gymnasium itself is initialising, and `import grail_bench` imports
     # gymnasium through this function.
     from gymnasium.envs.registration import register, registry
 
-    cards = load_cards()
-    for card in cards:
-        if card.id not in registry:
-            register(id=card.id, entry_point=ENTRY_POINT, kwargs=card.kwargs())
-    return cards
+    tasks = load_cards()
+    for task in tasks:
+        if task.id not in registry:
+            register(id=task.id, entry_point=ENTRY_POINT, kwargs={"task_id": task.id})
+    return tasks
 
 
 def task_ids() -> list[str]:

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.special import erf, softmax
 
 from grail_bench import plugins
+from grail_bench.errors import UserError
 
 EPS = 1e-8
 GROUP = "grail_bench.scorers"
@@ -57,12 +58,16 @@ class Scorer:
         fn: ``fn(output, actions) -> (K,)`` scores.
         needs: Alternative sets of :class:`PolicyOutput` fields; any one suffices.
         description: One line for ``grail-bench list scorers``.
+        posterior: Whether the scores are mean log-likelihoods, so that
+            :func:`posterior` turns them into a posterior over goals (the
+            harness then records its Brier score and NLL).
     """
 
     name: str
     fn: Callable[[PolicyOutput, np.ndarray], np.ndarray]
     needs: tuple[frozenset[str], ...]
     description: str
+    posterior: bool = False
 
     def can_serve(self, exposes: frozenset[str]) -> bool:
         return any(need <= exposes for need in self.needs)
@@ -187,16 +192,14 @@ BUILTIN: dict[str, Scorer] = {
         Scorer("kl", _kl, (_PROBS,),
                "negative KL between the observed pseudo-policy and the policy's action probabilities (GRAQL)"),
         Scorer("loglik", _loglik, (_PROBS, _GAUSS),
-               "mean log-likelihood of the observed actions; also yields a posterior, its Brier score and NLL"),
+               "mean log-likelihood of the observed actions; also yields a posterior, its Brier score and NLL",
+               posterior=True),
     )
 }
 
 
-class UnknownScorerError(KeyError):
+class UnknownScorerError(UserError):
     """No scorer is registered under the requested name."""
-
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 def available_scorers() -> dict[str, str]:
@@ -213,5 +216,23 @@ def get_scorer(name: str) -> Scorer:
         raise UnknownScorerError(f"unknown scorer {name!r}; available: {', '.join(available_scorers())}")
     scorer, target = found
     if not isinstance(scorer, Scorer):
-        raise TypeError(f"scorer entry point {target} is not a grail_bench.scoring.Scorer")
+        raise UserError(f"scorer entry point {target} is not a grail_bench.scoring.Scorer")
+    return scorer
+
+
+def check_scorer(name: str, exposes: frozenset[str], recognizer: str) -> Scorer:
+    """The scorer ``name``, if a recognizer exposing ``exposes`` can serve it.
+
+    The one compatibility check: the harness runs it when planning, and
+    recognizers when scoring.
+
+    Raises:
+        UnknownScorerError: For an unregistered name.
+        UserError: If the recognizer does not expose what the scorer needs.
+    """
+    scorer = get_scorer(name)
+    if not scorer.can_serve(exposes):
+        offered = ", ".join(sorted(exposes)) or "nothing"
+        raise UserError(f"scorer {name!r} needs {scorer.needs_text()}; recognizer {recognizer!r} exposes {offered}"
+                        + ("" if exposes else " (it scores with its own default scorer only)"))
     return scorer

@@ -13,6 +13,8 @@ from typing import Sequence
 
 import numpy as np
 
+from grail_bench.errors import UserError
+
 DEMOS, TRAINING, EXPERT = 0, 1, 2  # streams derived from one (seed, goal)
 
 
@@ -26,7 +28,7 @@ def goal_words(goal: Sequence[float]) -> list[int]:
 def goal_seed_sequence(seed: int, goal: Sequence[float], stream: int) -> np.random.SeedSequence:
     """The seed sequence of one stream of one goal at one run seed."""
     if int(seed) < 0:
-        raise ValueError(f"seeds must be non-negative integers, got {seed}")
+        raise UserError(f"seeds must be non-negative integers, got {seed}")
     return np.random.SeedSequence([int(seed), int(stream), *goal_words(goal)])
 
 

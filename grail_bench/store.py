@@ -18,11 +18,13 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
+from grail_bench.errors import UserError
+
 SCHEMA_VERSION = 2
 KEY = ("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol")
 
 
-class StoreError(RuntimeError):
+class StoreError(UserError):
     """The store cannot be opened, read or written."""
 
 

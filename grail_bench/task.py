@@ -2,38 +2,65 @@
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import json
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
-from grail_bench.domains import get_domain, load_object
+from grail_bench.domains import Domain, get_domain
+from grail_bench.errors import UserError
 from grail_bench.seeding import DEMOS, goal_rng
+from grail_bench.trajectory import Demos, EnvFactory, Goal
 
 if TYPE_CHECKING:
     import gymnasium as gym
-    from imitation.data.types import Trajectory
 
-Goal = tuple[float, ...]
-Demos = dict[Goal, list["Trajectory"]]
+ENV_ONLY = ("render_mode", "goal")  # gym.make arguments that shape one env, not the task
+
+
+class TaskFieldError(UserError):
+    """A task field is invalid.
+
+    Attributes:
+        field: The field's path, e.g. ``"params.turn_prob"``.
+        why: What is wrong with it.
+    """
+
+    def __init__(self, field: str, why: str) -> None:
+        super().__init__(f"{field}: {why}")
+        self.field, self.why = field, why
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 1
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 @dataclass(frozen=True)
 class GRTask:
     """A goal-recognition task as registered under a ``GRAIL/`` ID.
 
+    Every field is validated on construction (and so on
+    :meth:`with_overrides`); errors are :class:`TaskFieldError`.
+
     Attributes:
         id: The gymnasium ID, e.g. ``"GRAIL/MiniGrid-Biased-v0"``.
         domain: Domain name (see :mod:`grail_bench.domains`).
         regime: Behaviour regime of the demonstrator.
         goals: Candidate goals, in a fixed order.
-        params: Regime parameters (defaults merged with overrides).
-        env_params: Keyword arguments of the domain env.
+        params: Regime parameters, every one of the regime's (its defaults merged in).
+        env_params: Keyword arguments of the domain env, every one of them.
         n_demos: Demonstrations generated per goal.
         n_train: How many of them form the training split.
         observability: Default observability levels of the task.
         protocol: Default observation protocol (see
             :mod:`grail_bench.evaluation.protocol`).
         description: One line for humans.
+        source: The card file that defines the task.
     """
 
     id: str
@@ -47,17 +74,97 @@ class GRTask:
     observability: tuple[float, ...] = (0.1, 0.2, 0.3)
     protocol: str = "subset"
     description: str = ""
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        spec = self.spec
+        if self.regime not in spec.regimes:
+            raise TaskFieldError("regime", f"unknown regime {self.regime!r} for domain {self.domain!r} "
+                                           f"(known: {', '.join(spec.regimes)})")
+        goals = self.goals
+        if not isinstance(goals, (list, tuple)) or len(goals) < 2:
+            raise TaskFieldError("goals", "expected a list of at least two goals")
+        for g in goals:
+            if not isinstance(g, (list, tuple)) or len(g) != spec.goal_dim or not all(_number(c) for c in g):
+                raise TaskFieldError("goals", f"each goal must be a list of {spec.goal_dim} numbers, got {g!r}")
+        object.__setattr__(self, "goals", tuple(tuple(g) for g in goals))
+        if len(set(self.goals)) != len(self.goals):
+            raise TaskFieldError("goals", "goals must be distinct")
+        for name, value, allowed in (("params", self.params, spec.regimes[self.regime]),
+                                     ("env", self.env_params, spec.env_defaults)):
+            if not isinstance(value, Mapping):
+                raise TaskFieldError(name, "expected a table")
+            extra = sorted(set(value) - set(allowed))
+            if extra:
+                raise TaskFieldError(f"{name}.{extra[0]}", f"unknown parameter (known: {', '.join(allowed) or 'none'})")
+        object.__setattr__(self, "params", {**spec.regimes[self.regime], **self.params})
+        object.__setattr__(self, "env_params", {**spec.env_defaults, **self.env_params})
+        for name in ("n_demos", "n_train"):
+            if not _count(getattr(self, name)):
+                raise TaskFieldError(name, f"expected a positive integer, got {getattr(self, name)!r}")
+        if self.n_train >= self.n_demos:
+            raise TaskFieldError("n_train", f"must be smaller than n_demos ({self.n_demos}) to leave test "
+                                            "demonstrations")
+        obs = self.observability
+        if not isinstance(obs, (list, tuple)) or not obs or not all(_number(p) and 0 < p <= 1 for p in obs):
+            raise TaskFieldError("observability", "expected a non-empty list of fractions in (0, 1]")
+        object.__setattr__(self, "observability", tuple(float(p) for p in obs))
+        if not isinstance(self.protocol, str) or not _known_protocol(self.protocol):
+            raise TaskFieldError("protocol", f"unknown observation protocol {self.protocol!r}")
+        if not isinstance(self.description, str):
+            raise TaskFieldError("description", "expected a string")
+        try:
+            spec.check(self.regime, self.params, self.env_params, self.goals)
+        except TaskFieldError:
+            raise
+        except UserError as exc:
+            raise TaskFieldError("params", str(exc)) from None
 
     def __hash__(self) -> int:
         return hash((self.id, self.regime, self.goals, repr(sorted(self.params.items()))))
 
+    @property
+    def spec(self) -> Domain:
+        """The task's :class:`~grail_bench.domains.Domain`."""
+        try:
+            return get_domain(self.domain)
+        except UserError as exc:
+            raise TaskFieldError("domain", str(exc)) from None
+
+    def with_overrides(self, **overrides: Any) -> GRTask:
+        """This task with regime parameters, env parameters, ``n_demos`` or ``n_train`` replaced.
+
+        Names are routed to where they belong (``turn_prob`` to :attr:`params`,
+        ``max_steps`` to :attr:`env_params`).
+
+        Raises:
+            UserError: For a name the task cannot apply, or an invalid value.
+        """
+        spec = self.spec
+        params, env_params, fields = dict(self.params), dict(self.env_params), {}
+        for name, value in overrides.items():
+            if name in ("n_demos", "n_train"):
+                fields[name] = value
+            elif name in spec.regimes[self.regime]:
+                params[name] = value
+            elif name in spec.env_defaults:
+                env_params[name] = value
+            else:
+                hint = " (it applies to gym.make, not to a task)" if name in ENV_ONLY else ""
+                known = sorted({*spec.regimes[self.regime], *spec.env_defaults, "n_demos", "n_train"})
+                raise UserError(f"{self.id} cannot apply parameter {name!r}{hint}; known: {', '.join(known)}")
+        try:
+            return dataclasses.replace(self, params=params, env_params=env_params, **fields)
+        except TaskFieldError as exc:
+            raise UserError(f"{self.id}: {exc}") from None
+
     def goal_index(self, goal: Sequence[float]) -> int:
-        """Position of ``goal`` in :attr:`goals`; raises ``ValueError`` if absent."""
+        """Position of ``goal`` in :attr:`goals`; raises :class:`UserError` if absent."""
         key = tuple(goal)
         for i, g in enumerate(self.goals):
             if tuple(g) == key:
                 return i
-        raise ValueError(f"{tuple(goal)} is not a goal of {self.id}; goals: {list(self.goals)}")
+        raise UserError(f"{tuple(goal)} is not a goal of {self.id}; goals: {list(self.goals)}")
 
     def make_env(self, goal: Sequence[float] | None = None, **env_overrides: Any) -> gym.Env:
         """Build the domain env pursuing one candidate goal (default: the first).
@@ -70,14 +177,22 @@ class GRTask:
             The env; ``env.unwrapped.task`` is this task.
         """
         chosen = self.goals[0] if goal is None else self.goals[self.goal_index(goal)]
-        factory = load_object(get_domain(self.domain).env_factory)
-        env = factory(goal=chosen, **{**self.env_params, **env_overrides})
+        env = self.spec.make_env(chosen, **{**self.env_params, **env_overrides})
         env.unwrapped.task = self
         return env
 
     def env_factory(self) -> EnvFactory:
-        """``factory(goal) -> env`` with a :attr:`EnvFactory.cache_key` naming the domain env."""
-        return EnvFactory(self)
+        """``factory(goal) -> env`` building this task's goal envs."""
+        return functools.partial(_make_env, self)
+
+    @property
+    def env_key(self) -> str:
+        """JSON naming the domain and its env parameters (not the regime).
+
+        Recognizers that learn from interaction alone key their cached models
+        by it, so one training serves every regime of a domain.
+        """
+        return json.dumps({"domain": self.domain, "env": dict(self.env_params)}, sort_keys=True)
 
     def generate_demos(self, seed: int, n_demos: int | None = None) -> Demos:
         """Generate demonstrations for every goal.
@@ -93,84 +208,41 @@ class GRTask:
         Returns:
             ``{goal: [Trajectory, ...]}`` in the order of :attr:`goals`.
         """
-        generator = load_object(get_domain(self.domain).demo_generator)
         n = self.n_demos if n_demos is None else n_demos
-        return {goal: generator(self, goal, n, goal_rng(seed, goal, DEMOS)) for goal in self.goals}
+        return {goal: self.spec.generate_demos(self, goal, n, goal_rng(seed, goal, DEMOS)) for goal in self.goals}
 
     def split(self, demos: Demos) -> tuple[Demos, Demos]:
         """Split each goal's demonstrations into the first ``n_train`` and the rest."""
         train, test = {}, {}
         for goal, trajs in demos.items():
             if len(trajs) <= self.n_train:
-                raise ValueError(
-                    f"goal {goal} has {len(trajs)} demonstrations; need more than n_train={self.n_train}"
-                )
+                raise UserError(f"goal {goal} has {len(trajs)} demonstrations; need more than "
+                                f"n_train={self.n_train}")
             train[goal], test[goal] = list(trajs[: self.n_train]), list(trajs[self.n_train :])
         return train, test
 
 
-class EnvFactory:
-    """Builds a task's goal envs; what the harness hands to ``Recognizer.fit``.
+def _make_env(task: GRTask, goal: Goal) -> gym.Env:
+    return task.make_env(goal)
 
-    Attributes:
-        cache_key: JSON naming the domain and its env parameters (not the
-            regime): recognizers that learn from interaction alone may use it
-            to reuse trained models across the regimes of a domain.
+
+def _known_protocol(name: str) -> bool:
+    """Built in, or registered by a plugin (entry points are read only for unknown names)."""
+    from grail_bench.evaluation.protocol import BUILTIN, available_protocols
+
+    return name in BUILTIN or name in available_protocols()
+
+
+def make_registered_env(task_id: str, **kwargs: Any) -> gym.Env:
+    """Gymnasium entry point of every ``GRAIL/`` ID (see :mod:`grail_bench.registration`).
+
+    ``render_mode`` and ``goal`` shape the env; every other keyword overrides a task parameter.
     """
+    from grail_bench.registration import shipped_tasks
 
-    def __init__(self, task: GRTask) -> None:
-        self._task = task
-        self.cache_key = json.dumps({"domain": task.domain, "env": dict(task.env_params)}, sort_keys=True)
-
-    def __call__(self, goal: Sequence[float]) -> gym.Env:
-        return self._task.make_env(goal)
-
-
-def _task_from_kwargs(kwargs: Mapping[str, Any], overrides: Mapping[str, Any]) -> tuple[GRTask, dict[str, Any]]:
-    """Build a task from registered kwargs plus user overrides.
-
-    Overrides are routed by name: regime parameters (e.g. ``turn_prob``) go to
-    the task, domain env parameters (and ``render_mode``) to the env.
-    """
-    spec = get_domain(kwargs["domain"])
-    regime_names = set(spec.regimes[kwargs["regime"]])
-    params, env_params, env_only = dict(kwargs["params"]), dict(kwargs["env"]), {}
-    counts = {"n_demos": kwargs["n_demos"], "n_train": kwargs["n_train"]}
-    for name, value in overrides.items():
-        if name in counts:
-            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise ValueError(f"{kwargs['task_id']}: {name} must be a positive integer, got {value!r}")
-            counts[name] = value
-        elif name in regime_names:
-            params[name] = value
-        elif name in spec.env_defaults:
-            env_params[name] = value
-        elif name in ("render_mode", "goal"):
-            env_only[name] = value
-        else:
-            known = sorted(regime_names | set(spec.env_defaults) | {"render_mode", "goal", *counts})
-            raise TypeError(f"{kwargs['task_id']} got an unknown parameter {name!r}; known: {', '.join(known)}")
-    if counts["n_train"] >= counts["n_demos"]:
-        raise ValueError(f"{kwargs['task_id']}: n_train ({counts['n_train']}) must be smaller than "
-                         f"n_demos ({counts['n_demos']})")
-    task = GRTask(
-        id=kwargs["task_id"], domain=kwargs["domain"], regime=kwargs["regime"],
-        goals=tuple(tuple(g) for g in kwargs["goals"]), params=params, env_params=env_params,
-        n_demos=counts["n_demos"], n_train=counts["n_train"],
-        observability=tuple(kwargs["observability"]), protocol=kwargs.get("protocol", "subset"),
-        description=kwargs.get("description", ""),
-    )
-    return task, env_only
-
-
-def make_registered_env(**kwargs: Any) -> gym.Env:
-    """Gymnasium entry point of every ``GRAIL/`` ID (see :mod:`grail_bench.registration`)."""
-    registered = {k: kwargs.pop(k) for k in
-                  ("task_id", "domain", "regime", "goals", "params", "env", "n_demos",
-                   "n_train", "observability", "protocol", "description") if k in kwargs}
-    task, env_only = _task_from_kwargs(registered, kwargs)
-    goal = env_only.pop("goal", None)
-    return task.make_env(goal, **env_only)
+    env_only = {k: kwargs.pop(k) for k in ENV_ONLY if k in kwargs}
+    task = shipped_tasks()[task_id].with_overrides(**kwargs)
+    return task.make_env(env_only.pop("goal", None), **env_only)
 
 
 def make_task(task_id: str, **overrides: Any) -> GRTask:
@@ -178,18 +250,18 @@ def make_task(task_id: str, **overrides: Any) -> GRTask:
 
     Args:
         task_id: A ``GRAIL/`` gymnasium ID.
-        **overrides: Regime or env parameters, as accepted by ``gym.make``.
+        **overrides: Regime or env parameters, ``n_demos`` or ``n_train``.
 
     Raises:
         gymnasium.error.Error: For unknown IDs (gymnasium's own message).
+        UserError: For a gymnasium ID that is not a GRAIL/ task, or an override it cannot apply.
     """
     from gymnasium.envs.registration import spec as gym_spec
 
-    from grail_bench.registration import register_envs
+    from grail_bench.registration import ENTRY_POINT, shipped_tasks
 
-    register_envs()
+    tasks = shipped_tasks()
     env_spec = gym_spec(task_id)
-    if env_spec.entry_point != "grail_bench.task:make_registered_env":
-        raise ValueError(f"{task_id} is a gymnasium env but not a GRAIL/ task")
-    task, _ = _task_from_kwargs(env_spec.kwargs, overrides)
-    return task
+    if env_spec.entry_point != ENTRY_POINT or task_id not in tasks:
+        raise UserError(f"{task_id} is a gymnasium env but not a GRAIL/ task")
+    return tasks[task_id].with_overrides(**overrides)

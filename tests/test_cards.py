@@ -20,7 +20,8 @@ def test_good_card_merges_defaults():
     (card,) = parse_card(GOOD, "good.toml")
     assert card.id == "GRAIL/Test-v0"
     assert card.params == {"turn_prob": 0.5, "turn_pattern": "left-right"}
-    assert card.env["max_steps"] == 60
+    assert card.env_params["max_steps"] == 60
+    assert card.source == "good.toml"
     assert card.protocol == "subset"
     assert (card.n_demos, card.n_train) == (10, 7)
     assert card.observability == (0.1, 0.2, 0.3)
@@ -51,8 +52,15 @@ def test_shipped_cards_load():
         ('domain = "chess"\n[[task]]\nid = "GRAIL/T-v0"', "domain"),
         ('domain = "minigrid"', "task"),
         ('domain = "minigrid"\ncolour = 1\n[[task]]\nid = "GRAIL/T-v0"', "colour"),
-        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\n'
-         '[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]', "task"),
+        # Regime parameters are checked when the card is parsed, not when demonstrations are generated.
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "biased"\ngoals = [[7,1],[7,7]]\n'
+         'params = { routes = ["NE"] }', "task[0].params"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "biased"\ngoals = [[7,1],[7,7]]\n'
+         'params = { routes = ["NE", "XY"] }', "task[0].params"),
+        ('domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "suboptimal"\ngoals = [[7,1],[7,7]]\n'
+         'params = { turn_prob = 1.5 }', "task[0].params"),
+        ('domain = "panda_reach"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[0,0,0.1],[3,0,0.1]]',
+         "task[0].params"),
     ],
 )
 def test_bad_field_names_file_and_field(text, where):
@@ -67,3 +75,20 @@ def test_invalid_toml_names_file(tmp_path):
     path.write_text("domain = \n")
     with pytest.raises(CardError, match="broken.toml: invalid TOML"):
         load_cards([path])
+
+
+ONE = 'domain = "minigrid"\n[[task]]\nid = "GRAIL/T-v0"\nregime = "optimal"\ngoals = [[7,1],[7,7]]\n'
+
+
+def test_duplicate_id_in_one_card_names_the_file():
+    with pytest.raises(CardError, match=r"'GRAIL/T-v0' is defined twice, in tasks/bad.toml$"):
+        parse_card(ONE + ONE.split("\n", 1)[1], "tasks/bad.toml")
+
+
+def test_duplicate_id_across_cards_names_both_files(tmp_path):
+    first, second = tmp_path / "a.toml", tmp_path / "b.toml"
+    first.write_text(ONE)
+    second.write_text(ONE)
+    with pytest.raises(CardError) as info:
+        load_cards([first, second])
+    assert str(first) in str(info.value) and str(second) in str(info.value)

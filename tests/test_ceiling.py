@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import grail_bench
-from grail_bench.demos.minigrid import TURN_PATTERNS
-from grail_bench.demos.minigrid_likelihood import GoalDemonstrator, Selection
-from grail_bench.domains import DOMAINS
+from grail_bench.domains.minigrid.grid import TURN_PATTERNS
+from grail_bench.domains.minigrid.likelihood import GoalDemonstrator, Selection
+from grail_bench.domains import get_domain
 from grail_bench.evaluation.ceiling import bayes_ceiling, cached_ceiling, normalised
 from grail_bench.task import GRTask
 
@@ -20,8 +20,8 @@ from grail_bench.task import GRTask
 def tiny(regime: str = "optimal", **params) -> GRTask:
     """A 3x3 room, start (1, 2) facing east, goals (3, 1) and (3, 3): the only shortest paths are
     F F L F and F F R F, so the first two pairs are shared and the last two tell the goals apart."""
-    defaults = DOMAINS["minigrid"].regimes[regime]
-    env = {**DOMAINS["minigrid"].env_defaults, "size": 5, "start": [1, 2], "obstacles": [], "max_steps": 8}
+    defaults = get_domain("minigrid").regimes[regime]
+    env = {**get_domain("minigrid").env_defaults, "size": 5, "start": [1, 2], "obstacles": [], "max_steps": 8}
     return GRTask(id="GRAIL/Tiny-v0", domain="minigrid", regime=regime, goals=((3, 1), (3, 3)),
                   params={**defaults, **params}, env_params=env)
 

@@ -73,9 +73,18 @@ def test_rerun_reuses_stored_seeds(tmp_path):
     assert n == 2 * 3
 
 
+def test_internal_errors_show_their_traceback(tmp_path):
+    site = install_plugin(tmp_path / "site")
+    out = cli(["run", "-r", "toy", "--set", "toy.bug=true", "--seeds", "1", "--no-progress"], tmp_path,
+              PYTHONPATH=str(site))
+    assert out.returncode not in (0, 2)
+    assert "Traceback" in out.stderr and "ValueError: an internal error" in out.stderr
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
+        (["leaderboard", "--store", "/nonexistent/results.sqlite"], "no results store at /nonexistent"),
         (["run", "--task", "GRAIL/Nope-v0"], "Nope"),
         (["run", "-r", "nope"], "unknown recognizer 'nope'"),
         (["run", "-r", "bc", "--observability", "0.1,1.5"], "observability 1.5 must be a fraction"),
@@ -88,8 +97,8 @@ def test_rerun_reuses_stored_seeds(tmp_path):
         (["run", "-r", "bc", "--set", "bc.n_epochz=3"], "n_epochz"),
         (["run", "-r", "bc", "--set", "graql.episodes=3"], "not being run"),
         (["list", "goals"], "cannot list"),
-        (["run", "-r", "bc", "--param", "colour=3"], "unknown parameter 'colour'"),
-        (["run", "-r", "bc", "--param", "n_train=20"], "n_train (20) must be smaller"),
+        (["run", "-r", "bc", "--param", "colour=3"], "cannot apply parameter 'colour'"),
+        (["run", "-r", "bc", "--param", "n_train=20"], "n_train: must be smaller than n_demos (10)"),
     ],
 )
 def test_bad_input_gives_one_line_and_exit_2(args, message, tmp_path):
@@ -113,13 +122,13 @@ def test_corrupt_store_is_one_line_and_untouched(tmp_path):
 
 def test_leaderboard_without_results(tmp_path):
     out = cli(["leaderboard"], tmp_path)
-    assert out.returncode == 1 and "run `grail-bench run` first" in out.stderr
+    assert out.returncode == 2 and "run `grail-bench run` first" in out.stderr
     assert not (tmp_path / "store.sqlite").exists(), "reading must not create a store"
     from grail_bench.store import ResultsStore
 
     ResultsStore(tmp_path / "store.sqlite").close()
     out = cli(["leaderboard"], tmp_path)
-    assert out.returncode == 1 and "no results in" in out.stderr
+    assert out.returncode == 2 and "no results in" in out.stderr
 
 
 def test_leaderboard_with_reference(tmp_path):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import grail_bench
-from grail_bench.domains.minigrid import FORWARD, LEFT, RIGHT, STAY, GridModel
+from grail_bench.domains.minigrid.grid import FORWARD, LEFT, RIGHT, STAY, GridModel
 
 MODEL = GridModel(9, frozenset({(7, 4)}))
 START = (1, 4, 0)

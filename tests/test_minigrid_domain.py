@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from grail_bench.domains.minigrid import FORWARD, LEFT, RIGHT, STAY, GRMiniGridEnv
+from grail_bench.domains.minigrid.env import GRMiniGridEnv
+from grail_bench.domains.minigrid.grid import FORWARD, LEFT, RIGHT, STAY
 
 
 def test_layout_matches_paper():

@@ -7,8 +7,8 @@ import pytest
 from scipy import stats
 
 import grail_bench
-from grail_bench.demos.panda_reach import scripted_expert
-from grail_bench.domains.panda_reach import ALIGNED_GOALS, GOALS, GRPandaReachEnv
+from grail_bench.domains.panda_reach.demos import scripted_expert
+from grail_bench.domains.panda_reach.env import ALIGNED_GOALS, GOALS, GRPandaReachEnv
 from grail_bench.evaluation import evaluate
 
 PANDA_IDS = [t for t in grail_bench.task_ids() if t.startswith("GRAIL/PandaReach")]
@@ -128,7 +128,7 @@ def test_noisy_demos_are_seeded():
 
 @pytest.mark.slow
 def test_sac_expert_reaches_its_goal():
-    from grail_bench.demos.panda_reach import generate_demos
+    from grail_bench.domains.panda_reach.demos import generate_demos
 
     task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0")
     goal = task.goals[2]
@@ -162,7 +162,7 @@ def test_adversarial_grail_runs_on_continuous_actions(name):
     rec.fit(train, task.env_factory(), seed=0)
     assert rec.exposes(task.make_env().action_space) == {"mean", "std"}
     for scorer in ("mse", "wasserstein", "loglik"):
-        scores = rec.score_with(observe(test[task.goals[0]][0], 0.02), scorer)
+        scores = rec.score(observe(test[task.goals[0]][0], 0.02), scorer)
         assert set(scores) == set(task.goals) and all(np.isfinite(list(scores.values())))
 
 

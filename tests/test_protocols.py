@@ -14,7 +14,7 @@ import grail_bench
 from grail_bench.evaluation.protocol import (
     BUILTIN, cell_rng, get_protocol, n_observed, observe, parse_label, protocol_label,
 )
-from grail_bench.evaluation.runner import RecognizerSpec, run_seed
+from grail_bench.evaluation.runner import RecognizerSpec, plan, run_seed
 from grail_bench.seeding import goal_seed
 from grail_bench.store import ResultsStore
 
@@ -65,7 +65,7 @@ def test_only_horizon_protocols_leak_the_goal():
 
 
 def test_unknown_and_deprecated_names():
-    with pytest.raises(KeyError, match="unknown observation protocol 'middle'"):
+    with pytest.raises(ValueError, match="unknown observation protocol 'middle'"):
         observe(demo(), 0.5, "middle")
     with pytest.raises(ValueError, match="needs an rng"):
         observe(demo(), 0.5, "subset")
@@ -89,7 +89,7 @@ def _metrics(rows):
 
 def test_levels_together_or_one_at_a_time_give_identical_rows():
     task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0")
-    spec = RecognizerSpec("graql", {"episodes": 150})
+    spec = plan(task, RecognizerSpec("graql", {"episodes": 150}), task.make_env().action_space)
     demos = task.generate_demos(0)
     together = run_seed(task, spec, 0, [0.1, 0.2, 0.3], "subset", "{}", demos)
     apart = [row for level in (0.3, 0.1, 0.2) for row in run_seed(task, spec, 0, [level], "subset", "{}", demos)]
@@ -162,5 +162,5 @@ def test_a_goal_gets_the_same_trained_policy_in_every_goal_set():
         rec = grail_bench.make_recognizer("bc", n_epochs=2)
         rec.fit(train, task.env_factory(), seed=1)
         observed = see(test[(7, 3)][0], 1.0, "prefix")
-        fits[task_id] = rec.score_with(observed, "loglik")[(7, 3)]
+        fits[task_id] = rec.score(observed, "loglik")[(7, 3)]
     assert len(set(fits.values())) == 1, fits

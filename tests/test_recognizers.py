@@ -126,14 +126,16 @@ def test_registry_errors():
         make_recognizer("nope")
     with pytest.raises(ValueError, match="already registered"):
         register_recognizer("bc", lambda: None)
-    with pytest.raises(TypeError, match="does not satisfy the Recognizer protocol"):
+    with pytest.raises(ValueError, match="does not satisfy the Recognizer protocol: it lacks name, config"):
         register_recognizer("broken", lambda: object())
         try:
             make_recognizer("broken")
         finally:
             unregister_recognizer("broken")
-    with pytest.raises(TypeError):
+    with pytest.raises(ValueError, match="recognizer 'bc': got an unexpected keyword argument 'n_epochz'"):
         make_recognizer("bc", n_epochz=3)
+    with pytest.raises(ValueError, match="epsilon_start and epsilon_end must be in"):
+        make_recognizer("graql", epsilon_end=-0.1)
 
 
 def test_plugin_found_through_entry_point(toy_plugin):
@@ -156,7 +158,7 @@ def test_duplicate_entry_point_names_are_rejected(toy_plugin, tmp_path, monkeypa
 def test_policy_bank_matches_sac_actor():
     from stable_baselines3 import SAC
 
-    from grail_bench.domains.panda_reach import GRPandaReachEnv
+    from grail_bench.domains.panda_reach.env import GRPandaReachEnv
     from grail_bench.recognizers.policy_bank import PolicyBank
 
     env = GRPandaReachEnv()
@@ -176,7 +178,8 @@ def test_policy_bank_matches_sac_actor():
 def test_trained_policies_are_cached_and_reloaded(name, monkeypatch):
     factory = TASK.env_factory()
     first = make_recognizer(name, **FAST[name])
-    first.fit(TRAIN, factory, seed=4)
+    first_report = first.fit(TRAIN, factory, seed=4, cache_key=TASK.env_key)
+    assert (first_report.trained, first_report.reused) == (2, 0)
     observed = observe(TEST[(7, 1)][0], 0.3)
     expected = first.score(observed)
 
@@ -184,12 +187,13 @@ def test_trained_policies_are_cached_and_reloaded(name, monkeypatch):
     second = make_recognizer(name, **FAST[name])
     original = second.train_policy
     monkeypatch.setattr(second, "train_policy", lambda *a, **k: calls.append(1) or original(*a, **k))
-    second.fit(TRAIN, factory, seed=4)
+    report = second.fit(TRAIN, factory, seed=4, cache_key=TASK.env_key)
     assert calls == [] and second.score(observed) == expected
-    assert second.fit_seconds == pytest.approx(first.fit_seconds)  # what training cost, not loading
+    assert (report.trained, report.reused) == (0, 2)
+    assert report.train_seconds == pytest.approx(first_report.train_seconds)  # what training cost, not loading
 
     other_task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0")
     other_train, _ = other_task.split(other_task.generate_demos(seed=0))
-    second.fit(other_train, other_task.env_factory(), seed=4)
+    second.fit(other_train, other_task.env_factory(), seed=4, cache_key=other_task.env_key)
     # Imitation learners retrain on other demonstrations; DRACO ignores them and reuses its policies.
     assert calls == ([] if name == "draco" else [1, 1])

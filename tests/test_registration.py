@@ -92,8 +92,17 @@ def test_regime_parameters_override_through_make():
 
 
 def test_unknown_override_is_a_clear_error():
-    with pytest.raises(TypeError, match="unknown parameter 'turn_probability'"):
+    with pytest.raises(ValueError, match="cannot apply parameter 'turn_probability'"):
         gym.make("GRAIL/MiniGrid-Suboptimal-v0", turn_probability=0.9)
+
+
+def test_make_task_rejects_overrides_it_cannot_apply():
+    with pytest.raises(ValueError, match="'render_mode' .*applies to gym.make, not to a task"):
+        grail_bench.make_task("GRAIL/MiniGrid-Biased-v0", render_mode="rgb_array")
+    with pytest.raises(ValueError, match="params: turn_prob must be in"):
+        grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=2)
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=0.5, max_steps=80, n_demos=12)
+    assert (task.params["turn_prob"], task.env_params["max_steps"], task.n_demos) == (0.5, 80, 12)
 
 
 @pytest.mark.parametrize("bad_id", ["GRAIL/MiniGrid-Nope-v0", "GRAIL/MiniGrid-Biased-v9", "NOPE/MiniGrid-Biased-v0"])

@@ -8,7 +8,7 @@ import pytest
 import grail_bench
 from grail_bench.evaluation import evaluate
 from grail_bench.evaluation.runner import RECORD_KEYS
-from grail_bench.recognizers import RecognizerError
+from grail_bench.recognizers import RecognizerError, UnknownRecognizerError
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
 from grail_bench.store import ResultsStore
 
@@ -19,19 +19,24 @@ class Spy:
     """Records everything the harness hands over; scores by a fixed rule."""
 
     name = "spy"
+    config: dict = {}
+    default_scorer = "default"
     fits: list = []
     observed: list = []
     fail_on_seed: int | None = None
     bad_scores = None
 
-    def fit(self, demos, env_factory, *, seed):
+    def exposes(self, action_space):
+        return frozenset()
+
+    def fit(self, demos, env_factory, *, seed, cache_key=None):
         if seed == Spy.fail_on_seed:
             raise KeyboardInterrupt
         Spy.fits.append((seed, sorted(demos)))
         self.goals = list(demos)
 
-    def score(self, observed, *extra):
-        assert not extra
+    def score(self, observed, scorer=None):
+        assert scorer is None
         Spy.observed.append(observed)
         if Spy.bad_scores is not None:
             return Spy.bad_scores
@@ -105,7 +110,7 @@ def test_protocol_violations_are_reported(spy, bad, message):
 
 
 def test_unknown_names_fail_before_any_work(spy):
-    with pytest.raises(KeyError):
+    with pytest.raises(UnknownRecognizerError):
         evaluate(TASK_ID, ["spy", "nope"], seeds=1)
     assert spy.fits == []
 
@@ -113,7 +118,7 @@ def test_unknown_names_fail_before_any_work(spy):
 def test_bad_arguments():
     with pytest.raises(ValueError, match="observability"):
         evaluate(TASK_ID, ["bc"], observability="0.1,2")
-    with pytest.raises(KeyError, match="unknown observation protocol 'middle'"):
+    with pytest.raises(ValueError, match="unknown observation protocol 'middle'"):
         evaluate(TASK_ID, ["bc"], protocol="middle")
     with pytest.raises(ValueError, match="rounding"):
         evaluate(TASK_ID, ["bc"], rounding="half")
@@ -152,7 +157,7 @@ def test_several_scorers_share_one_fit_and_loglik_reports_calibration(tmp_path):
 def test_scorers_need_a_recognizer_that_has_them(spy):
     from grail_bench.evaluation.runner import RecognizerSpec
 
-    with pytest.raises(ValueError, match="no pluggable scorers"):
+    with pytest.raises(ValueError, match="scores with its own default scorer only"):
         evaluate(TASK_ID, [RecognizerSpec("spy", {}, ("mse",))], seeds=1)
 
 

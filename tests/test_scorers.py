@@ -10,7 +10,7 @@ from scipy import stats
 from grail_bench import scoring
 from grail_bench.evaluation import metrics
 from grail_bench.recognizers import make_recognizer
-from grail_bench.scoring import PolicyOutput, UnknownScorerError, available_scorers, get_scorer
+from grail_bench.scoring import BUILTIN, PolicyOutput, UnknownScorerError, available_scorers, check_scorer, get_scorer
 
 
 def test_builtin_scorers_listed():
@@ -71,10 +71,11 @@ def test_posterior_sums_to_one_and_calibration(rng):
 def test_unsupported_scorer_names_both():
     rec = make_recognizer("bc")
     box = spaces.Box(-1, 1, (3,))
-    with pytest.raises(ValueError, match="scorer 'kl' needs action probabilities; recognizer 'bc' exposes only mean, std"):
-        rec.check_scorer("kl", box)
-    assert rec.check_scorer("wasserstein", box).name == "wasserstein"
-    assert rec.check_scorer("kl", spaces.Discrete(4)).name == "kl"
+    with pytest.raises(ValueError, match="scorer 'kl' needs action probabilities; recognizer 'bc' exposes mean, std"):
+        check_scorer("kl", rec.exposes(box), rec.name)
+    assert check_scorer("wasserstein", rec.exposes(box), rec.name).name == "wasserstein"
+    assert check_scorer("kl", rec.exposes(spaces.Discrete(4)), rec.name).name == "kl"
+    assert [s for s in BUILTIN.values() if s.posterior] == [BUILTIN["loglik"]]
     with pytest.raises(UnknownScorerError):
         make_recognizer("bc", scorer="nope")
 

@@ -1,87 +1,88 @@
-"""Domain specifications: what each domain accepts, without importing it.
+"""GR domains: one package each, found by looking in this folder.
 
-Everything here is plain data so that task registration (which runs on
-``import gymnasium``) stays light. The heavy modules named by each spec are
-imported only when an environment or a demonstration is actually built.
+A domain package ``grail_bench/domains/<name>/`` holds its env, its
+demonstrators and the validation of its parameters, and its ``__init__``
+exposes ``DOMAIN``, an object satisfying :class:`Domain`. That ``__init__``
+must stay light (plain data and validation): task cards are parsed on
+``import gymnasium``, and only building an env or a demonstration imports the
+domain's simulator. Adding a domain means one package here and one task card
+in ``tasks/``.
 """
 
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping
+import pkgutil
+from functools import lru_cache
+from typing import TYPE_CHECKING, Any, Mapping, Protocol, Sequence, runtime_checkable
+
+from grail_bench.errors import UserError
+
+if TYPE_CHECKING:
+    import gymnasium as gym
+    import numpy as np
+    from imitation.data.types import Trajectory
+
+    from grail_bench.task import GRTask
+    from grail_bench.trajectory import Goal
 
 
-@dataclass(frozen=True)
-class DomainSpec:
-    """Static description of a GR domain.
+@runtime_checkable
+class Domain(Protocol):
+    """What the task needs from a domain.
 
     Attributes:
-        name: Short domain name used in task cards (``domain = "minigrid"``).
-        env_factory: ``"module:function"`` building the goal-pinned env.
-        demo_generator: ``"module:function"`` producing demonstrations.
+        name: Short name used in task cards (``domain = "minigrid"``).
         goal_dim: Number of coordinates in a goal.
         env_defaults: Keyword arguments of the env and their defaults.
         regimes: Behaviour regime name -> its parameters and their defaults.
     """
 
     name: str
-    env_factory: str
-    demo_generator: str
     goal_dim: int
-    env_defaults: Mapping[str, Any] = field(default_factory=dict)
-    regimes: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    env_defaults: Mapping[str, Any]
+    regimes: Mapping[str, Mapping[str, Any]]
+
+    def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
+              goals: Sequence[Goal]) -> None:
+        """Validate a task's regime parameters, env parameters and goals (cheaply, without the simulator).
+
+        Raises:
+            grail_bench.errors.UserError: Naming the parameter and what is wrong.
+        """
+        ...
+
+    def make_env(self, goal: Goal, **env_params: Any) -> gym.Env:
+        """The env pursuing ``goal``."""
+        ...
+
+    def generate_demos(self, task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -> list[Trajectory]:
+        """``n`` demonstrations of ``goal`` under the task's regime, drawn from ``rng``."""
+        ...
 
 
-def load_object(path: str) -> Callable[..., Any]:
-    """Import ``"package.module:attribute"`` and return the attribute."""
-    module_name, _, attr = path.partition(":")
-    return getattr(importlib.import_module(module_name), attr)
+@lru_cache(maxsize=1)
+def _domains() -> dict[str, Domain]:
+    found: dict[str, Domain] = {}
+    for module in pkgutil.iter_modules(__path__):
+        if module.ispkg:
+            domain = importlib.import_module(f"{__name__}.{module.name}").DOMAIN
+            found[domain.name] = domain
+    return found
 
 
-DOMAINS: dict[str, DomainSpec] = {
-    "minigrid": DomainSpec(
-        name="minigrid",
-        env_factory="grail_bench.domains.minigrid:make_env",
-        demo_generator="grail_bench.demos.minigrid:generate_demos",
-        goal_dim=2,
-        env_defaults={
-            "size": 9,
-            "start": [1, 4],
-            "start_dir": 0,
-            "obstacles": [[7, 4]],
-            "max_steps": 60,
-            "fixed_horizon": True,
-        },
-        regimes={
-            "optimal": {},
-            # One preferred heading order per goal, e.g. "NE" = north, then east.
-            "biased": {"routes": []},
-            # turn_pattern: "left-right" or "around-and-back" (grail_bench.demos.minigrid).
-            "suboptimal": {"turn_prob": 0.3, "turn_pattern": "left-right"},
-        },
-    ),
-    "panda_reach": DomainSpec(
-        name="panda_reach",
-        env_factory="grail_bench.domains.panda_reach:make_env",
-        demo_generator="grail_bench.demos.panda_reach:generate_demos",
-        goal_dim=3,
-        env_defaults={"max_steps": 50, "distance_threshold": 0.05, "max_action": 1.0},
-        # expert_seed: the SAC expert is part of the demonstrator, trained once per goal with this seed.
-        regimes={
-            "optimal": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0},
-            "gaussian": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "sigma": 0.1},
-            "uniform": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "half_width": 0.1},
-        },
-    ),
-}
+def available_domains() -> list[str]:
+    """Names of every domain, sorted."""
+    return sorted(_domains())
 
 
-def get_domain(name: str) -> DomainSpec:
-    """Return the spec of a domain, with a clear error for unknown names."""
+def get_domain(name: str) -> Domain:
+    """The domain called ``name``.
+
+    Raises:
+        UserError: For unknown names, listing the known ones.
+    """
     try:
-        return DOMAINS[name]
+        return _domains()[name]
     except KeyError:
-        raise ValueError(
-            f"unknown domain {name!r}; known domains: {', '.join(sorted(DOMAINS))}"
-        ) from None
+        raise UserError(f"unknown domain {name!r}; known domains: {', '.join(available_domains())}") from None

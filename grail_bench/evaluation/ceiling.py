@@ -8,7 +8,7 @@ bounds every recognizer's accuracy under that protocol and level.
 * ``exact``: every demonstration and every observation of it is enumerated
   (optimal and biased demonstrators, path-span protocols and prefixes).
 * ``monte-carlo``: observations are drawn as the harness draws them, and the
-  posterior of each is computed exactly (:mod:`grail_bench.demos.minigrid_likelihood`);
+  posterior of each is computed exactly (:mod:`grail_bench.domains.minigrid.likelihood`);
   the estimate comes with its standard error.
 
 Only domains whose demonstrator has a known likelihood have a ceiling (MiniGrid).
@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from grail_bench.errors import UserError
 from grail_bench.evaluation.protocol import ObservationProtocol, get_protocol, n_observed, protocol_label
 
 if TYPE_CHECKING:
@@ -68,20 +69,20 @@ def normalised(score: float, ceiling: float, chance: float) -> float | None:
 
 
 def _selection(protocol: str, level: float, rounding: str):
-    from grail_bench.demos.minigrid_likelihood import Selection
+    from grail_bench.domains.minigrid.likelihood import Selection
 
     chosen = get_protocol(protocol)
     if not isinstance(chosen, ObservationProtocol):
-        raise ValueError(f"the Bayes ceiling knows only the built-in protocols, not {chosen.name!r}")
+        raise UserError(f"the Bayes ceiling knows only the built-in protocols, not {chosen.name!r}")
     return Selection(horizon=chosen.span == "horizon", random_subset=chosen.random_subset, level=level,
                      rounding=rounding)
 
 
 def _demonstrators(task: GRTask) -> list:
     if task.domain != "minigrid":
-        raise ValueError(f"{task.id}: the Bayes ceiling needs a demonstrator with a known likelihood "
+        raise UserError(f"{task.id}: the Bayes ceiling needs a demonstrator with a known likelihood "
                          f"(minigrid tasks); {task.domain} has none")
-    from grail_bench.demos.minigrid_likelihood import GoalDemonstrator
+    from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
 
     return [GoalDemonstrator(task, goal) for goal in task.goals]
 
@@ -173,14 +174,14 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str = 
         ValueError: For other domains, plugin protocols, or ``exact`` where it cannot enumerate.
     """
     if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+        raise UserError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if samples < 2:
-        raise ValueError(f"need at least 2 Monte Carlo samples, got {samples}")
+        raise UserError(f"need at least 2 Monte Carlo samples, got {samples}")
     selection = _selection(protocol, level, rounding)
     demonstrators = _demonstrators(task)
     size = _exact_size(demonstrators, selection) if method != "monte-carlo" else None
     if method == "exact" and (size is None or size > EXACT_LIMIT):
-        raise ValueError(f"{task.id}: cannot enumerate {protocol} at {level:g} exactly "
+        raise UserError(f"{task.id}: cannot enumerate {protocol} at {level:g} exactly "
                          f"({'random turn insertions' if size is None else f'{size} observations'}); "
                          f"use the Monte Carlo estimate")
     common = dict(task=task.id, protocol=protocol_label(protocol, rounding), observability=level,

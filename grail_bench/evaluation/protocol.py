@@ -28,6 +28,8 @@ from typing import TYPE_CHECKING, Iterable, Protocol, Sequence, runtime_checkabl
 import numpy as np
 
 from grail_bench import plugins
+from grail_bench.errors import UserError
+from grail_bench.trajectory import goal_horizon
 
 if TYPE_CHECKING:  # imitation imports torch; task registration reads this module and must stay light
     from imitation.data.types import Trajectory
@@ -49,30 +51,18 @@ def parse_observability(values: Iterable[float] | str) -> tuple[float, ...]:
         try:
             p = float(item)
         except (TypeError, ValueError):
-            raise ValueError(f"observability {item!r} is not a number") from None
+            raise UserError(f"observability {item!r} is not a number") from None
         if not 0.0 < p <= 1.0 or math.isnan(p):
-            raise ValueError(f"observability {p:g} must be a fraction in (0, 1]")
+            raise UserError(f"observability {p:g} must be a fraction in (0, 1]")
         out.append(round(p, 6))
     if not out:
-        raise ValueError("at least one observability level is needed")
+        raise UserError("at least one observability level is needed")
     return tuple(dict.fromkeys(out))
-
-
-def goal_horizon(traj: Trajectory) -> int:
-    """Number of actions up to and including the one that reached the goal.
-
-    Uses ``info["is_success"]``; a demonstration without it counts in full.
-    """
-    if traj.infos is not None:
-        for t, info in enumerate(traj.infos):
-            if info.get("is_success"):
-                return t + 1
-    return len(traj.acts)
 
 
 def _check_rounding(rounding: str) -> None:
     if rounding not in ROUNDINGS:
-        raise ValueError(f"unknown rounding {rounding!r}; choose one of {', '.join(ROUNDINGS)}")
+        raise UserError(f"unknown rounding {rounding!r}; choose one of {', '.join(ROUNDINGS)}")
 
 
 def n_observed(fraction: float, length: int, rounding: str = "ceil") -> int:
@@ -143,11 +133,8 @@ BUILTIN: dict[str, ObservationProtocol] = {p.name: p for p in (
 )}
 
 
-class UnknownProtocolError(KeyError):
+class UnknownProtocolError(UserError):
     """No protocol of that name is built in or registered."""
-
-    def __str__(self) -> str:
-        return str(self.args[0])
 
 
 def available_protocols() -> dict[str, str]:
@@ -228,7 +215,7 @@ def observe(traj: Trajectory, fraction: float, protocol: str | ProtocolLike = "p
         rng = np.random.default_rng(0)  # never drawn from
     idx = np.asarray(chosen.select(traj, fraction, rng, rounding), dtype=np.int64)
     if idx.ndim != 1 or len(idx) == 0 or np.any(np.diff(idx) <= 0) or idx[0] < 0 or idx[-1] >= len(traj.acts):
-        raise ValueError(f"protocol {chosen.name!r} selected invalid indices {idx.tolist()}")
+        raise UserError(f"protocol {chosen.name!r} selected invalid indices {idx.tolist()}")
     from imitation.data.types import Trajectory
 
     states = np.concatenate([traj.obs[idx], traj.obs[idx[-1] + 1][None]])
@@ -239,9 +226,9 @@ def seed_list(seeds: int | Sequence[int]) -> list[int]:
     """``n`` means seeds ``0..n-1``; a sequence is used as given."""
     if isinstance(seeds, int):
         if seeds < 1:
-            raise ValueError(f"need at least one seed, got {seeds}")
+            raise UserError(f"need at least one seed, got {seeds}")
         return list(range(seeds))
     out = [int(s) for s in seeds]
     if not out:
-        raise ValueError("need at least one seed")
+        raise UserError("need at least one seed")
     return out

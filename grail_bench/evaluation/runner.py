@@ -13,10 +13,13 @@ from grail_bench.evaluation import metrics
 from grail_bench.evaluation.protocol import (
     cell_rng, get_protocol, observe, parse_observability, protocol_label, seed_list,
 )
-from grail_bench.recognizers.base import Recognizer, RecognizerError, recognizer_config
+from grail_bench.errors import UserError
+from grail_bench.recognizers.base import RecognizerError
 from grail_bench.recognizers.registry import make_recognizer
+from grail_bench.scoring import available_scorers, check_scorer, get_scorer
 from grail_bench.store import ResultRow, ResultsStore, config_hash, package_versions
-from grail_bench.task import Demos, GRTask, make_task
+from grail_bench.task import GRTask, make_task
+from grail_bench.trajectory import Demos
 
 RECORD_KEYS = (
     "task", "recognizer", "scorer", "protocol", "observability", "n_seeds", "f1_mean", "f1_std",
@@ -24,7 +27,6 @@ RECORD_KEYS = (
     "fit_seconds_per_goal", "score_us_per_observation", "tie_rate", "brier_mean", "nll_mean", "config_hash",
     "task_params",
 )
-DEFAULT_SCORER = "default"  # the label of recognizers without pluggable scorers
 
 
 @dataclass(frozen=True)
@@ -48,26 +50,53 @@ def _spec(item: str | RecognizerSpec | tuple[str, Mapping[str, Any]]) -> Recogni
     return RecognizerSpec(name, dict(config))
 
 
-def _identity(task: GRTask, spec: RecognizerSpec, recognizer: Recognizer) -> tuple[list[str], str, str]:
-    """``(scorers, config JSON, config hash)`` of a recognizer on a task.
+@dataclass(frozen=True)
+class Planned:
+    """A recognizer as the run loop uses it: checked, identified and hashed once.
+
+    Attributes:
+        spec: What was asked for.
+        scorers: Scorer labels the rows are stored under.
+        score_args: Per scorer, what ``score`` gets (``None`` for the recognizer's default).
+        posterior: Per scorer, whether its scores give a posterior over goals.
+        config: JSON of the fitted configuration (recognizer and task parameters).
+        config_hash: Its hash, the store's key.
+    """
+
+    spec: RecognizerSpec
+    scorers: tuple[str, ...]
+    score_args: tuple[str | None, ...]
+    posterior: tuple[bool, ...]
+    config: str
+    config_hash: str
+
+
+def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
+    """Check a recognizer and its scorers against a task, and compute its identity.
 
     The hash covers the fitted configuration (recognizer hyperparameters and
     task parameters), not the scorer, which has its own column.
+
+    Raises:
+        grail_bench.errors.UserError: For unknown names, bad hyperparameters or
+            a scorer the recognizer cannot serve on this task.
     """
-    own = str(getattr(recognizer, "scorer", DEFAULT_SCORER))
-    scorers = list(spec.scorers) or [own]
-    if scorers != [own]:
-        if not hasattr(recognizer, "check_scorer"):
-            raise ValueError(f"recognizer {spec.name!r} has no pluggable scorers; it scores with {own!r} only")
-        env = task.make_env()
-        action_space = env.action_space
-        env.close()
-        for name in scorers:
-            recognizer.check_scorer(name, action_space)
-    config = {"recognizer": spec.name, "config": recognizer_config(recognizer) or dict(spec.config),
+    recognizer = make_recognizer(spec.name, **spec.config)
+    own = recognizer.default_scorer
+    scorers = tuple(spec.scorers) or (own,)
+    exposes = recognizer.exposes(action_space)
+    for name in scorers:
+        if name != own:
+            check_scorer(name, exposes, spec.name)
+    registered = available_scorers()
+    config = {"recognizer": spec.name, "config": dict(recognizer.config),
               "task": {"params": dict(task.params), "env": dict(task.env_params),
                        "n_demos": task.n_demos, "n_train": task.n_train}}
-    return scorers, json.dumps(config, sort_keys=True, default=str), config_hash(config)
+    return Planned(
+        spec=spec, scorers=scorers, score_args=tuple(None if s == own else s for s in scorers),
+        posterior=tuple(s in registered and get_scorer(s).posterior for s in scorers),
+        config=json.dumps(config, sort_keys=True, default=str), config_hash=config_hash(config),
+    )
 
 
 def _check_scores(name: str, scores: Any, goals: Sequence[tuple]) -> np.ndarray:
@@ -79,7 +108,7 @@ def _check_scores(name: str, scores: Any, goals: Sequence[tuple]) -> np.ndarray:
     return out
 
 
-def run_seed(task: GRTask, spec: RecognizerSpec, seed: int, levels: Sequence[float], protocol: str,
+def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float], protocol: str,
              versions: str, demos: Demos | None = None, rounding: str = "ceil") -> list[ResultRow]:
     """Fit one recognizer on one seed's training demos, then score every level with every scorer.
 
@@ -87,24 +116,25 @@ def run_seed(task: GRTask, spec: RecognizerSpec, seed: int, levels: Sequence[flo
     goal, an env factory, and observations stripped of infos, scored in a
     seeded random order across goals. Each (seed, level, protocol) cell draws
     its observations from its own random stream (:func:`cell_rng`), so the
-    rows do not depend on which other levels run in the same call. With the
-    ``loglik`` scorer the scores also give a posterior over goals, whose Brier
-    score and NLL are recorded.
+    rows do not depend on which other levels run in the same call. With a
+    scorer that yields a posterior (``loglik``), its Brier score and NLL are
+    recorded too.
 
     Args:
+        planned: The recognizer, as :func:`plan` checked it.
         protocol: Observation protocol name (see :mod:`grail_bench.evaluation.protocol`).
         demos: The seed's demonstrations, if already generated.
         rounding: ``"ceil"`` or ``"floor"`` for the number of observed pairs.
     """
     chosen = get_protocol(protocol)
     stored_protocol = protocol_label(chosen.name, rounding)
-    recognizer = make_recognizer(spec.name, **spec.config)
-    scorers, config_json, chash = _identity(task, spec, recognizer)
+    name = planned.spec.name
+    recognizer = make_recognizer(name, **planned.spec.config)
     train, test = task.split(demos if demos is not None else task.generate_demos(seed))
     start = time.perf_counter()
-    recognizer.fit(train, task.env_factory(), seed=seed)
-    fit_seconds = getattr(recognizer, "fit_seconds", None)  # training time of reloaded models, if reported
-    fit_per_goal = (fit_seconds if fit_seconds is not None else time.perf_counter() - start) / len(task.goals)
+    report = recognizer.fit(train, task.env_factory(), seed=seed, cache_key=task.env_key)
+    fit_seconds = report.train_seconds if report is not None else time.perf_counter() - start
+    fit_per_goal = fit_seconds / len(task.goals)
 
     labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
     rows = []
@@ -112,29 +142,27 @@ def run_seed(task: GRTask, spec: RecognizerSpec, seed: int, levels: Sequence[flo
         rng = cell_rng(seed, level, stored_protocol)
         order = rng.permutation(len(labelled))
         observations = [(labelled[j][0], observe(labelled[j][1], level, chosen, rng, rounding)) for j in order]
-        for scorer in scorers:
-            # The recognizer's own score() unless scorers were asked for by name.
-            score = (lambda obs, s=scorer: recognizer.score_with(obs, s)) if spec.scorers else recognizer.score
+        for scorer, score_arg, posterior in zip(planned.scorers, planned.score_args, planned.posterior):
             y_true, y_pred, ties, elapsed_ns, brier, nll = [], [], 0, 0, [], []
             for label, observed in observations:
                 t0 = time.perf_counter_ns()
-                scores = score(observed)
+                scores = recognizer.score(observed, score_arg)
                 elapsed_ns += time.perf_counter_ns() - t0
-                values = _check_scores(spec.name, scores, task.goals)
+                values = _check_scores(name, scores, task.goals)
                 pred, tied = metrics.predict(values)
                 y_true.append(label)
                 y_pred.append(pred)
                 ties += tied
-                if scorer == "loglik":
+                if posterior:
                     b, n = metrics.calibration(values, len(observed.acts), label)
                     brier.append(b)
                     nll.append(n)
             m = metrics.classification(y_true, y_pred, len(task.goals))
             rows.append(ResultRow(
-                task=task.id, recognizer=spec.name, scorer=scorer, config_hash=chash, seed=seed,
+                task=task.id, recognizer=name, scorer=scorer, config_hash=planned.config_hash, seed=seed,
                 observability=level, protocol=stored_protocol, n_observations=len(y_true), n_ties=ties,
                 fit_seconds_per_goal=fit_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
-                config=config_json, versions=versions,
+                config=planned.config, versions=versions,
                 brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None, **m,
             ))
     return rows
@@ -223,37 +251,38 @@ def evaluate(
     label = protocol_label(protocol, rounding)
     specs = [_spec(r) for r in recognizers]
     if not specs:
-        raise ValueError("name at least one recognizer")
+        raise UserError("name at least one recognizer")
     store = store if store is not None else ResultsStore(":memory:")
     versions = package_versions()
 
-    plan: dict[int, list[RecognizerSpec]] = {}  # seed -> specs still to run on it
-    identities = []  # (scorers, config hash) per spec; also fails fast on bad names and scorers
-    for spec in specs:
-        scorers, _, chash = _identity(task, spec, make_recognizer(spec.name, **spec.config))
-        identities.append((scorers, chash))
-        done = [store.completed(task.id, spec.name, scorer, chash, label) for scorer in scorers]
+    env = task.make_env()
+    action_space = env.action_space
+    env.close()
+    planned = [plan(task, spec, action_space) for spec in specs]  # fails fast on bad names and scorers
+    todo: dict[int, list[Planned]] = {}  # seed -> recognizers still to run on it
+    for p in planned:
+        done = [store.completed(task.id, p.spec.name, scorer, p.config_hash, label) for scorer in p.scorers]
         for seed in seed_values:
             if not all((seed, lv) in d for lv in levels for d in done):
-                plan.setdefault(seed, []).append(spec)
+                todo.setdefault(seed, []).append(p)
 
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
     with Progress(*columns, disable=not progress, transient=False) as bar:
-        job = bar.add_task(f"{task.id}", total=sum(len(v) for v in plan.values()))
-        for seed, todo in plan.items():
+        job = bar.add_task(f"{task.id}", total=sum(len(v) for v in todo.values()))
+        for seed, pending in todo.items():
             bar.update(job, description=f"{task.id}: demonstrations (seed {seed})")
             demos = task.generate_demos(seed)  # once per seed, shared by every recognizer
-            for spec in todo:
-                bar.update(job, description=f"{task.id}: fitting and scoring {spec.name} (seed {seed})")
-                store.add(run_seed(task, spec, seed, levels, protocol, versions, demos, rounding))
+            for p in pending:
+                bar.update(job, description=f"{task.id}: fitting and scoring {p.spec.name} (seed {seed})")
+                store.add(run_seed(task, p, seed, levels, protocol, versions, demos, rounding))
                 bar.advance(job)
         bar.update(job, description=f"{task.id}: done")
 
     rows = []
-    for spec, (scorers, chash) in zip(specs, identities):
-        rows += [r for r in store.rows(task=task.id, recognizer=spec.name, scorer=scorers, config_hash=chash,
-                                       protocol=label, seed=seed_values)
+    for p in planned:
+        rows += [r for r in store.rows(task=task.id, recognizer=p.spec.name, scorer=list(p.scorers),
+                                       config_hash=p.config_hash, protocol=label, seed=seed_values)
                  if r.observability in levels]
     return aggregate(rows)

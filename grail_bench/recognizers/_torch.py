@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import contextlib
+import os
 from typing import Iterator
 
 import torch
 from imitation.util.logger import HierarchicalLogger
 from stable_baselines3.common.logger import Logger
+
+_INDUCTOR_CACHE = "TORCHINDUCTOR_CACHE_DIR"
 
 
 def silent_logger() -> HierarchicalLogger:
@@ -17,13 +20,25 @@ def silent_logger() -> HierarchicalLogger:
 
 @contextlib.contextmanager
 def single_thread() -> Iterator[None]:
-    """Run small-network training on one thread (faster for these sizes), then restore."""
+    """Build and train small networks on one thread (faster at these sizes), then restore.
+
+    For the duration, torch's compiler cache (a folder torch creates when an
+    optimizer is first built) goes to the suite's cache rather than ``$TMPDIR``,
+    unless the user chose a place for it.
+    """
+    from grail_bench.paths import cache_dir
+
     before = torch.get_num_threads()
+    chosen = os.environ.get(_INDUCTOR_CACHE)
     torch.set_num_threads(1)
+    if chosen is None:
+        os.environ[_INDUCTOR_CACHE] = str(cache_dir() / "torchinductor")
     try:
         yield
     finally:
         torch.set_num_threads(before)
+        if chosen is None:
+            os.environ.pop(_INDUCTOR_CACHE, None)
 
 
 @contextlib.contextmanager

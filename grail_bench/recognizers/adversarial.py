@@ -23,9 +23,11 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.vec_env import DummyVecEnv
 
+from grail_bench.errors import UserError
 from grail_bench.recognizers._torch import scratch_logger
-from grail_bench.recognizers.base import EnvFactory, Goal
-from grail_bench.recognizers.policy import PolicyRecognizer
+from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.rl import empty_policy
+from grail_bench.trajectory import EnvFactory, Goal
 
 
 class AdversarialRecognizer(PolicyRecognizer):
@@ -56,7 +58,7 @@ class AdversarialRecognizer(PolicyRecognizer):
                  n_disc_updates_per_round: int = 8, gen_replay_buffer_capacity: int = 512,
                  demo_batch_size: int = 16, scorer: str | None = None) -> None:
         if min(total_timesteps, n_envs, n_steps, batch_size, n_epochs, demo_batch_size) < 1:
-            raise ValueError(f"{self.name}: sizes and step counts must be positive")
+            raise UserError(f"{self.name}: sizes and step counts must be positive")
         super().__init__(scorer, total_timesteps=total_timesteps, n_envs=n_envs, n_steps=n_steps,
                          batch_size=batch_size, gamma=gamma, learning_rate=learning_rate, n_epochs=n_epochs,
                          n_disc_updates_per_round=n_disc_updates_per_round,
@@ -71,9 +73,7 @@ class AdversarialRecognizer(PolicyRecognizer):
                    seed=seed, verbose=0, device="cpu")
 
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
-        generator = self._generator(goal, env_factory, n_envs=1)
-        generator.get_env().close()
-        return generator.policy
+        return empty_policy("ppo", *spaces_of(env_factory, goal))
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> ActorCriticPolicy:
@@ -105,6 +105,7 @@ class GAILRecognizer(AdversarialRecognizer):
     """GAIL-GRAIL (imitation's ``GAIL``, a ``BasicRewardNet`` discriminator)."""
 
     name = "gail"
+    paper_name = "GAIL-GRAIL"
     trainer_cls = GAIL
     reward_net_cls = BasicRewardNet
 
@@ -113,5 +114,6 @@ class AIRLRecognizer(AdversarialRecognizer):
     """AIRL-GRAIL (imitation's ``AIRL``, a ``BasicShapedRewardNet`` with a state potential)."""
 
     name = "airl"
+    paper_name = "AIRL-GRAIL"
     trainer_cls = AIRL
     reward_net_cls = BasicShapedRewardNet

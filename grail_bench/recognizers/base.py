@@ -2,18 +2,35 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Mapping, Protocol, Sequence, runtime_checkable
+
+from grail_bench.errors import UserError
+from grail_bench.trajectory import EnvFactory, Goal
 
 if TYPE_CHECKING:
-    import gymnasium as gym
     from imitation.data.types import Trajectory
 
-Goal = tuple[float, ...]
-EnvFactory = Callable[[Goal], "gym.Env"]
 
-
-class RecognizerError(RuntimeError):
+class RecognizerError(UserError):
     """A recognizer broke the protocol (e.g. returned scores for the wrong goals)."""
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """What a fit cost.
+
+    Attributes:
+        train_seconds: Training time of the fitted models, including that of
+            models reloaded from a cache (what they cost when trained), so
+            cache hits do not report near-zero training.
+        trained: Models trained in this fit.
+        reused: Models reloaded from the cache.
+    """
+
+    train_seconds: float
+    trained: int = 0
+    reused: int = 0
 
 
 @runtime_checkable
@@ -22,42 +39,54 @@ class Recognizer(Protocol):
 
     Attributes:
         name: Short name, as registered (e.g. ``"bc"``).
+        config: Hyperparameters (JSON-able); they key stored results and cached models.
+        default_scorer: What :meth:`score` uses when no scorer is named: a
+            registered scorer (:mod:`grail_bench.scoring`), or any label for
+            a recognizer with its own scoring.
 
-    A recognizer that reloads cached models may also set ``fit_seconds`` in
-    ``fit``: the training time its models cost, which the harness then reports
-    instead of the (much shorter) loading time.
+    A registered class may also carry ``paper_name``, the method's name in
+    publications (e.g. ``"BC-GRAIL"``), which the leaderboard shows.
     """
 
     name: str
+    config: Mapping[str, Any]
+    default_scorer: str
 
-    def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int) -> None:
+    def exposes(self, action_space: Any) -> frozenset[str]:
+        """The :class:`~grail_bench.scoring.PolicyOutput` fields this recognizer
+        can give registered scorers on ``action_space``; empty if it scores only
+        with :attr:`default_scorer`."""
+        ...
+
+    def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int,
+            cache_key: str | None = None) -> FitReport | None:
         """Prepare to recognise the goals of ``demos``.
 
         Args:
             demos: The training demonstrations of every candidate goal.
             env_factory: ``env_factory(goal)`` builds the domain env pursuing
-                ``goal`` (for methods that learn from interaction). The
-                harness's factory also has a ``cache_key`` string naming the
-                domain env, for reusing models across regimes.
+                ``goal`` (for methods that learn from interaction).
             seed: Seed for everything random in fitting.
+            cache_key: Names the domain env (not the regime); with it a
+                recognizer may cache trained models and reuse them across
+                fits and regimes. ``None``: do not cache.
+
+        Returns:
+            What fitting cost; ``None`` lets the harness time the call.
         """
         ...
 
-    def score(self, observed: Trajectory) -> dict[Goal, float]:
+    def score(self, observed: Trajectory, scorer: str | None = None) -> dict[Goal, float]:
         """Score every goal given to :meth:`fit`; higher means more likely.
 
         Args:
             observed: ``k`` observed actions and the ``k + 1`` states around
                 them; ``observed.acts[t]`` was taken in ``observed.obs[t]``.
                 It never carries the true goal.
+            scorer: A registered scorer among those :meth:`exposes` allows;
+                ``None`` for :attr:`default_scorer`.
         """
         ...
-
-
-def recognizer_config(recognizer: Any) -> dict[str, Any]:
-    """The recognizer's hyperparameters (``config`` attribute), or ``{}``."""
-    config = getattr(recognizer, "config", None)
-    return dict(config) if isinstance(config, Mapping) else {}
 
 
 def observed_arrays(observed: Any, observation_space: Any, action_space: Any) -> tuple[Any, Any]:
@@ -72,20 +101,20 @@ def observed_arrays(observed: Any, observation_space: Any, action_space: Any) ->
         ``(obs[:k], acts)``: the ``k`` states in which the ``k`` actions were taken.
 
     Raises:
-        ValueError: For an empty prefix, mismatched lengths or wrong shapes.
+        UserError: For an empty prefix, mismatched lengths or wrong shapes.
     """
     import numpy as np
 
     try:
         obs, acts = np.asarray(observed.obs), np.asarray(observed.acts)
     except AttributeError:
-        raise ValueError(f"expected a Trajectory with obs and acts, got {type(observed).__name__}") from None
+        raise UserError(f"expected a Trajectory with obs and acts, got {type(observed).__name__}") from None
     if len(acts) == 0:
-        raise ValueError("the observed trajectory is empty: at least one action is needed")
+        raise UserError("the observed trajectory is empty: at least one action is needed")
     if len(obs) != len(acts) + 1:
-        raise ValueError(f"malformed trajectory: {len(obs)} states for {len(acts)} actions (need actions + 1)")
+        raise UserError(f"malformed trajectory: {len(obs)} states for {len(acts)} actions (need actions + 1)")
     if obs.shape[1:] != observation_space.shape:
-        raise ValueError(f"observed states have shape {obs.shape[1:]}, the env's are {observation_space.shape}")
+        raise UserError(f"observed states have shape {obs.shape[1:]}, the env's are {observation_space.shape}")
     if acts.shape[1:] != action_space.shape:
-        raise ValueError(f"observed actions have shape {acts.shape[1:]}, the env's are {action_space.shape}")
+        raise UserError(f"observed actions have shape {acts.shape[1:]}, the env's are {action_space.shape}")
     return obs[: len(acts)], acts

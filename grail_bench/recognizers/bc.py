@@ -12,9 +12,10 @@ from imitation.data.types import Trajectory
 from imitation.policies.base import FeedForward32Policy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
+from grail_bench.errors import UserError
 from grail_bench.recognizers._torch import silent_logger
-from grail_bench.recognizers.base import EnvFactory, Goal
-from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of, until_success
+from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.trajectory import EnvFactory, Goal, until_success
 
 
 class BCRecognizer(PolicyRecognizer):
@@ -35,11 +36,12 @@ class BCRecognizer(PolicyRecognizer):
     """
 
     name = "bc"
+    paper_name = "BC-GRAIL"
 
     def __init__(self, *, n_epochs: int = 25, batch_size: int = 8, learning_rate: float = 1e-3,
                  ent_weight: float = 1e-3, scorer: str | None = None) -> None:
         if n_epochs < 1 or batch_size < 1 or learning_rate <= 0:
-            raise ValueError("bc: n_epochs and batch_size must be positive, learning_rate > 0")
+            raise UserError("bc: n_epochs and batch_size must be positive, learning_rate > 0")
         super().__init__(scorer, n_epochs=n_epochs, batch_size=batch_size, learning_rate=learning_rate,
                          ent_weight=ent_weight)
 

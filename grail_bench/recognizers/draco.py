@@ -10,9 +10,10 @@ from stable_baselines3 import SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 
-from grail_bench.recognizers.base import EnvFactory, Goal
-from grail_bench.recognizers.policy import PolicyRecognizer
-from grail_bench.rl import learn, make_ppo, make_sac
+from grail_bench.errors import UserError
+from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.rl import empty_policy, learn, make_ppo, make_sac
+from grail_bench.trajectory import EnvFactory, Goal
 
 
 class DRACORecognizer(PolicyRecognizer):
@@ -29,16 +30,17 @@ class DRACORecognizer(PolicyRecognizer):
     """
 
     name = "draco"
+    paper_name = "DRACO"
     default_scorer = "wasserstein"
     uses_demos = False
 
     def __init__(self, *, sac_steps: int = 15_000, ppo_steps: int = 100_000, net_arch: Sequence[int] = (64, 64),
                  scorer: str | None = None) -> None:
         if sac_steps < 1 or ppo_steps < 1:
-            raise ValueError("draco: step budgets must be positive")
+            raise UserError("draco: step budgets must be positive")
         super().__init__(scorer, sac_steps=sac_steps, ppo_steps=ppo_steps, net_arch=list(net_arch))
 
-    def _model(self, goal: Goal, env_factory: EnvFactory, seed: int = 0) -> BaseAlgorithm:
+    def _model(self, goal: Goal, env_factory: EnvFactory, seed: int) -> BaseAlgorithm:
         env = env_factory(goal)
         if isinstance(env.action_space, spaces.Box):
             return make_sac(env, self.config["net_arch"], seed)
@@ -46,9 +48,9 @@ class DRACORecognizer(PolicyRecognizer):
         return make_ppo(lambda: env_factory(goal), self.config["net_arch"], seed)
 
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> BasePolicy:
-        model = self._model(goal, env_factory)
-        model.get_env().close()
-        return model.policy
+        observation_space, action_space = spaces_of(env_factory, goal)
+        algorithm = "sac" if isinstance(action_space, spaces.Box) else "ppo"
+        return empty_policy(algorithm, observation_space, action_space, self.config["net_arch"])
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> BasePolicy:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -9,10 +10,14 @@ from gymnasium import spaces
 from imitation.data.types import Trajectory
 from scipy.special import softmax
 
-from grail_bench.recognizers.base import EnvFactory, Goal, observed_arrays
+from grail_bench.errors import UserError
+from grail_bench.recognizers.base import FitReport, observed_arrays
 from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.scoring import PolicyOutput
 from grail_bench.seeding import goal_seed
+from grail_bench.trajectory import EnvFactory, Goal
+
+_CHUNK = 4096  # exploration draws made at a time
 
 
 def state_index(obs: np.ndarray, space: spaces.Space) -> np.ndarray:
@@ -31,7 +36,10 @@ class GRAQLRecognizer(ScoredRecognizer):
 
     It learns from interaction only (the demonstrations are ignored), so the
     same Q-tables serve every behaviour regime of a domain. A step counts as
-    terminal when the env terminates or reports ``info["is_success"]``.
+    terminal when the env terminates or reports ``info["is_success"]``; an
+    episode runs until the env ends it (every GRAIL domain has a fixed
+    horizon) or ``max_episode_steps``. It needs discrete observations: on a
+    continuous domain ``fit`` refuses with an error saying so.
 
     The defaults were chosen on MiniGrid: with 5000 episodes (about 3e5 env
     steps, ~1.6 s per goal) the greedy policy reaches every goal on a shortest
@@ -45,29 +53,40 @@ class GRAQLRecognizer(ScoredRecognizer):
         epsilon_start: Initial exploration rate of the epsilon-greedy policy.
         epsilon_end: Final exploration rate, reached after 80 % of the episodes.
         temperature: Of the softmax turning Q-values into a policy.
+        max_episode_steps: Cut episodes after this many steps; ``None``: the env's own horizon.
         scorer: Default ``"kl"`` (GRAQL's); it exposes softmax(Q) probabilities and Q-values.
     """
 
     name = "graql"
+    paper_name = "GRAQL"
     default_scorer = "kl"
 
     def __init__(self, *, episodes: int = 5000, alpha: float = 0.5, gamma: float = 0.9,
                  epsilon_start: float = 1.0, epsilon_end: float = 0.05, temperature: float = 1.0,
-                 scorer: str | None = None) -> None:
+                 max_episode_steps: int | None = None, scorer: str | None = None) -> None:
         super().__init__(scorer)
         if episodes < 1 or not 0 < alpha <= 1 or not 0 < gamma <= 1 or temperature <= 0:
-            raise ValueError("graql: need episodes >= 1, alpha and gamma in (0, 1], temperature > 0")
+            raise UserError("graql: need episodes >= 1, alpha and gamma in (0, 1], temperature > 0")
+        if not 0 <= epsilon_end <= 1 or not 0 <= epsilon_start <= 1:
+            raise UserError(f"graql: epsilon_start and epsilon_end must be in [0, 1], got {epsilon_start} "
+                            f"and {epsilon_end}")
+        if max_episode_steps is not None and max_episode_steps < 1:
+            raise UserError(f"graql: max_episode_steps must be positive, got {max_episode_steps}")
         self.config: dict[str, Any] = dict(
             episodes=episodes, alpha=alpha, gamma=gamma, epsilon_start=epsilon_start,
             epsilon_end=epsilon_end, temperature=temperature,
         )
+        if max_episode_steps is not None:  # absent from the config (and its hash) unless set
+            self.config["max_episode_steps"] = max_episode_steps
         self.q: np.ndarray | None = None  # (K, S, A)
         self.visited: np.ndarray | None = None  # (K, S)
         self.observation_space: spaces.Space | None = None
         self.action_space: spaces.Space | None = None
 
-    def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int) -> None:
-        """Learn one Q-table per goal by interacting with ``env_factory(goal)``."""
+    def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int,
+            cache_key: str | None = None) -> FitReport:
+        """Learn one Q-table per goal by interacting with ``env_factory(goal)`` (nothing is cached)."""
+        start = time.perf_counter()
         tables, visits = [], []
         for goal in demos:
             env = env_factory(goal)
@@ -79,11 +98,13 @@ class GRAQLRecognizer(ScoredRecognizer):
             visits.append(v)
         self.goals = list(demos)
         self.q, self.visited = np.stack(tables), np.stack(visits)
+        return FitReport(train_seconds=time.perf_counter() - start, trained=len(tables))
 
     def _q_learning(self, env: Any, seed: int) -> tuple[np.ndarray, np.ndarray]:
         obs_space, act_space = env.observation_space, env.action_space
         if not isinstance(obs_space, (spaces.Discrete, spaces.MultiDiscrete)) or not isinstance(act_space, spaces.Discrete):
-            raise TypeError("graql needs discrete observations and actions (tabular Q-learning)")
+            raise UserError("graql needs discrete observations and actions (tabular Q-learning); this domain's "
+                            f"observations are {type(obs_space).__name__} and actions {type(act_space).__name__}")
         self.observation_space, self.action_space = obs_space, act_space
         cfg = self.config
         rng = np.random.default_rng(seed)
@@ -93,16 +114,17 @@ class GRAQLRecognizer(ScoredRecognizer):
         visited = np.zeros(n_states(obs_space), dtype=bool)
         alpha, gamma = cfg["alpha"], cfg["gamma"]
         decay_episodes = max(1, int(0.8 * cfg["episodes"]))
+        limit = cfg.get("max_episode_steps")
         for episode in range(cfg["episodes"]):
             frac = min(1.0, episode / decay_episodes)
             epsilon = cfg["epsilon_start"] + frac * (cfg["epsilon_end"] - cfg["epsilon_start"])
             obs, _ = env.reset(seed=int(rng.integers(1 << 31)) if episode == 0 else None)
             s = int(state_index(obs[None], obs_space)[0])
-            explore = rng.random(1 << 12)
-            random_actions = rng.integers(n_actions, size=1 << 12)
             t = 0
             while True:
-                a = int(random_actions[t]) if explore[t] < epsilon else int(q[s].argmax())
+                if t % _CHUNK == 0:
+                    explore, random_actions = rng.random(_CHUNK), rng.integers(n_actions, size=_CHUNK)
+                a = int(random_actions[t % _CHUNK]) if explore[t % _CHUNK] < epsilon else int(q[s].argmax())
                 obs, reward, terminated, truncated, info = env.step(a)
                 s2 = int(state_index(obs[None], obs_space)[0])
                 done = terminated or bool(info.get("is_success"))
@@ -110,7 +132,7 @@ class GRAQLRecognizer(ScoredRecognizer):
                 q[s, a] += alpha * (target - q[s, a])
                 visited[s] = True
                 s, t = s2, t + 1
-                if done or truncated or t >= len(explore):
+                if done or truncated or t == limit:
                     break
         return q, visited
 

@@ -15,26 +15,14 @@ from imitation.data.types import Trajectory
 from stable_baselines3.common.policies import BasePolicy
 
 from grail_bench.cache import cached_state_dict
+from grail_bench.errors import UserError
 from grail_bench.recognizers._torch import single_thread
-from grail_bench.recognizers.base import EnvFactory, Goal, observed_arrays
+from grail_bench.recognizers.base import FitReport, observed_arrays
 from grail_bench.recognizers.policy_bank import PolicyBank
 from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.scoring import PolicyOutput
 from grail_bench.seeding import goal_seed
-
-
-def until_success(traj: Trajectory) -> Trajectory:
-    """Cut a fixed-horizon demo after the step that reached the goal.
-
-    The absorbed tail (the agent staying on the goal) carries no behaviour;
-    demonstrations without ``is_success`` infos are returned unchanged.
-    """
-    if traj.infos is None:
-        return traj
-    for t, info in enumerate(traj.infos):
-        if info.get("is_success"):
-            return Trajectory(obs=traj.obs[: t + 2], acts=traj.acts[: t + 1], infos=traj.infos[: t + 1], terminal=True)
-    return traj
+from grail_bench.trajectory import EnvFactory, Goal
 
 
 class PolicyRecognizer(ScoredRecognizer):
@@ -55,7 +43,6 @@ class PolicyRecognizer(ScoredRecognizer):
         super().__init__(scorer)
         self.config = dict(config)
         self.bank: PolicyBank | None = None
-        self.fit_seconds = 0.0
 
     @abc.abstractmethod
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> BasePolicy:
@@ -66,32 +53,35 @@ class PolicyRecognizer(ScoredRecognizer):
                      seed: int) -> BasePolicy:
         """Train and return the policy of one goal."""
 
-    def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int) -> None:
+    def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int,
+            cache_key: str | None = None) -> FitReport:
         """Train one policy per goal (see :class:`grail_bench.Recognizer`).
 
-        When ``env_factory`` has a ``cache_key`` (the harness's does), trained
-        policies are cached on disk and reloaded by later fits of the same
-        configuration; :attr:`fit_seconds` is then what training cost.
+        With a ``cache_key`` (the harness passes one), trained policies are
+        cached on disk and reloaded by later fits of the same configuration.
         """
         if len(demos) < 2:
-            raise ValueError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
-        self.fit_seconds = 0.0
-        policies = []
+            raise UserError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
+        policies, seconds, reused = [], 0.0, 0
         with single_thread():
             for goal in demos:
                 own_seed = goal_seed(seed, goal)  # keyed by the goal, not its position in the task
                 torch.manual_seed(own_seed)
-                policies.append(self._policy(goal, demos[goal], env_factory, own_seed))
+                policy, cost, hit = self._policy(goal, demos[goal], env_factory, own_seed, cache_key)
+                policies.append(policy)
+                seconds += cost
+                reused += hit
         self.goals = list(demos)
         self.bank = PolicyBank(policies)
+        return FitReport(train_seconds=seconds, trained=len(policies) - reused, reused=reused)
 
-    def _policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory, seed: int) -> BasePolicy:
-        cache_key = getattr(env_factory, "cache_key", None)
+    def _policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory, seed: int,
+                cache_key: str | None) -> tuple[BasePolicy, float, bool]:
+        """``(policy, training seconds, reloaded from the cache)``."""
         if cache_key is None:
             start = time.perf_counter()
             policy = self.train_policy(goal, demos, env_factory, seed)
-            self.fit_seconds += time.perf_counter() - start
-            return policy
+            return policy, time.perf_counter() - start, False
         key = {"recognizer": self.name, "config": self.config, "env": cache_key, "goal": list(goal), "seed": seed,
                "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}
         if self.uses_demos:
@@ -103,12 +93,11 @@ class PolicyRecognizer(ScoredRecognizer):
             return trained["policy"].state_dict()
 
         state, seconds = cached_state_dict(f"policy-{self.name}", key, train)
-        self.fit_seconds += seconds
         if "policy" in trained:
-            return trained["policy"]
+            return trained["policy"], seconds, False
         policy = self.new_policy(goal, env_factory)
         policy.load_state_dict(state)
-        return policy
+        return policy, seconds, True
 
     def exposes(self, action_space: Any) -> frozenset[str]:
         return frozenset({"probs"}) if isinstance(action_space, spaces.Discrete) else frozenset({"mean", "std"})

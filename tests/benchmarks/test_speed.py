@@ -111,7 +111,7 @@ def panda():
 
 
 def test_panda_env_step(benchmark):
-    from grail_bench.domains.panda_reach import GRPandaReachEnv
+    from grail_bench.domains.panda_reach.env import GRPandaReachEnv
 
     env = GRPandaReachEnv()
     env.reset(seed=0)
@@ -139,8 +139,8 @@ def test_panda_score_2_percent_4_goals(benchmark, panda, name, config):
 
 
 def test_panda_sac_expert_training_one_goal(benchmark):
-    from grail_bench.demos.panda_reach import SAC_NET
-    from grail_bench.domains.panda_reach import GRPandaReachEnv
+    from grail_bench.domains.panda_reach.demos import SAC_NET
+    from grail_bench.domains.panda_reach.env import GRPandaReachEnv
     from grail_bench.rl import learn, make_sac
 
     env = GRPandaReachEnv()

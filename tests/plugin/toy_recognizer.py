@@ -9,17 +9,24 @@ class LookupRecognizer:
     """Scores a goal by the fraction of observed state-action pairs seen in its demos."""
 
     name = "toy"
+    default_scorer = "default"  # its own scoring; no pluggable scorers
 
-    def __init__(self, smoothing: float = 0.0) -> None:
+    def __init__(self, smoothing: float = 0.0, bug: bool = False) -> None:
         self.config = {"smoothing": smoothing}
+        self.bug = bug  # raise a plain ValueError in fit, as a bug in a recognizer would
         self.seen: dict = {}
 
-    def fit(self, demos, env_factory, *, seed):
+    def exposes(self, action_space):
+        return frozenset()
+
+    def fit(self, demos, env_factory, *, seed, cache_key=None):
+        if self.bug:
+            raise ValueError("an internal error")
         self.seen = {
             goal: {(tuple(np.asarray(o).tolist()), int(a)) for t in trajs for o, a in zip(t.obs[:-1], t.acts)}
             for goal, trajs in demos.items()
         }
 
-    def score(self, observed):
+    def score(self, observed, scorer=None):
         pairs = [(tuple(np.asarray(o).tolist()), int(a)) for o, a in zip(observed.obs[:-1], observed.acts)]
         return {g: (sum(p in s for p in pairs) + self.config["smoothing"]) / len(pairs) for g, s in self.seen.items()}

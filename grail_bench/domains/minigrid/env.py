@@ -13,63 +13,24 @@ action is a no-op with zero reward, and the episode is truncated after
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass
 from typing import Any, Sequence
 
-os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+import numpy as np
+from gymnasium import spaces  # imported first: gymnasium hides pygame's banner for minigrid
+from minigrid.core.actions import Actions
+from minigrid.core.grid import Grid
+from minigrid.core.mission import MissionSpace
+from minigrid.core.world_object import Goal, Wall
+from minigrid.minigrid_env import MiniGridEnv
 
-import numpy as np  # noqa: E402
-from gymnasium import spaces  # noqa: E402
-from minigrid.core.actions import Actions  # noqa: E402
-from minigrid.core.grid import Grid  # noqa: E402
-from minigrid.core.mission import MissionSpace  # noqa: E402
-from minigrid.core.world_object import Goal, Wall  # noqa: E402
-from minigrid.minigrid_env import MiniGridEnv  # noqa: E402
+from grail_bench.domains.minigrid.grid import ACTION_NAMES, GridModel, State
+from grail_bench.errors import UserError
 
-LEFT, RIGHT, FORWARD, STAY = 0, 1, 2, 3
-ACTION_NAMES = ("left", "right", "forward", "stay")
 _TO_MINIGRID = (Actions.left, Actions.right, Actions.forward, Actions.done)
-DIR_VEC = ((1, 0), (0, 1), (-1, 0), (0, -1))
-HEADINGS = "ESWN"  # compass letter of each minigrid direction
-
-State = tuple[int, int, int]
 
 
 def _mission() -> str:
     return "reach the goal"
-
-
-@dataclass(frozen=True)
-class GridModel:
-    """Pure-Python dynamics of the room, used for planning demonstrations.
-
-    It mirrors :class:`GRMiniGridEnv` exactly (a test checks every state and
-    action against the env).
-    """
-
-    size: int
-    obstacles: frozenset[tuple[int, int]]
-
-    def free(self, x: int, y: int) -> bool:
-        """Whether a cell is inside the outer wall and not an obstacle."""
-        return 0 < x < self.size - 1 and 0 < y < self.size - 1 and (x, y) not in self.obstacles
-
-    def states(self) -> list[State]:
-        """Every state the agent can be in."""
-        return [(x, y, d) for x in range(self.size) for y in range(self.size) for d in range(4) if self.free(x, y)]
-
-    def step(self, state: State, action: int) -> State:
-        """Successor of ``state`` under ``action`` (ignoring goal absorption)."""
-        x, y, d = state
-        if action == LEFT:
-            return x, y, (d - 1) % 4
-        if action == RIGHT:
-            return x, y, (d + 1) % 4
-        if action == FORWARD:
-            dx, dy = DIR_VEC[d]
-            return (x + dx, y + dy, d) if self.free(x + dx, y + dy) else state
-        return state
 
 
 class GRMiniGridEnv(MiniGridEnv):
@@ -104,11 +65,11 @@ class GRMiniGridEnv(MiniGridEnv):
         self.start_dir = int(start_dir)
         for name, cell in (("goal", self.goal), ("start", self.start)):
             if not self.model.free(*cell):
-                raise ValueError(f"{name} {cell} is not a free cell of the {size}x{size} room")
+                raise UserError(f"{name} {cell} is not a free cell of the {size}x{size} room")
         if self.goal == self.start:
-            raise ValueError("goal and start must differ")
+            raise UserError("goal and start must differ")
         if not 0 <= self.start_dir < 4:
-            raise ValueError(f"start_dir must be in 0..3, got {start_dir}")
+            raise UserError(f"start_dir must be in 0..3, got {start_dir}")
         self.fixed_horizon = bool(fixed_horizon)
         self.task = None  # set by GRTask.make_env
         self._absorbed = False
@@ -155,8 +116,3 @@ class GRMiniGridEnv(MiniGridEnv):
             self._absorbed = self.fixed_horizon
         info["is_success"] = bool(terminated)
         return obs, float(reward), terminated and not self.fixed_horizon, truncated, info
-
-
-def make_env(goal: Sequence[int], **kwargs: Any) -> GRMiniGridEnv:
-    """Domain env factory named by :data:`grail_bench.domains.DOMAINS`."""
-    return GRMiniGridEnv(goal, **kwargs)

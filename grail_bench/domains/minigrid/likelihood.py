@@ -25,14 +25,13 @@ from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
-from grail_bench.demos.minigrid import (
-    TURN_PATTERNS, all_shortest_paths, biased_path, check_params, insert_turns, sample_shortest_path,
-)
-from grail_bench.domains.minigrid import STAY, GridModel, State
+from grail_bench.domains.minigrid.demos import all_shortest_paths, biased_path, insert_turns, sample_shortest_path
+from grail_bench.domains.minigrid.grid import STAY, TURN_PATTERNS, GridModel, State
 from grail_bench.evaluation.protocol import n_observed
 
 if TYPE_CHECKING:
-    from grail_bench.task import Goal, GRTask
+    from grail_bench.task import GRTask
+    from grail_bench.trajectory import Goal
 
 Pair = tuple[int, int, int, int]  # x, y, direction, action
 Observation = tuple[Pair, ...]
@@ -64,7 +63,6 @@ class GoalDemonstrator:
     """
 
     def __init__(self, task: GRTask, goal: Goal) -> None:
-        check_params(task.regime, dict(task.params), len(task.goals))
         env = task.make_env(goal)
         base = env.unwrapped
         self.model: GridModel = base.model

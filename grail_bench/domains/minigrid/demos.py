@@ -24,20 +24,18 @@ from functools import lru_cache
 from typing import TYPE_CHECKING
 
 import numpy as np
-from imitation.data.types import Trajectory
 
-from grail_bench.domains.minigrid import FORWARD, HEADINGS, LEFT, RIGHT, STAY, GridModel, State
+from grail_bench.domains.minigrid.grid import (
+    FORWARD, HEADINGS, LEFT, RIGHT, STAY, TURN_PATTERNS, GridModel, State, check_route,
+)
+from grail_bench.errors import UserError
+from grail_bench.trajectory import rollout
 
 if TYPE_CHECKING:
-    from grail_bench.task import Goal, GRTask
+    from imitation.data.types import Trajectory
 
-TURNS = (LEFT, RIGHT)
-# Each pattern's insertions, drawn uniformly; every one leaves the heading unchanged.
-TURN_PATTERNS: dict[str, tuple[tuple[int, ...], ...]] = {
-    "left-right": ((LEFT, RIGHT), (RIGHT, LEFT)),
-    "around-and-back": tuple((a, a, b, b) for a in TURNS for b in TURNS),
-}
-
+    from grail_bench.task import GRTask
+    from grail_bench.trajectory import Goal
 
 @lru_cache(maxsize=64)
 def shortest_path_graph(model: GridModel, goal: tuple[int, int]) -> tuple[dict[State, int], dict[State, int]]:
@@ -75,7 +73,7 @@ def sample_shortest_path(model: GridModel, start: State, goal: tuple[int, int], 
     """One shortest action sequence, uniformly among all of them."""
     dist, count = shortest_path_graph(model, goal)
     if start not in dist:
-        raise ValueError(f"goal {goal} is unreachable from {start}")
+        raise UserError(f"goal {goal} is unreachable from {start}")
     actions, s = [], start
     while dist[s] > 0:
         succ = _optimal_successors(model, dist, s)
@@ -91,7 +89,7 @@ def all_shortest_paths(model: GridModel, start: State, goal: tuple[int, int]) ->
     """Every shortest action sequence from ``start`` to ``goal``."""
     dist, _ = shortest_path_graph(model, goal)
     if start not in dist:
-        raise ValueError(f"goal {goal} is unreachable from {start}")
+        raise UserError(f"goal {goal} is unreachable from {start}")
 
     def walk(s: State) -> list[list[int]]:
         if dist[s] == 0:
@@ -99,18 +97,6 @@ def all_shortest_paths(model: GridModel, start: State, goal: tuple[int, int]) ->
         return [[a, *rest] for a, nxt in sorted(_optimal_successors(model, dist, s).items()) for rest in walk(nxt)]
 
     return walk(start)
-
-
-def check_route(route: object) -> str:
-    """A heading order such as ``"NE"``, upper-cased.
-
-    Raises:
-        ValueError: Unless it is distinct compass letters among N, E, S, W.
-    """
-    letters = route.upper() if isinstance(route, str) else ""
-    if not letters or set(letters) - set(HEADINGS) or len(set(letters)) != len(letters):
-        raise ValueError(f"route {route!r} must be distinct compass letters among N, E, S, W")
-    return letters
 
 
 def biased_path(model: GridModel, start: State, goal: tuple[int, int], route: str) -> list[int]:
@@ -142,53 +128,16 @@ def insert_turns(actions: list[int], turn_prob: float, rng: np.random.Generator,
     return out
 
 
-def check_params(regime: str, params: dict, n_goals: int) -> None:
-    """Validate a MiniGrid regime's parameters.
-
-    Raises:
-        ValueError: With the parameter's name and what is wrong.
-    """
-    if regime == "biased":
-        routes = params["routes"]
-        if len(routes) != n_goals:
-            raise ValueError(f"'routes' needs one heading order per goal ({n_goals}), got {len(routes)}")
-        for route in routes:
-            check_route(route)
-    elif regime == "suboptimal":
-        p = params["turn_prob"]
-        if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p <= 1.0:
-            raise ValueError(f"turn_prob must be in [0, 1], got {p!r}")
-        if params["turn_pattern"] not in TURN_PATTERNS:
-            raise ValueError(f"turn_pattern must be one of {', '.join(TURN_PATTERNS)}, got {params['turn_pattern']!r}")
-
-
-def rollout(env, actions: list[int]) -> Trajectory:
-    """Play ``actions`` then stay until the horizon; return the trajectory."""
-    obs, info = env.reset(seed=0)
+def play(env, actions: list[int]) -> Trajectory:
+    """Play ``actions`` then stay until the horizon; the demonstration must reach the goal."""
     horizon = env.unwrapped.max_steps
     if len(actions) > horizon:
-        raise ValueError(f"a {len(actions)}-action demonstration does not fit the horizon {horizon}")
-    observations, acts, infos = [obs], [], []
-    for t in range(horizon):
-        a = actions[t] if t < len(actions) else STAY
-        obs, _, terminated, truncated, info = env.step(a)
-        observations.append(obs)
-        acts.append(a)
-        infos.append(info)
-        if terminated or truncated:
-            break
-    if not infos[-1]["is_success"]:
-        raise RuntimeError(f"demonstration did not reach goal {env.unwrapped.goal}")
-    return Trajectory(obs=np.stack(observations), acts=np.array(acts, dtype=np.int64),
-                      infos=np.array(infos, dtype=object), terminal=True)
+        raise UserError(f"a {len(actions)}-action demonstration does not fit the horizon {horizon} (max_steps)")
+    return rollout(env, lambda obs, t: actions[t] if t < len(actions) else STAY, require_success=True)
 
 
 def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -> list[Trajectory]:
     """Demonstrations of one goal under the task's regime (see module docstring)."""
-    try:
-        check_params(task.regime, dict(task.params), len(task.goals))
-    except ValueError as exc:
-        raise ValueError(f"{task.id}: {exc}") from None
     env = task.make_env(goal)
     base = env.unwrapped
     start = (*base.start, base.start_dir)
@@ -201,7 +150,7 @@ def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -
         p, pattern = float(task.params["turn_prob"]), task.params["turn_pattern"]
         plans = [insert_turns(sample_shortest_path(base.model, start, g, rng), p, rng, pattern) for _ in range(n)]
     else:
-        raise ValueError(f"{task.id}: minigrid has no regime {task.regime!r}")
-    demos = [rollout(env, plan) for plan in plans]
+        raise UserError(f"{task.id}: minigrid has no regime {task.regime!r}")
+    demos = [play(env, plan) for plan in plans]
     env.close()
     return demos

@@ -14,7 +14,7 @@ apart (4-7 times the 5 cm success radius) and in four different directions
 from the start (0.04, 0, 0.2), so every goal has its own motion from the first
 step. The baselines' goal set (:data:`ALIGNED_GOALS`) lies outside that box and
 has two goals in nearly the same direction from the start; any goal within
-the arm's reach (:data:`REACH`) is accepted.
+the arm's reach (:data:`~grail_bench.domains.panda_reach.REACH`) is accepted.
 """
 
 from __future__ import annotations
@@ -26,12 +26,13 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 from gymnasium import Env, spaces
 
+from grail_bench.domains.panda_reach import check_reach
+from grail_bench.errors import UserError
+
 GOALS = ((0.10, 0.10, 0.05), (0.10, -0.10, 0.05), (-0.05, 0.10, 0.25), (-0.05, -0.10, 0.25))
 # gr_libs' PandaReach goals, with (-0.5, 0.2, 0.1) moved to (-0.4, 0.2, 0.1): the arm gets no closer than
 # 4.4 cm to the original, at the edge of the 5 cm success radius, so demonstrations hovered there.
 ALIGNED_GOALS = ((-0.5, -0.5, 0.1), (-0.4, 0.2, 0.1), (-0.1, 0.1, 0.1), (0.1, -0.1, 0.1))
-BASE = np.array([-0.6, 0.0, 0.0])  # panda-gym's robot base
-REACH = 0.8  # metres from the base; the Franka arm's reach is 0.855 m
 
 
 @contextlib.contextmanager
@@ -80,22 +81,20 @@ class GRPandaReachEnv(Env):
     def __init__(self, goal: Sequence[float] = GOALS[0], *, max_steps: int = 50, distance_threshold: float = 0.05,
                  max_action: float = 1.0, render_mode: str | None = None) -> None:
         if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+            raise UserError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         target = np.asarray(goal, dtype=np.float64)
         if target.shape != (3,):
-            raise ValueError(f"goal must have 3 coordinates, got {goal!r}")
+            raise UserError(f"goal must have 3 coordinates, got {goal!r}")
         self.goal = tuple(float(c) for c in target)
         self.max_steps = int(max_steps)
         self.render_mode = render_mode
         self.task = None  # set by GRTask.make_env
+        check_reach(self.goal)
+        if not 0 < max_action <= 1:
+            raise UserError(f"max_action must be in (0, 1], got {max_action}")
+        self.max_action = float(max_action)
         with quiet_native_output():
             self._env = PandaReachEnv(render_mode="rgb_array", reward_type="dense", control_type="ee")
-        if target[2] < 0 or np.linalg.norm(target - BASE) > REACH:
-            raise ValueError(f"goal {self.goal} is out of the arm's reach (above the table, within {REACH} m of "
-                             f"its base {tuple(BASE)})")
-        if not 0 < max_action <= 1:
-            raise ValueError(f"max_action must be in (0, 1], got {max_action}")
-        self.max_action = float(max_action)
         reach = self._env.task
         reach.distance_threshold = float(distance_threshold)
         reach._sample_goal = target.copy  # pins reward, termination and the target
@@ -129,8 +128,3 @@ class GRPandaReachEnv(Env):
 
     def close(self) -> None:
         self._env.close()
-
-
-def make_env(goal: Sequence[float], **kwargs: Any) -> GRPandaReachEnv:
-    """Domain env factory named by :data:`grail_bench.domains.DOMAINS`."""
-    return GRPandaReachEnv(goal, **kwargs)

@@ -1,1 +1,0 @@
-"""Demonstration generators, one module per domain."""

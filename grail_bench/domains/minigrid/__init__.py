@@ -1,0 +1,62 @@
+"""The paper's MiniGrid domain: a 9x9 room with one obstacle, three behaviour regimes.
+
+* :mod:`.grid`: actions, headings, pure-Python dynamics, regime parameters (no minigrid import).
+* :mod:`.env`: the goal-pinned minigrid env.
+* :mod:`.demos`: the scripted demonstrators; :mod:`.likelihood`: their exact
+  likelihood, for the Bayes ceiling.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+from grail_bench.domains.minigrid.grid import check_params
+from grail_bench.errors import UserError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from grail_bench.task import GRTask
+    from grail_bench.trajectory import Goal
+
+
+class MiniGrid:
+    """The :class:`~grail_bench.domains.Domain` of the paper's MiniGrid room."""
+
+    name = "minigrid"
+    goal_dim = 2
+    env_defaults: Mapping[str, Any] = {
+        "size": 9,
+        "start": [1, 4],
+        "start_dir": 0,
+        "obstacles": [[7, 4]],
+        "max_steps": 60,
+        "fixed_horizon": True,
+    }
+    regimes: Mapping[str, Mapping[str, Any]] = {
+        "optimal": {},
+        # One preferred heading order per goal, e.g. "NE" = north, then east.
+        "biased": {"routes": []},
+        # turn_pattern: "left-right" or "around-and-back" (see .demos).
+        "suboptimal": {"turn_prob": 0.3, "turn_pattern": "left-right"},
+    }
+
+    def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
+              goals: Sequence[Goal]) -> None:
+        check_params(regime, params, len(goals))
+        for goal in goals:
+            if any(float(c) != int(c) for c in goal):
+                raise UserError(f"goal {list(goal)} must be integer cell coordinates")
+
+    def make_env(self, goal: Goal, **env_params: Any):
+        from grail_bench.domains.minigrid.env import GRMiniGridEnv
+
+        return GRMiniGridEnv(goal, **env_params)
+
+    def generate_demos(self, task: GRTask, goal: Goal, n: int, rng: np.random.Generator):
+        from grail_bench.domains.minigrid.demos import generate_demos
+
+        return generate_demos(task, goal, n, rng)
+
+
+DOMAIN = MiniGrid()
