@@ -1,0 +1,62 @@
+"""PointMaze (gymnasium-robotics, MuJoCo): a ball pushed through a maze to one of several goal cells.
+
+* :mod:`.maze`: the layout, shortest routes and parameter checks (no MuJoCo import).
+* :mod:`.env`: the goal-pinned env with a goal-free observation.
+* :mod:`.demos`: the route-following demonstrators (or a cached SAC expert).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+from grail_bench.domains.point_maze.maze import check_params
+from grail_bench.errors import UserError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from grail_bench.task import GRTask
+    from grail_bench.trajectory import Goal
+
+# Three lanes each way around four pillars: most goals have several equally short routes.
+PILLARS = ["#######", "#.....#", "#.#.#.#", "#.....#", "#.#.#.#", "#.....#", "#######"]
+_EXPERT = {"expert": "scripted", "expert_steps": 30000, "expert_seed": 0}
+
+
+class PointMaze:
+    """The :class:`~grail_bench.domains.Domain` of gymnasium-robotics' PointMaze."""
+
+    name = "point_maze"
+    goal_dim = 2
+    env_defaults: Mapping[str, Any] = {"maze": PILLARS, "start": [5, 1], "max_steps": 100, "action_repeat": 5,
+                                       "reward_type": "dense"}
+    regimes: Mapping[str, Mapping[str, Any]] = {
+        "optimal": dict(_EXPERT),
+        # One preferred heading order per goal, e.g. "NE" = north, then east (as in MiniGrid).
+        "biased": {"routes": []},
+        "noisy": {**_EXPERT, "sigma": 0.1},
+    }
+
+    def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
+              goals: Sequence[Goal]) -> None:
+        check_params(regime, params, env_params, goals)
+        if "expert" in params:
+            if params["expert"] not in ("scripted", "sac"):
+                raise UserError(f"expert must be 'scripted' or 'sac', got {params['expert']!r}")
+            for name in ("expert_steps", "expert_seed"):
+                value = params[name]
+                if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                    raise UserError(f"{name} must be a non-negative integer, got {value!r}")
+
+    def make_env(self, goal: Goal, **env_params: Any):
+        from grail_bench.domains.point_maze.env import GRPointMazeEnv
+
+        return GRPointMazeEnv(goal, **env_params)
+
+    def generate_demos(self, task: GRTask, goal: Goal, n: int, rng: np.random.Generator):
+        from grail_bench.domains.point_maze.demos import generate_demos
+
+        return generate_demos(task, goal, n, rng)
+
+
+DOMAIN = PointMaze()
