@@ -9,17 +9,19 @@ from __future__ import annotations
 
 from typing import Any
 
+from grail_bench.errors import UserError
 from grail_bench.registration import register_envs, task_ids
 from grail_bench.task import GRTask, make_task
 
 __version__ = "0.1.0"
 __all__ = [
-    "GRTask", "Recognizer", "ResultsStore", "__version__", "bayes_ceiling", "evaluate", "make_recognizer", "make_task",
+    "FitReport", "GRTask", "Recognizer", "UserError", "ResultsStore", "__version__", "bayes_ceiling", "evaluate", "make_recognizer", "make_task",
     "observe", "register_envs", "task_ids",
 ]
 
 _LAZY = {
     "Recognizer": "grail_bench.recognizers.base",
+    "FitReport": "grail_bench.recognizers.base",
     "make_recognizer": "grail_bench.recognizers.registry",
     "evaluate": "grail_bench.evaluation.runner",
     "observe": "grail_bench.evaluation.protocol",

@@ -11,7 +11,8 @@ import pytest
 
 import grail_bench
 from grail_bench.domains.minigrid.grid import TURN_PATTERNS
-from grail_bench.domains.minigrid.likelihood import GoalDemonstrator, Selection
+from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
+from grail_bench.evaluation.protocol import Selection
 from grail_bench.domains import get_domain
 from grail_bench.evaluation.ceiling import bayes_ceiling, cached_ceiling, normalised
 from grail_bench.task import GRTask

@@ -139,6 +139,8 @@ def test_fresh_interpreter(first_import):
         "env = gym.make('GRAIL/MiniGrid-Biased-v0')\n"
         "assert env.unwrapped.task.goals == ((7, 1), (7, 7))\n"
         "assert 'torch' not in sys.modules, 'registration must stay light'\n"
+        "assert 'grail_bench.domains.point_maze.env' not in sys.modules and 'pybullet' not in sys.modules\n"
+        "env = gym.make('GRAIL/PointMaze-Biased-v0')\n"
         "print('ok')\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)

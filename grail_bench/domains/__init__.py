@@ -23,6 +23,7 @@ if TYPE_CHECKING:
     import numpy as np
     from imitation.data.types import Trajectory
 
+    from grail_bench.evaluation.ceiling import GoalModel
     from grail_bench.task import GRTask
     from grail_bench.trajectory import Goal
 
@@ -36,12 +37,15 @@ class Domain(Protocol):
         goal_dim: Number of coordinates in a goal.
         env_defaults: Keyword arguments of the env and their defaults.
         regimes: Behaviour regime name -> its parameters and their defaults.
+        ceiling_regimes: Regimes whose demonstrator has a known likelihood, so
+            that the Bayes ceiling can be computed (see :meth:`demonstrator`).
     """
 
     name: str
     goal_dim: int
     env_defaults: Mapping[str, Any]
     regimes: Mapping[str, Mapping[str, Any]]
+    ceiling_regimes: frozenset[str]
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
               goals: Sequence[Goal]) -> None:
@@ -58,6 +62,10 @@ class Domain(Protocol):
 
     def generate_demos(self, task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -> list[Trajectory]:
         """``n`` demonstrations of ``goal`` under the task's regime, drawn from ``rng``."""
+        ...
+
+    def demonstrator(self, task: GRTask, goal: Goal) -> GoalModel:
+        """The likelihood model of ``goal``'s demonstrator, for a regime in :attr:`ceiling_regimes`."""
         ...
 
 

@@ -8,10 +8,13 @@ bounds every recognizer's accuracy under that protocol and level.
 * ``exact``: every demonstration and every observation of it is enumerated
   (optimal and biased demonstrators, path-span protocols and prefixes).
 * ``monte-carlo``: observations are drawn as the harness draws them, and the
-  posterior of each is computed exactly (:mod:`grail_bench.domains.minigrid.likelihood`);
-  the estimate comes with its standard error.
+  posterior of each is computed exactly; the estimate comes with its
+  standard error.
 
-Only domains whose demonstrator has a known likelihood have a ceiling (MiniGrid).
+Only regimes whose demonstrator has a known likelihood have a ceiling: a
+domain lists them in ``ceiling_regimes`` and builds the per-goal model
+(:class:`GoalModel`) in ``demonstrator`` (MiniGrid: every regime; PointMaze:
+the noise-free ones; PandaReach: none).
 """
 
 from __future__ import annotations
@@ -19,12 +22,14 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Hashable, Iterator, Protocol, Sequence
 
 import numpy as np
 
 from grail_bench.errors import UserError
-from grail_bench.evaluation.protocol import ObservationProtocol, get_protocol, n_observed, protocol_label
+from grail_bench.evaluation.protocol import (
+    ObservationProtocol, Selection, get_protocol, n_observed, protocol_label,
+)
 
 if TYPE_CHECKING:
     from grail_bench.task import GRTask
@@ -68,9 +73,46 @@ def normalised(score: float, ceiling: float, chance: float) -> float | None:
     return (score - chance) / (ceiling - chance)
 
 
-def _selection(protocol: str, level: float, rounding: str):
-    from grail_bench.domains.minigrid.likelihood import Selection
+class GoalModel(Protocol):
+    """One goal's demonstrator with a known likelihood, as a domain's ``demonstrator(task, goal)`` builds it.
 
+    A demonstration is any hashable the model understands (an action
+    sequence, a route); an observation is a tuple of hashable pairs.
+
+    Attributes:
+        enumerable: Whether :meth:`support` lists every demonstration (else only
+            Monte Carlo estimates are possible).
+    """
+
+    enumerable: bool
+
+    def support(self) -> Iterator[tuple[Any, float]]:
+        """Every demonstration with its probability (only when :attr:`enumerable`)."""
+        ...
+
+    def span(self, demonstration: Any, selection: Selection) -> Sequence[Hashable]:
+        """The pairs a protocol samples from in one demonstration."""
+        ...
+
+    def observations(self, demonstration: Any, selection: Selection) -> Iterator[tuple[tuple, float]]:
+        """Every observation of one demonstration with its probability under the protocol."""
+        ...
+
+    def sample_observation(self, rng: np.random.Generator, selection: Selection) -> tuple:
+        """A demonstration and then its observation, drawn as the harness draws them."""
+        ...
+
+    def likelihood(self, observation: tuple, selection: Selection) -> float:
+        """Probability that this goal's demonstrator yields ``observation`` under the protocol."""
+        ...
+
+
+def has_ceiling(task: GRTask) -> bool:
+    """Whether the task's demonstrator has a known likelihood."""
+    return task.regime in task.spec.ceiling_regimes
+
+
+def _selection(protocol: str, level: float, rounding: str) -> Selection:
     chosen = get_protocol(protocol)
     if not isinstance(chosen, ObservationProtocol):
         raise UserError(f"the Bayes ceiling knows only the built-in protocols, not {chosen.name!r}")
@@ -78,18 +120,17 @@ def _selection(protocol: str, level: float, rounding: str):
                      rounding=rounding)
 
 
-def _demonstrators(task: GRTask) -> list:
-    if task.domain != "minigrid":
-        raise UserError(f"{task.id}: the Bayes ceiling needs a demonstrator with a known likelihood "
-                         f"(minigrid tasks); {task.domain} has none")
-    from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
-
-    return [GoalDemonstrator(task, goal) for goal in task.goals]
+def _demonstrators(task: GRTask) -> list[GoalModel]:
+    if not has_ceiling(task):
+        known = ", ".join(task.spec.ceiling_regimes) or "none"
+        raise UserError(f"{task.id}: the Bayes ceiling needs a demonstrator with a known likelihood; "
+                        f"{task.domain} has one for these regimes: {known}")
+    return [task.spec.demonstrator(task, goal) for goal in task.goals]
 
 
 def _exact_size(demonstrators: list, selection) -> int | None:
     """Observations an exact enumeration visits, or None if it cannot enumerate."""
-    if not all(d.deterministic_turns for d in demonstrators):
+    if not all(d.enumerable for d in demonstrators):
         return None
     size = 0
     for d in demonstrators:
@@ -137,11 +178,12 @@ def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 200
     from grail_bench.paths import cache_dir
 
     name, rounding = parse_label(label)
-    if task.domain != "minigrid" or name not in BUILTIN:
+    if not has_ceiling(task) or name not in BUILTIN:
         return None
     key = {"task": task.id, "regime": task.regime, "goals": [list(g) for g in task.goals],
            "params": dict(task.params), "env": dict(task.env_params), "protocol": label, "level": level,
-           "samples": samples, "seed": seed, "schema": 1}
+           "samples": samples, "seed": seed, "schema": 1,
+           "domain": task.domain}
     path = cache_dir() / "ceilings" / f"{key_digest(key)}.json"
     try:
         stored = json.loads(path.read_text(encoding="utf-8"))
@@ -162,7 +204,7 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str = 
     """Bayes-optimal expected accuracy of ``task`` under a protocol at one observability level.
 
     Args:
-        task: A task (MiniGrid).
+        task: A task whose regime has a known likelihood (see :func:`has_ceiling`).
         protocol: A built-in protocol name.
         level: Observability fraction in (0, 1].
         rounding: ``"ceil"`` or ``"floor"`` for the number of observed pairs.
@@ -171,7 +213,8 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str = 
         seed: Monte Carlo seed.
 
     Raises:
-        ValueError: For other domains, plugin protocols, or ``exact`` where it cannot enumerate.
+        UserError: For regimes without a known likelihood, plugin protocols, or ``exact`` where it
+            cannot enumerate.
     """
     if method not in METHODS:
         raise UserError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
@@ -182,7 +225,7 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str = 
     size = _exact_size(demonstrators, selection) if method != "monte-carlo" else None
     if method == "exact" and (size is None or size > EXACT_LIMIT):
         raise UserError(f"{task.id}: cannot enumerate {protocol} at {level:g} exactly "
-                         f"({'random turn insertions' if size is None else f'{size} observations'}); "
+                         f"({'the demonstrator is random' if size is None else f'{size} observations'}); "
                          f"use the Monte Carlo estimate")
     common = dict(task=task.id, protocol=protocol_label(protocol, rounding), observability=level,
                   chance=1.0 / len(task.goals))

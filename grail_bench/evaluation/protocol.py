@@ -60,6 +60,23 @@ def parse_observability(values: Iterable[float] | str) -> tuple[float, ...]:
     return tuple(dict.fromkeys(out))
 
 
+@dataclass(frozen=True)
+class Selection:
+    """Which pairs a protocol observes: from which span, and how.
+
+    Attributes:
+        horizon: Sample from the padded fixed-horizon episode (else the path up to the goal).
+        random_subset: An ordered random subset (else the first ``k``).
+        level: Observability fraction.
+        rounding: ``"ceil"`` or ``"floor"``.
+    """
+
+    horizon: bool
+    random_subset: bool
+    level: float
+    rounding: str = "ceil"
+
+
 def _check_rounding(rounding: str) -> None:
     if rounding not in ROUNDINGS:
         raise UserError(f"unknown rounding {rounding!r}; choose one of {', '.join(ROUNDINGS)}")

@@ -40,6 +40,7 @@ class MiniGrid:
         # turn_pattern: "left-right" or "around-and-back" (see .demos).
         "suboptimal": {"turn_prob": 0.3, "turn_pattern": "left-right"},
     }
+    ceiling_regimes = frozenset(regimes)
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
               goals: Sequence[Goal]) -> None:
@@ -57,6 +58,11 @@ class MiniGrid:
         from grail_bench.domains.minigrid.demos import generate_demos
 
         return generate_demos(task, goal, n, rng)
+
+    def demonstrator(self, task: GRTask, goal: Goal):
+        from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
+
+        return GoalDemonstrator(task, goal)
 
 
 DOMAIN = MiniGrid()

@@ -19,7 +19,6 @@ implied by it and is left out of an observation.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
 from math import comb
 from typing import TYPE_CHECKING, Iterator
 
@@ -27,7 +26,7 @@ import numpy as np
 
 from grail_bench.domains.minigrid.demos import all_shortest_paths, biased_path, insert_turns, sample_shortest_path
 from grail_bench.domains.minigrid.grid import STAY, TURN_PATTERNS, GridModel, State
-from grail_bench.evaluation.protocol import n_observed
+from grail_bench.evaluation.protocol import Selection, n_observed
 
 if TYPE_CHECKING:
     from grail_bench.task import GRTask
@@ -35,23 +34,6 @@ if TYPE_CHECKING:
 
 Pair = tuple[int, int, int, int]  # x, y, direction, action
 Observation = tuple[Pair, ...]
-
-
-@dataclass(frozen=True)
-class Selection:
-    """Which pairs a protocol observes: from which span, and how.
-
-    Attributes:
-        horizon: Sample from the padded fixed-horizon episode (else the path up to the goal).
-        random_subset: An ordered random subset (else the first ``k``).
-        level: Observability fraction.
-        rounding: ``"ceil"`` or ``"floor"``.
-    """
-
-    horizon: bool
-    random_subset: bool
-    level: float
-    rounding: str = "ceil"
 
 
 class GoalDemonstrator:
@@ -86,7 +68,7 @@ class GoalDemonstrator:
     # -- the demonstrator's support and samples -------------------------------------------------------------
 
     @property
-    def deterministic_turns(self) -> bool:
+    def enumerable(self) -> bool:
         """Whether no insertions can happen, so the support is just the paths."""
         return self.turn_prob == 0.0
 
@@ -106,7 +88,7 @@ class GoalDemonstrator:
 
     def support(self) -> Iterator[tuple[list[int], float]]:
         """Every demonstration (action sequence) with its probability; only without insertions."""
-        if not self.deterministic_turns:
+        if not self.enumerable:
             raise ValueError("the support of a demonstrator with random turn insertions is not enumerated")
         weight = 1.0 / len(self.paths)
         for path in self.paths:

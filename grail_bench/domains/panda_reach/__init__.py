@@ -46,6 +46,7 @@ class PandaReach:
         "gaussian": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "sigma": 0.1},
         "uniform": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "half_width": 0.1},
     }
+    ceiling_regimes: frozenset[str] = frozenset()  # a learned expert plus continuous noise: no likelihood
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
               goals: Sequence[Goal]) -> None:
@@ -72,6 +73,9 @@ class PandaReach:
         from grail_bench.domains.panda_reach.demos import generate_demos
 
         return generate_demos(task, goal, n, rng)
+
+    def demonstrator(self, task: GRTask, goal: Goal):
+        raise UserError(f"{task.id}: panda_reach demonstrators have no known likelihood")
 
 
 DOMAIN = PandaReach()

@@ -36,6 +36,8 @@ class PointMaze:
         "biased": {"routes": []},
         "noisy": {**_EXPERT, "sigma": 0.1},
     }
+    # The scripted routes are deterministic; action noise has a density but no enumerable support.
+    ceiling_regimes = frozenset({"optimal", "biased"})
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
               goals: Sequence[Goal]) -> None:
@@ -57,6 +59,11 @@ class PointMaze:
         from grail_bench.domains.point_maze.demos import generate_demos
 
         return generate_demos(task, goal, n, rng)
+
+    def demonstrator(self, task: GRTask, goal: Goal):
+        from grail_bench.domains.point_maze.likelihood import RouteDemonstrator
+
+        return RouteDemonstrator(task, goal)
 
 
 DOMAIN = PointMaze()

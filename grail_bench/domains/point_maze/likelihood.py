@@ -1,0 +1,101 @@
+"""The exact likelihood of PointMaze's noise-free demonstrators, for the Bayes ceiling.
+
+Without noise, a route always gives the same trajectory (the controller and
+MuJoCo are deterministic), so a goal's demonstrator is a uniform mixture over
+its shortest routes (``optimal``) or one route (``biased``). Routes sharing
+their first corner share their first pairs exactly, float for float, which is
+where the ambiguity lies. An observation is a tuple of ``(state, action)``
+pairs; within a trajectory no pair repeats, so an observation comes from a
+route's span at most one way.
+"""
+
+from __future__ import annotations
+
+import itertools
+from math import comb
+from typing import TYPE_CHECKING, Iterator
+
+import numpy as np
+
+from grail_bench.domains.point_maze.demos import route_controller
+from grail_bench.domains.point_maze.maze import Maze, biased_route, shortest_routes
+from grail_bench.errors import UserError
+from grail_bench.evaluation.protocol import Selection, n_observed
+from grail_bench.trajectory import goal_horizon, rollout
+
+if TYPE_CHECKING:
+    from grail_bench.task import GRTask
+    from grail_bench.trajectory import Goal
+
+Pair = tuple[float, ...]  # the state's 4 floats, then the action's 2
+
+
+class RouteDemonstrator:
+    """One goal's noise-free demonstrator (a :class:`~grail_bench.evaluation.ceiling.GoalModel`).
+
+    Args:
+        task: A PointMaze task with the ``optimal`` or ``biased`` regime and the scripted expert.
+        goal: One of its goals.
+    """
+
+    enumerable = True
+
+    def __init__(self, task: GRTask, goal: Goal) -> None:
+        if task.regime not in ("optimal", "biased") or task.params.get("expert", "scripted") != "scripted":
+            raise UserError(f"{task.id}: only the scripted, noise-free demonstrators have a known likelihood")
+        maze, start = Maze.parse(task.env_params["maze"]), tuple(task.env_params["start"])
+        cell = (int(goal[0]), int(goal[1]))
+        if task.regime == "biased":
+            self.routes = [biased_route(maze, start, cell, task.params["routes"][task.goal_index(goal)])]
+        else:
+            self.routes = sorted(shortest_routes(maze, start, cell))
+        env = task.make_env(goal)
+        self._pairs: dict[str, tuple[list[Pair], int]] = {}
+        for route in self.routes:
+            act = route_controller(maze, start, route)
+            traj = rollout(env, lambda obs, t: np.clip(act(obs), -1.0, 1.0).astype(np.float32), require_success=True)
+            pairs = [tuple(np.concatenate([o, a]).tolist()) for o, a in zip(traj.obs[:-1], traj.acts)]
+            self._pairs[route] = (pairs, goal_horizon(traj))
+        env.close()
+        self._index = {route: {p: i for i, p in enumerate(pairs)} for route, (pairs, _) in self._pairs.items()}
+
+    def support(self) -> Iterator[tuple[str, float]]:
+        for route in self.routes:
+            yield route, 1.0 / len(self.routes)
+
+    def span(self, route: str, selection: Selection) -> list[Pair]:
+        pairs, goal_step = self._pairs[route]
+        return pairs if selection.horizon else pairs[:goal_step]
+
+    def observations(self, route: str, selection: Selection) -> Iterator[tuple[tuple, float]]:
+        pairs = self.span(route, selection)
+        k = n_observed(selection.level, len(pairs), selection.rounding)
+        if not selection.random_subset:
+            yield tuple(pairs[:k]), 1.0
+            return
+        weight = 1.0 / comb(len(pairs), k)
+        for idx in itertools.combinations(range(len(pairs)), k):
+            yield tuple(pairs[i] for i in idx), weight
+
+    def sample_observation(self, rng: np.random.Generator, selection: Selection) -> tuple:
+        pairs = self.span(self.routes[int(rng.integers(len(self.routes)))], selection)
+        k = n_observed(selection.level, len(pairs), selection.rounding)
+        idx = np.sort(rng.choice(len(pairs), size=k, replace=False)) if selection.random_subset else range(k)
+        return tuple(pairs[i] for i in idx)
+
+    def likelihood(self, observation: tuple, selection: Selection) -> float:
+        total = 0.0
+        for route in self.routes:
+            pairs = self.span(route, selection)
+            k = n_observed(selection.level, len(pairs), selection.rounding)
+            if len(observation) != k:
+                continue
+            if not selection.random_subset:
+                total += float(tuple(pairs[:k]) == observation)
+                continue
+            index = self._index[route]
+            positions = [index.get(p, -1) for p in observation]
+            limit = len(pairs)
+            if all(0 <= a < b < limit for a, b in zip(positions, positions[1:])) and 0 <= positions[0] < limit:
+                total += 1.0 / comb(len(pairs), k)
+        return total / len(self.routes)
