@@ -132,3 +132,12 @@ def test_bc_beats_chance_end_to_end():
     (record,) = evaluate("GRAIL/PointMaze-Noisy-0.1-v0", [("bc", {"n_epochs": 10})], seeds=1, observability=[1.0],
                          task_params={"n_demos": 6, "n_train": 4})
     assert record["accuracy_mean"] > 0.2 + 0.15  # 5 goals: chance is 0.2
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, config", [("gail", {"total_timesteps": 1024}), ("airl", {"total_timesteps": 1024}),
+                                          ("draco", {"sac_steps": 600})])
+def test_every_policy_recognizer_runs(name, config):
+    (record,) = evaluate("GRAIL/PointMaze-Biased-v0", [(name, config)], seeds=1, observability=[0.5],
+                         task_params={"n_demos": 3, "n_train": 2})
+    assert record["n_seeds"] == 1 and 0.0 <= record["f1_mean"] <= 1.0

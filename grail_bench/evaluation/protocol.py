@@ -19,11 +19,12 @@ each an :class:`ObservationProtocol` (or any object with ``name``,
 
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 import zlib
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Iterable, Protocol, Sequence, runtime_checkable
+from typing import TYPE_CHECKING, Hashable, Iterable, Iterator, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
@@ -75,6 +76,22 @@ class Selection:
     random_subset: bool
     level: float
     rounding: str = "ceil"
+
+    def observations(self, pairs: Sequence[Hashable]) -> Iterator[tuple[tuple, float]]:
+        """Every observation of a span of pairs with its probability (all ordered subsets, or the prefix)."""
+        k = n_observed(self.level, len(pairs), self.rounding)
+        if not self.random_subset:
+            yield tuple(pairs[:k]), 1.0
+            return
+        weight = 1.0 / math.comb(len(pairs), k)
+        for idx in itertools.combinations(range(len(pairs)), k):
+            yield tuple(pairs[i] for i in idx), weight
+
+    def sample(self, pairs: Sequence[Hashable], rng: np.random.Generator) -> tuple:
+        """One observation of a span of pairs, drawn as the harness draws it."""
+        k = n_observed(self.level, len(pairs), self.rounding)
+        idx = np.sort(rng.choice(len(pairs), size=k, replace=False)) if self.random_subset else range(k)
+        return tuple(pairs[i] for i in idx)
 
 
 def _check_rounding(rounding: str) -> None:

@@ -26,8 +26,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from grail_bench.domains.minigrid.grid import (
-    FORWARD, HEADINGS, LEFT, RIGHT, STAY, TURN_PATTERNS, GridModel, State, check_route,
+    FORWARD, HEADINGS, LEFT, RIGHT, STAY, TURN_PATTERNS, GridModel, State,
 )
+from grail_bench.domains.routes import ranking
 from grail_bench.errors import UserError
 from grail_bench.trajectory import rollout
 
@@ -101,9 +102,7 @@ def all_shortest_paths(model: GridModel, start: State, goal: tuple[int, int]) ->
 
 def biased_path(model: GridModel, start: State, goal: tuple[int, int], route: str) -> list[int]:
     """The shortest path preferred by a heading order such as ``"NE"``."""
-    route = check_route(route)
-    order = route + "".join(h for h in "NESW" if h not in route)
-    rank = {HEADINGS.index(h): i for i, h in enumerate(order)}
+    rank = {HEADINGS.index(h): i for i, h in enumerate(ranking(route))}
 
     def key(actions: list[int]) -> tuple:
         s, headings = start, []

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+from grail_bench.domains.routes import check_routes
 from grail_bench.errors import UserError
 
 LEFT, RIGHT, FORWARD, STAY = 0, 1, 2, 3
@@ -60,18 +61,6 @@ TURN_PATTERNS: dict[str, tuple[tuple[int, ...], ...]] = {
 }
 
 
-def check_route(route: object) -> str:
-    """A heading order such as ``"NE"``, upper-cased.
-
-    Raises:
-        UserError: Unless it is distinct compass letters among N, E, S, W.
-    """
-    letters = route.upper() if isinstance(route, str) else ""
-    if not letters or set(letters) - set(HEADINGS) or len(set(letters)) != len(letters):
-        raise UserError(f"route {route!r} must be distinct compass letters among N, E, S, W")
-    return letters
-
-
 def check_params(regime: str, params: Mapping[str, Any], n_goals: int) -> None:
     """Validate a MiniGrid regime's parameters.
 
@@ -79,11 +68,7 @@ def check_params(regime: str, params: Mapping[str, Any], n_goals: int) -> None:
         UserError: With the parameter's name and what is wrong.
     """
     if regime == "biased":
-        routes = params["routes"]
-        if not isinstance(routes, list) or len(routes) != n_goals:
-            raise UserError(f"'routes' needs one heading order per goal ({n_goals}), got {routes!r}")
-        for route in routes:
-            check_route(route)
+        check_routes(params["routes"], n_goals)
     elif regime == "suboptimal":
         p = params["turn_prob"]
         if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p <= 1.0:

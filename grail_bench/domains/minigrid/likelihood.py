@@ -18,7 +18,6 @@ implied by it and is left out of an observation.
 
 from __future__ import annotations
 
-import itertools
 from math import comb
 from typing import TYPE_CHECKING, Iterator
 
@@ -112,21 +111,11 @@ class GoalDemonstrator:
 
     def observations(self, actions: list[int], selection: Selection) -> Iterator[tuple[Observation, float]]:
         """Every observation of one demonstration with its probability under the protocol."""
-        pairs = self.span(actions, selection)
-        k = n_observed(selection.level, len(pairs), selection.rounding)
-        if not selection.random_subset:
-            yield tuple(pairs[:k]), 1.0
-            return
-        weight = 1.0 / comb(len(pairs), k)
-        for idx in itertools.combinations(range(len(pairs)), k):
-            yield tuple(pairs[i] for i in idx), weight
+        return selection.observations(self.span(actions, selection))
 
     def sample_observation(self, rng: np.random.Generator, selection: Selection) -> Observation:
         """A demonstration and then its observation, both drawn as the harness draws them."""
-        pairs = self.span(self.sample(rng), selection)
-        k = n_observed(selection.level, len(pairs), selection.rounding)
-        idx = np.sort(rng.choice(len(pairs), size=k, replace=False)) if selection.random_subset else range(k)
-        return tuple(pairs[i] for i in idx)
+        return selection.sample(self.span(self.sample(rng), selection), rng)
 
     # -- exact likelihood ---------------------------------------------------------------------------------
 

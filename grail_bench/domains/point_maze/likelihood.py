@@ -11,7 +11,6 @@ route's span at most one way.
 
 from __future__ import annotations
 
-import itertools
 from math import comb
 from typing import TYPE_CHECKING, Iterator
 
@@ -68,20 +67,10 @@ class RouteDemonstrator:
         return pairs if selection.horizon else pairs[:goal_step]
 
     def observations(self, route: str, selection: Selection) -> Iterator[tuple[tuple, float]]:
-        pairs = self.span(route, selection)
-        k = n_observed(selection.level, len(pairs), selection.rounding)
-        if not selection.random_subset:
-            yield tuple(pairs[:k]), 1.0
-            return
-        weight = 1.0 / comb(len(pairs), k)
-        for idx in itertools.combinations(range(len(pairs)), k):
-            yield tuple(pairs[i] for i in idx), weight
+        return selection.observations(self.span(route, selection))
 
     def sample_observation(self, rng: np.random.Generator, selection: Selection) -> tuple:
-        pairs = self.span(self.routes[int(rng.integers(len(self.routes)))], selection)
-        k = n_observed(selection.level, len(pairs), selection.rounding)
-        idx = np.sort(rng.choice(len(pairs), size=k, replace=False)) if selection.random_subset else range(k)
-        return tuple(pairs[i] for i in idx)
+        return selection.sample(self.span(self.routes[int(rng.integers(len(self.routes)))], selection), rng)
 
     def likelihood(self, observation: tuple, selection: Selection) -> float:
         total = 0.0

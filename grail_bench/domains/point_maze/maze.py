@@ -15,6 +15,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from grail_bench.domains.routes import check_routes, ranking
 from grail_bench.errors import UserError
 
 Cell = tuple[int, int]
@@ -102,24 +103,10 @@ def shortest_routes(maze: Maze, start: Cell, goal: Cell) -> list[str]:
     return walk(start)
 
 
-def check_route(route: object) -> str:
-    """A heading order such as ``"NE"``, upper-cased.
-
-    Raises:
-        UserError: Unless it is distinct compass letters among N, E, S, W.
-    """
-    letters = route.upper() if isinstance(route, str) else ""
-    if not letters or set(letters) - set(MOVES) or len(set(letters)) != len(letters):
-        raise UserError(f"route {route!r} must be distinct compass letters among N, E, S, W")
-    return letters
-
-
 def biased_route(maze: Maze, start: Cell, goal: Cell, order: str) -> str:
-    """The shortest route preferred by a heading order: lexicographically first when headings rank as in ``order``
-    (headings it does not name rank after, in the order N, E, S, W)."""
-    order = check_route(order)
-    ranking = order + "".join(h for h in MOVES if h not in order)
-    return min(shortest_routes(maze, start, goal), key=lambda route: [ranking.index(h) for h in route])
+    """The shortest route preferred by a heading order (see :mod:`grail_bench.domains.routes`)."""
+    best = ranking(order)
+    return min(shortest_routes(maze, start, goal), key=lambda route: [best.index(h) for h in route])
 
 
 def check_params(regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
@@ -141,11 +128,7 @@ def check_params(regime: str, params: Mapping[str, Any], env_params: Mapping[str
             raise UserError(f"goal {list(goal)} is the start cell")
         shortest_routes(maze, start, cell)
     if regime == "biased":
-        routes = params["routes"]
-        if not isinstance(routes, list) or len(routes) != len(goals):
-            raise UserError(f"'routes' needs one heading order per goal ({len(goals)}), got {routes!r}")
-        for route in routes:
-            check_route(route)
+        check_routes(params["routes"], len(goals))
     if regime == "noisy":
         sigma = params["sigma"]
         if isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or sigma < 0:
