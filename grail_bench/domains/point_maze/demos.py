@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from grail_bench.domains.point_maze.maze import Cell, Maze, biased_route, shortest_routes
+from grail_bench.errors import UserError
 from grail_bench.seeding import EXPERT, goal_seed
 from grail_bench.trajectory import rollout
 
@@ -104,7 +105,12 @@ def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -
                 noise = rng.normal(0.0, sigma, size=2) if sigma > 0 else 0.0
                 return np.clip(act(obs) + noise, -1.0, 1.0).astype(np.float32)
 
-            demos.append(rollout(env, policy, require_success=True))
+            try:
+                demos.append(rollout(env, policy, require_success=True))
+            except RuntimeError as exc:
+                if expert is None:
+                    raise
+                raise UserError(f"{task.id}: {exc}: the SAC expert is undertrained; raise expert_steps") from None
     finally:
         env.close()
     return demos
