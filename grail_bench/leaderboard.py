@@ -13,11 +13,12 @@ and each cell its normalised F1, ``(F1 - chance) / (ceiling - chance)``.
 from __future__ import annotations
 
 import csv
+import json
 from collections import defaultdict
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Sequence
 
 from rich.table import Table
 
@@ -83,14 +84,47 @@ def _task(task_id: str, params: dict[str, Any] | None = None):
         return None
 
 
-def column_label(record: dict[str, Any], multi_config: set[tuple[str, str]]) -> str:
-    """``recognizer/scorer`` (just the recognizer for plugins without scorers)."""
+def column_label(record: dict[str, Any], variants: dict[tuple[str, str], list[str] | None]) -> str:
+    """``recognizer/scorer`` (just the recognizer for plugins without scorers).
+
+    A recognizer run with several configurations gets one column per
+    configuration, named by the settings that tell them apart (``sac_steps=60000``)
+    or, when only the task's parameters differ, by the configuration hash.
+    """
     label = record["recognizer"]
     if record["scorer"] != "default":
         label += f"/{record['scorer']}"
-    if (record["recognizer"], record["scorer"]) in multi_config:
-        label += f" [{record['config_hash'][:6]}]"
+    key = (record["recognizer"], record["scorer"])
+    if key in variants:
+        keys = variants[key]
+        config = record.get("recognizer_config") or {}
+        if keys:
+            label += " " + " ".join(f"{k}={json.dumps(config.get(k))}" for k in keys)
+        else:
+            label += f" [{record['config_hash'][:6]}]"
     return label
+
+
+def config_variants(records: Sequence[dict[str, Any]]) -> dict[tuple[str, str], list[str] | None]:
+    """The recognizer settings that tell apart the configurations of each ``(recognizer, scorer)``.
+
+    Only pairs run with more than one configuration on some task appear; their
+    value is the sorted list of differing settings, or None when those settings
+    do not separate the runs (they differ in task parameters) and only the hash can.
+    """
+    groups: dict[tuple[str, str, str], dict[str, dict[str, str]]] = defaultdict(dict)
+    for r in records:
+        config = {k: json.dumps(v, sort_keys=True) for k, v in (r.get("recognizer_config") or {}).items()}
+        groups[(r["task"], r["recognizer"], r["scorer"])][r["config_hash"]] = config
+    keys: dict[tuple[str, str], set[str] | None] = {}
+    for (_, rec, scorer), by_hash in groups.items():
+        if len(by_hash) < 2 or keys.get((rec, scorer), set()) is None:
+            continue
+        names = {k for c in by_hash.values() for k in c}
+        differing = {k for k in names if len({c.get(k) for c in by_hash.values()}) > 1}
+        separated = len({tuple(c.get(k) for k in sorted(differing)) for c in by_hash.values()}) == len(by_hash)
+        keys[(rec, scorer)] = (keys.get((rec, scorer)) or set()) | differing if separated else None
+    return {pair: sorted(k) if k else None for pair, k in keys.items()}
 
 
 def read_reference(path: str | Path) -> dict[tuple[str, str, float], Reported]:
@@ -131,10 +165,7 @@ def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, s
     params_by_row = defaultdict(list)  # the task parameters each row's runs used
     for r in records:
         params_by_row[(r["task"], r["protocol"], r["observability"])].append(r.get("task_params") or {})
-    configs = defaultdict(set)
-    for r in records:
-        configs[(r["task"], r["recognizer"], r["scorer"])].add(r["config_hash"])
-    multi_config = {(k[1], k[2]) for k, v in configs.items() if len(v) > 1}
+    variants = config_variants(records)
 
     boards: dict[str, Board] = {}
     for r in records:
@@ -142,7 +173,7 @@ def build_boards(records: Iterable[dict[str, Any]], reference: dict[tuple[str, s
         title = f"{task.domain} / {task.regime}" if task else r["task"]
         title += f" ({r['protocol']})"
         board = boards.setdefault(title, Board(title=title, columns=[]))
-        label = column_label(r, multi_config)
+        label = column_label(r, variants)
         if label not in board.columns:
             board.columns.append(label)
         row = (len(task.goals) if task else 0, r["task"], r["protocol"], r["observability"])
@@ -272,8 +303,9 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
                   for cells in rows]
         lines.append("")
     lines += ["## Runs and timings", "",
-              "| task | recognizer | scorer | seeds | fit s/goal | score µs/observation | ties |",
-              "|---|---|---|---|---|---|---|"]
+              "| task | column | seeds | fit s/goal | score µs/observation | ties |",
+              "|---|---|---|---|---|---|"]
+    variants = config_variants(records)
     seen = set()
     for r in records:
         key = (r["task"], r["recognizer"], r["scorer"], r["config_hash"])
@@ -283,7 +315,7 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
         same = [x for x in records if (x["task"], x["recognizer"], x["scorer"], x["config_hash"]) == key]
         score_us = sum(x["score_us_per_observation"] for x in same) / len(same)
         ties = sum(x["tie_rate"] for x in same) / len(same)
-        lines.append(f"| {r['task']} | {r['recognizer']} | {r['scorer']} | {r['n_seeds']} | "
+        lines.append(f"| {r['task']} | {column_label(r, variants)} | {r['n_seeds']} | "
                      f"{r['fit_seconds_per_goal']:.2f} | {score_us:.0f} | {ties:.1%} |")
     return "\n".join(lines) + "\n"
 

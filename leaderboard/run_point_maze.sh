@@ -12,8 +12,14 @@ done
 for t in $TASKS; do
   $GB run -t GRAIL/PointMaze-$t-v0 -r draco --seeds 3 --no-progress --json leaderboard/results/PointMaze-$t-draco.json
 done
+# GAIL and AIRL: about 30 s per goal and seed here (40 000 generator steps).
 for t in $TASKS; do
   $GB run -t GRAIL/PointMaze-$t-v0 -r gail -r airl --seeds 2 --no-progress \
       --json leaderboard/results/PointMaze-$t-gail-airl.json
+done
+# DRACO with four times its default SAC budget (one seed; its models serve all four tasks).
+for t in $TASKS; do
+  $GB run -t GRAIL/PointMaze-$t-v0 -r draco --set draco.sac_steps=60000 --seeds 1 --no-progress \
+      --json leaderboard/results/PointMaze-$t-draco-60k.json
 done
 $GB run -t GRAIL/PointMaze-Optimal-v0 -r graql --seeds 1 --no-progress || true  # refuses: continuous states

@@ -57,3 +57,16 @@ def test_ceilings_use_the_task_parameters_of_the_run():
     mixed = [no_turns, {**plain, "recognizer": "graql", "task_params": {"turn_prob": 0.5}}]
     (board,) = build_boards(mixed, ceiling_samples=50)
     assert board.ceilings == {}  # runs with different parameters share no ceiling
+
+
+def test_a_recognizer_run_with_two_configurations_gets_a_column_per_setting():
+    task = "GRAIL/PandaReach-Gaussian-0.1-v0"
+    default = {**record(task, "draco", "wasserstein", 0.02, 0.5), "recognizer_config": {"sac_steps": 15000}}
+    longer = {**record(task, "draco", "wasserstein", 0.02, 0.8), "config_hash": "0123456789ab",
+              "recognizer_config": {"sac_steps": 60000}}
+    (board,) = build_boards([default, longer], ceiling_samples=None)
+    assert board.columns == ["draco/wasserstein sac_steps=15000", "draco/wasserstein sac_steps=60000"]
+    # Same recognizer settings, different task parameters: only the hash tells the runs apart.
+    same = {**longer, "recognizer_config": {"sac_steps": 15000}}
+    (board,) = build_boards([default, same], ceiling_samples=None)
+    assert board.columns == ["draco/wasserstein [012345]", "draco/wasserstein [abcdef]"]

@@ -177,6 +177,14 @@ def _task_params(config_json: str) -> dict[str, Any]:
     return {**task.get("params", {}), **task.get("env", {})}
 
 
+def _recognizer_config(config_json: str) -> dict[str, Any]:
+    """The recognizer configuration a row was run with (``{}`` for rows without it)."""
+    try:
+        return dict(json.loads(config_json).get("config", {}))
+    except (ValueError, AttributeError, TypeError):
+        return {}
+
+
 def _mean_or_none(values: list[float | None]) -> float | None:
     present = [v for v in values if v is not None]
     return float(np.mean(present)) if present else None
@@ -205,6 +213,7 @@ def aggregate(rows: Iterable[ResultRow]) -> list[dict[str, Any]]:
             "nll_mean": _mean_or_none([r.nll for r in group]),
             "config_hash": chash,
             "task_params": _task_params(group[0].config),
+            "recognizer_config": _recognizer_config(group[0].config),
         })
     return sorted(records, key=lambda r: (r["task"], r["recognizer"], r["scorer"], r["protocol"], r["observability"]))
 
