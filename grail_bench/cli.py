@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 from pathlib import Path
-from typing import Any, List, Optional
+from typing import Any, Iterator, List, Optional
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from grail_bench.errors import UserError
+from grail_bench.executors import WorkerLost
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="grail-bench: goal-recognition benchmarks on gymnasium.")
@@ -34,6 +36,30 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     from gymnasium.error import Error as GymError
 
     return (GymError, UserError)
+
+
+WORKERS_HELP = "Run units in parallel on this many processes (local) or CPUs (a new local Ray instance)."
+EXECUTOR_HELP = "serial, local (a process pool) or ray (default: local with --workers > 1, ray with --address)."
+ADDRESS_HELP = "A Ray cluster to run on: auto or HOST:PORT (implies --executor ray)."
+
+
+@contextlib.contextmanager
+def _executor(name: Optional[str], workers: Optional[int], address: Optional[str]) -> Iterator[Any]:
+    """The chosen executor, shut down (its unfinished units cancelled) however the block ends."""
+    from grail_bench.executors import make_executor
+
+    chosen = make_executor(name, workers, address)
+    try:
+        yield chosen
+    finally:
+        chosen.close()
+
+
+def _lost(exc: Exception) -> typer.Exit:
+    """A worker died: say so in one line; finished units are stored and a rerun resumes."""
+    err_console.print(f"error: {exc}; the units that finished are stored: run the same command again to resume",
+                      highlight=False, markup=False, soft_wrap=True)
+    return typer.Exit(1)
 
 
 def _open_store(path: Optional[Path]):
@@ -152,6 +178,9 @@ def run(
     store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE",
                                               help="Results database (default: ~/.local/share/grail-bench/results.sqlite)."),
     progress: bool = typer.Option(True, help="Show progress bars."),
+    workers: Optional[int] = typer.Option(None, "--workers", "-w", help=WORKERS_HELP),
+    executor: Optional[str] = typer.Option(None, "--executor", "-x", help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, "--address", help=ADDRESS_HELP),
 ) -> None:
     """Benchmark recognizers on one task; finished seeds in the store are reused."""
     from grail_bench.evaluation.runner import RecognizerSpec, evaluate
@@ -165,15 +194,16 @@ def run(
         protocol = {"random": "subset"}.get(sampling, sampling)
     try:
         config = _parse_settings(settings or [], names)
-        with _open_store(store_path) as store:
+        with _open_store(store_path) as store, _executor(executor, workers, address) as chosen:
             scorers = tuple(dict.fromkeys(scorer or []))
             records = evaluate(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
                                observability=observability, protocol=protocol, rounding=rounding, store=store,
-                               progress=progress,
-                               task_params=_parse_params(params or []))
+                               progress=progress, task_params=_parse_params(params or []), executor=chosen)
             where = store.path
     except _user_errors() as exc:
         raise fail(str(exc)) from None
+    except WorkerLost as exc:
+        raise _lost(exc) from None
     with console.status("Bayes ceilings (computed once, then cached)"):
         boards = build_boards(records)
     for table in rich_tables(boards):
@@ -256,6 +286,48 @@ def leaderboard(
         markdown_path.parent.mkdir(parents=True, exist_ok=True)
         markdown_path.write_text(markdown(boards, records), encoding="utf-8")
         console.print(f"Markdown written to {markdown_path}", highlight=False)
+
+
+@app.command()
+def reproduce(
+    profile: str = typer.Option("quick", "--profile", help="quick (2 seeds, small budgets), paper, or a TOML file."),
+    only: Optional[List[str]] = typer.Option(None, "--only", help="Only this section (minigrid, panda); repeatable."),
+    out: Path = typer.Option(..., "--out", help="Folder for the tables, figures and manifest.json."),
+    store_path: Optional[Path] = typer.Option(None, "--store", help="Results database (default: OUT/results.sqlite)."),
+    workers: Optional[int] = typer.Option(None, "--workers", "-w", help=WORKERS_HELP),
+    executor: Optional[str] = typer.Option(None, "--executor", "-x", help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, "--address", help=ADDRESS_HELP),
+    progress: bool = typer.Option(True, help="Show a progress bar."),
+) -> None:
+    """Run a profile's grid (resuming from the store), then write the paper's tables and figures."""
+    from datetime import datetime, timezone
+
+    from grail_bench.evaluation.runner import aggregate
+    from grail_bench.evaluation.sweep import run_sweep
+    from grail_bench.reproduce import load_profile, manifest, write_outputs
+
+    started = datetime.now(timezone.utc)
+    try:
+        chosen_profile = load_profile(profile)
+        requests = chosen_profile.requests(only or ())
+        with _open_store(store_path or out / "results.sqlite") as store, \
+                _executor(executor, workers, address) as chosen:
+            summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
+            meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary)
+            records = aggregate(store.rows(task=sorted({r.task_id for r in requests})))
+        with console.status("tables and figures"):
+            written = write_outputs(records, chosen_profile, requests, out, meta)
+    except _user_errors() as exc:
+        raise fail(str(exc)) from None
+    except WorkerLost as exc:
+        raise _lost(exc) from None
+    except OSError as exc:
+        raise fail(f"cannot write {exc.filename}: {exc.strerror}") from None
+    console.print(f"{summary.units} units ({summary.skipped} already stored) in {summary.seconds:.0f} s on "
+                  f"{chosen.name} x {chosen.workers}; models trained {summary.trained}, reused from the cache "
+                  f"{summary.reused}, a run without reuse would train {summary.naive}", highlight=False)
+    for path in written:
+        console.print(f"wrote {path}", highlight=False)
 
 
 @app.command()
@@ -342,7 +414,7 @@ def main() -> None:
     try:
         app()
     except KeyboardInterrupt:
-        err_console.print("interrupted; completed seeds are kept in the store")
+        err_console.print("interrupted; finished units are kept in the store: run the same command to resume")
         sys.exit(130)
 
 

@@ -213,13 +213,15 @@ def _best(board: Board, row: Row) -> float | None:
     return max(means) if means else None
 
 
-def _cell(board: Board, row: Row, column: str) -> tuple[str, bool]:
+def _cell(board: Board, row: Row, column: str, ci: bool = False) -> tuple[str, bool]:
     from grail_bench.evaluation.ceiling import normalised
 
     record = board.cells.get((*row, column))
     if record is None:
         return "–", False
     text = f"{record['f1_mean']:.2f} ± {record['f1_std']:.2f}"
+    if ci:
+        text += f" ({record['f1_ci95_low']:.2f}–{record['f1_ci95_high']:.2f})"
     reported = board.reported.get((*row, column))
     place = reported.place(record["f1_mean"]) if reported else None
     if place:
@@ -238,7 +240,7 @@ def _ceiling_text(board: Board, row: Row) -> str:
     return f"{ceiling.accuracy:.2f}" + (f" ± {ceiling.stderr:.2f}" if ceiling.method == "monte-carlo" else "")
 
 
-def _grid(board: Board, paper_label: Any = str) -> tuple[list[str], list[list[tuple[str, bool]]]]:
+def _grid(board: Board, paper_label: Any = str, ci: bool = False) -> tuple[list[str], list[list[tuple[str, bool]]]]:
     """The table model both renderers draw: a header and, per row, ``(text, best)`` cells."""
     header = ["task", "goals", "obs", "ceiling"]
     for c in board.columns:
@@ -250,7 +252,7 @@ def _grid(board: Board, paper_label: Any = str) -> tuple[list[str], list[list[tu
         cells = [(short_name(row[1]), False), (str(row[0]), False), (f"{row[3]:.0%}", False),
                  (_ceiling_text(board, row), False)]
         for c in board.columns:
-            cells.append(_cell(board, row, c))
+            cells.append(_cell(board, row, c, ci))
             if _has_reported(board, c):
                 cells.append((str(board.reported.get((*row, c), "–")), False))
         rows.append(cells)
@@ -282,10 +284,17 @@ def placement_counts(boards: list[Board]) -> dict[str, int]:
     return counts
 
 
-def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
-    """The leaderboard as Markdown, with seeds and timings under each table."""
-    lines = ["# grail-bench leaderboard", "",
-             "F1 of each recognizer, mean ± std over seeds (best of each row in bold). Where the task has a",
+def markdown(boards: list[Board], records: list[dict[str, Any]], ci: bool = False,
+             title: str = "grail-bench leaderboard") -> str:
+    """The leaderboard as Markdown, with seeds and timings under each table.
+
+    Args:
+        ci: Also show each cell's 95 % Student-t interval over seeds (the paper's appendix format).
+        title: The document's heading.
+    """
+    lines = [f"# {title}", "",
+             "F1 of each recognizer, mean ± std over seeds" + (" (95 % CI over seeds)" if ci else "")
+             + " (best of each row in bold). Where the task has a",
              "Bayes ceiling (the best accuracy any recognizer can reach under that protocol and level; ± its",
              "Monte Carlo standard error), the cell adds the normalised F1 in brackets,",
              "(F1 - chance) / (ceiling - chance).",
@@ -297,7 +306,7 @@ def markdown(boards: list[Board], records: list[dict[str, Any]]) -> str:
         lines += [f"Against the paper's 95 % intervals (appendix tables): our mean is inside (=) in {counts['inside']} "
                   f"cells, above (▲) in {counts['above']}, below (▼) in {counts['below']}.", ""]
     for board in boards:
-        header, rows = _grid(board, lambda c: f"{_paper_method(c.split('/')[0])[0]} *(paper)*")
+        header, rows = _grid(board, lambda c: f"{_paper_method(c.split('/')[0])[0]} *(paper)*", ci)
         lines += [f"## {board.title}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
         lines += ["| " + " | ".join(f"**{text}**" if best else text for text, best in cells) + " |"
                   for cells in rows]

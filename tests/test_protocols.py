@@ -91,8 +91,8 @@ def test_levels_together_or_one_at_a_time_give_identical_rows():
     task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0")
     spec = plan(task, RecognizerSpec("graql", {"episodes": 150}), task.make_env().action_space)
     demos = task.generate_demos(0)
-    together = run_seed(task, spec, 0, [0.1, 0.2, 0.3], "subset", "{}", demos)
-    apart = [row for level in (0.3, 0.1, 0.2) for row in run_seed(task, spec, 0, [level], "subset", "{}", demos)]
+    together, _ = run_seed(task, spec, 0, [0.1, 0.2, 0.3], "subset", "{}", demos)
+    apart = [row for level in (0.3, 0.1, 0.2) for row in run_seed(task, spec, 0, [level], "subset", "{}", demos)[0]]
     key = lambda r: r["observability"]  # noqa: E731
     assert sorted(_metrics(together), key=key) == sorted(_metrics(apart), key=key)
     assert {r.protocol for r in together} == {"subset"}

@@ -13,11 +13,12 @@ from grail_bench.evaluation import metrics
 from grail_bench.evaluation.protocol import (
     cell_rng, get_protocol, observe, parse_observability, protocol_label, seed_list,
 )
+from grail_bench.executors import Executor
 from grail_bench.errors import UserError
-from grail_bench.recognizers.base import RecognizerError
+from grail_bench.recognizers.base import FitReport, RecognizerError
 from grail_bench.recognizers.registry import make_recognizer
 from grail_bench.scoring import available_scorers, check_scorer, get_scorer
-from grail_bench.store import ResultRow, ResultsStore, config_hash, package_versions
+from grail_bench.store import ResultRow, ResultsStore, config_hash
 from grail_bench.task import GRTask, make_task
 from grail_bench.trajectory import Demos
 
@@ -109,7 +110,8 @@ def _check_scores(name: str, scores: Any, goals: Sequence[tuple]) -> np.ndarray:
 
 
 def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float], protocol: str,
-             versions: str, demos: Demos | None = None, rounding: str = "ceil") -> list[ResultRow]:
+             versions: str, demos: Demos | None = None,
+             rounding: str = "ceil") -> tuple[list[ResultRow], FitReport | None]:
     """Fit one recognizer on one seed's training demos, then score every level with every scorer.
 
     The recognizer never sees the true goal: it gets the training demos per
@@ -125,6 +127,9 @@ def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float],
         protocol: Observation protocol name (see :mod:`grail_bench.evaluation.protocol`).
         demos: The seed's demonstrations, if already generated.
         rounding: ``"ceil"`` or ``"floor"`` for the number of observed pairs.
+
+    Returns:
+        The rows (one per level and scorer) and the recognizer's fit report.
     """
     chosen = get_protocol(protocol)
     stored_protocol = protocol_label(chosen.name, rounding)
@@ -165,7 +170,7 @@ def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float],
                 config=planned.config, versions=versions,
                 brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None, **m,
             ))
-    return rows
+    return rows, report
 
 
 def _task_params(config_json: str) -> dict[str, Any]:
@@ -229,6 +234,7 @@ def evaluate(
     store: ResultsStore | None = None,
     progress: bool = False,
     task_params: Mapping[str, Any] | None = None,
+    executor: Executor | None = None,
 ) -> list[dict[str, Any]]:
     """Benchmark recognizers on one task.
 
@@ -249,49 +255,28 @@ def evaluate(
         progress: Show a progress bar.
         task_params: Task overrides, as ``gym.make`` accepts them (e.g.
             ``{"turn_prob": 0.5}`` or ``{"n_demos": 20, "n_train": 14}``).
+        executor: Where the (recognizer, seed) units run
+            (:mod:`grail_bench.executors`); in this process if ``None``.
 
     Returns:
         One record per recognizer and observability level (keys: :data:`RECORD_KEYS`).
     """
+    from grail_bench.evaluation.sweep import Request, plan_request, run_sweep
+
     task = make_task(task_id, **dict(task_params or {}))
     levels = parse_observability(observability) if observability is not None else task.observability
-    seed_values = seed_list(seeds)
-    protocol = get_protocol(protocol or task.protocol).name  # also maps deprecated names, with a warning
-    label = protocol_label(protocol, rounding)
     specs = [_spec(r) for r in recognizers]
     if not specs:
         raise UserError("name at least one recognizer")
+    request = Request(task.id, tuple(specs), tuple(seed_list(seeds)), tuple(levels),
+                      get_protocol(protocol or task.protocol).name,  # maps deprecated names, with a warning
+                      rounding, dict(task_params or {}))
     store = store if store is not None else ResultsStore(":memory:")
-    versions = package_versions()
-
-    env = task.make_env()
-    action_space = env.action_space
-    env.close()
-    planned = [plan(task, spec, action_space) for spec in specs]  # fails fast on bad names and scorers
-    todo: dict[int, list[Planned]] = {}  # seed -> recognizers still to run on it
-    for p in planned:
-        done = [store.completed(task.id, p.spec.name, scorer, p.config_hash, label) for scorer in p.scorers]
-        for seed in seed_values:
-            if not all((seed, lv) in d for lv in levels for d in done):
-                todo.setdefault(seed, []).append(p)
-
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn())
-    with Progress(*columns, disable=not progress, transient=False) as bar:
-        job = bar.add_task(f"{task.id}", total=sum(len(v) for v in todo.values()))
-        for seed, pending in todo.items():
-            bar.update(job, description=f"{task.id}: demonstrations (seed {seed})")
-            demos = task.generate_demos(seed)  # once per seed, shared by every recognizer
-            for p in pending:
-                bar.update(job, description=f"{task.id}: fitting and scoring {p.spec.name} (seed {seed})")
-                store.add(run_seed(task, p, seed, levels, protocol, versions, demos, rounding))
-                bar.advance(job)
-        bar.update(job, description=f"{task.id}: done")
-
+    run_sweep([request], store, executor, progress=progress, description=task.id)
+    planned, _, _ = plan_request(request, store)
     rows = []
     for p in planned:
         rows += [r for r in store.rows(task=task.id, recognizer=p.spec.name, scorer=list(p.scorers),
-                                       config_hash=p.config_hash, protocol=label, seed=seed_values)
+                                       config_hash=p.config_hash, protocol=request.label, seed=list(request.seeds))
                  if r.observability in levels]
     return aggregate(rows)

@@ -85,20 +85,40 @@ class GRAQLRecognizer(ScoredRecognizer):
 
     def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int,
             cache_key: str | None = None) -> FitReport:
-        """Learn one Q-table per goal by interacting with ``env_factory(goal)`` (nothing is cached)."""
-        start = time.perf_counter()
-        tables, visits = [], []
+        """Learn one Q-table per goal by interacting with ``env_factory(goal)``.
+
+        With a ``cache_key`` (the harness passes one), the tables are cached
+        on disk, keyed by the domain env, goal, seed and configuration (not the
+        demonstrations, which GRAQL ignores), so every regime and goal set of
+        a domain shares them.
+        """
+        from grail_bench.cache import cached_arrays
+
+        tables, visits, seconds, reused = [], [], 0.0, 0
         for goal in demos:
             env = env_factory(goal)
             try:
-                q, v = self._q_learning(env, goal_seed(seed, goal))
+                own_seed = goal_seed(seed, goal)
+                if cache_key is None:
+                    start = time.perf_counter()
+                    q, v = self._q_learning(env, own_seed)
+                    cost, hit = time.perf_counter() - start, False
+                else:
+                    key = {"recognizer": self.name, "config": self.config, "env": cache_key, "goal": list(goal),
+                           "seed": own_seed}
+                    arrays, cost, hit = cached_arrays(f"policy-{self.name}", key, lambda: dict(
+                        zip(("q", "visited"), self._q_learning(env, own_seed))))
+                    q, v = arrays["q"], arrays["visited"]
+                    self.observation_space, self.action_space = env.observation_space, env.action_space
             finally:
                 env.close()
             tables.append(q)
             visits.append(v)
+            seconds += cost
+            reused += hit
         self.goals = list(demos)
         self.q, self.visited = np.stack(tables), np.stack(visits)
-        return FitReport(train_seconds=time.perf_counter() - start, trained=len(tables))
+        return FitReport(train_seconds=seconds, trained=len(tables) - reused, reused=reused)
 
     def _q_learning(self, env: Any, seed: int) -> tuple[np.ndarray, np.ndarray]:
         obs_space, act_space = env.observation_space, env.action_space

@@ -14,7 +14,7 @@ from gymnasium import spaces
 from imitation.data.types import Trajectory
 from stable_baselines3.common.policies import BasePolicy
 
-from grail_bench.cache import cached_state_dict
+from grail_bench.cache import Busy, cached_state_dict
 from grail_bench.errors import UserError
 from grail_bench.recognizers._torch import single_thread
 from grail_bench.recognizers.base import FitReport, observed_arrays
@@ -62,22 +62,31 @@ class PolicyRecognizer(ScoredRecognizer):
         """
         if len(demos) < 2:
             raise UserError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
-        policies, seconds, reused = [], 0.0, 0
+        fitted: dict[Goal, tuple[BasePolicy, float, bool]] = {}
         with single_thread():
-            for goal in demos:
-                own_seed = goal_seed(seed, goal)  # keyed by the goal, not its position in the task
-                torch.manual_seed(own_seed)
-                policy, cost, hit = self._policy(goal, demos[goal], env_factory, own_seed, cache_key)
-                policies.append(policy)
-                seconds += cost
-                reused += hit
+            # A goal whose model another process is training now is left for later, so parallel
+            # fits of overlapping goal sets share the work rather than wait for each other.
+            for wait in (False, True):
+                for goal in [g for g in demos if g not in fitted]:
+                    own_seed = goal_seed(seed, goal)  # keyed by the goal, not its position in the task
+                    torch.manual_seed(own_seed)
+                    try:
+                        fitted[goal] = self._policy(goal, demos[goal], env_factory, own_seed, cache_key, wait)
+                    except Busy:
+                        continue
         self.goals = list(demos)
-        self.bank = PolicyBank(policies)
-        return FitReport(train_seconds=seconds, trained=len(policies) - reused, reused=reused)
+        self.bank = PolicyBank([fitted[g][0] for g in self.goals])
+        reused = sum(hit for _, _, hit in fitted.values())
+        return FitReport(train_seconds=sum(cost for _, cost, _ in fitted.values()), trained=len(fitted) - reused,
+                         reused=reused)
 
     def _policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory, seed: int,
-                cache_key: str | None) -> tuple[BasePolicy, float, bool]:
-        """``(policy, training seconds, reloaded from the cache)``."""
+                cache_key: str | None, wait: bool = True) -> tuple[BasePolicy, float, bool]:
+        """``(policy, training seconds, reloaded from the cache)``.
+
+        Raises:
+            grail_bench.cache.Busy: With ``wait=False``, when another process is training it.
+        """
         if cache_key is None:
             start = time.perf_counter()
             policy = self.train_policy(goal, demos, env_factory, seed)
@@ -92,7 +101,7 @@ class PolicyRecognizer(ScoredRecognizer):
             trained["policy"] = self.train_policy(goal, demos, env_factory, seed)
             return trained["policy"].state_dict()
 
-        state, seconds = cached_state_dict(f"policy-{self.name}", key, train)
+        state, seconds = cached_state_dict(f"policy-{self.name}", key, train, wait=wait)
         if "policy" in trained:
             return trained["policy"], seconds, False
         policy = self.new_policy(goal, env_factory)

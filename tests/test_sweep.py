@@ -1,0 +1,191 @@
+"""Parallel sweeps: identical rows on every executor, lost workers, the shared model cache, `reproduce`."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import multiprocessing
+import sqlite3
+import time
+
+import pytest
+
+from grail_bench.errors import UserError
+from grail_bench.evaluation.runner import RecognizerSpec
+from grail_bench.evaluation.sweep import Request, plan_request, run_sweep
+from grail_bench.executors import make_executor
+from grail_bench.store import ResultsStore
+
+from conftest import install_plugin
+from test_cli import cli
+
+TASK_ID = "GRAIL/MiniGrid-Biased-v0"
+TIMING = {"fit_seconds_per_goal", "score_us_per_observation", "versions"}
+SPECS = (RecognizerSpec("bc", {"n_epochs": 3}, ("mse", "kl")), RecognizerSpec("graql", {"episodes": 200}))
+
+
+def request(seeds=(0, 1)) -> Request:
+    return Request(TASK_ID, SPECS, tuple(seeds), (0.2, 0.4), "prefix")
+
+
+def comparable(store: ResultsStore) -> list[tuple]:
+    """Every stored row without its timings: what must not depend on where a unit ran."""
+    return [tuple(v for k, v in dataclasses.asdict(r).items() if k not in TIMING) for r in store.rows()]
+
+
+@pytest.mark.slow
+def test_serial_local_and_ray_store_identical_rows(tmp_path, monkeypatch):
+    results = {}
+    for name, workers in (("serial", None), ("local", 2), ("ray", 2)):
+        monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path / f"cache-{name}"))  # every executor trains afresh
+        store = ResultsStore(tmp_path / f"{name}.sqlite")
+        executor = make_executor(name, workers)
+        try:
+            summary = run_sweep([request()], store, executor)
+        finally:
+            executor.close()
+        assert summary.units == 4 and summary.rows == 2 * 2 * (2 + 1)  # seeds x levels x (bc: 2 scorers, graql: 1)
+        results[name] = comparable(store)
+    assert results["serial"] == results["local"] == results["ray"]
+
+
+def test_finished_units_are_not_run_again(tmp_path):
+    store = ResultsStore(tmp_path / "s.sqlite")
+    run_sweep([request(seeds=(0,))], store)
+    _, todo, skipped = plan_request(request(seeds=(0, 1)), store)
+    assert skipped == 2 and {(u.planned.spec.name, u.seed) for u in todo} == {("bc", 1), ("graql", 1)}
+    summary = run_sweep([request(seeds=(0,))], store)
+    assert (summary.units, summary.skipped, summary.rows) == (2, 2, 0)
+
+
+def test_models_shared_across_goal_sets_are_trained_once(tmp_path):
+    """GRAQL ignores demonstrations: the 4-goal task reuses the 2-goal task's tables for their shared goals."""
+    store = ResultsStore(tmp_path / "s.sqlite")
+    spec = (RecognizerSpec("graql", {"episodes": 100}),)
+    small = Request("GRAIL/MiniGrid-Optimal-v0", spec, (0,), (0.3,), "subset")
+    large = Request("GRAIL/MiniGrid-Optimal-4Goals-v0", spec, (0,), (0.3,), "subset")
+    summary = run_sweep([small, large], store)
+    assert (summary.trained, summary.reused, summary.naive) == (4, 2, 6)
+
+
+def test_a_lost_worker_loses_only_its_units_and_the_rerun_completes(tmp_path):
+    site = install_plugin(tmp_path / "site")
+    marker = tmp_path / "crashed"
+    args = ["run", "-r", "toy", "--set", f"toy.crash_marker={marker}", "--seeds", "4", "-o", "0.2,0.4",
+            "--workers", "2", "--no-progress"]
+    first = cli(args, tmp_path, PYTHONPATH=str(site))
+    assert first.returncode == 1 and marker.exists()
+    assert first.stderr.strip().splitlines()[-1].startswith("error: a worker process died")
+    with sqlite3.connect(tmp_path / "store.sqlite") as db:
+        kept = db.execute("SELECT COUNT(*) FROM results WHERE seed = 1").fetchone()[0]
+    assert kept == 0, "the unit that died stored nothing"
+    second = cli(args, tmp_path, PYTHONPATH=str(site))
+    assert second.returncode == 0, second.stderr
+    with sqlite3.connect(tmp_path / "store.sqlite") as db:
+        rows = db.execute("SELECT seed, observability FROM results ORDER BY seed, observability").fetchall()
+    assert rows == [(s, lv) for s in range(4) for lv in (0.2, 0.4)], "every cell once: none lost, none doubled"
+
+
+def _train_slowly(root: str, log: str) -> list[float]:
+    """Ask the cache for one model; training takes a while and leaves a line in ``log``."""
+    import pathlib
+
+    import torch
+
+    from grail_bench.cache import cached_state_dict
+
+    def train():
+        with open(log, "a") as fh:
+            fh.write("trained\n")
+        time.sleep(1.5)
+        return {"w": torch.arange(4.0)}
+
+    state, _ = cached_state_dict("race", {"goal": [1, 2]}, train, root=pathlib.Path(root))
+    return state["w"].tolist()
+
+
+def test_two_processes_asking_for_one_model_train_it_once(tmp_path):
+    log = tmp_path / "log"
+    with multiprocessing.get_context("spawn").Pool(2) as pool:
+        got = pool.starmap(_train_slowly, [(str(tmp_path), str(log))] * 2)
+    assert got == [[0.0, 1.0, 2.0, 3.0]] * 2
+    assert log.read_text().count("trained") == 1, "the second process waited and reused the first one's model"
+    folder = tmp_path / "race"
+    assert sorted(p.suffix for p in folder.iterdir() if p.suffix != ".lock") == [".json", ".pt"]
+    meta = json.loads(next(folder.glob("*.json")).read_text())
+    assert meta["key"] == {"goal": [1, 2]}
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--executor", "threads"], "unknown executor 'threads'"),
+    (["--workers", "0"], "--workers must be at least 1"),
+    (["--executor", "ray", "--address", "127.0.0.1:1"], "cannot reach a Ray cluster at 127.0.0.1:1"),
+    (["--executor", "serial", "--workers", "2"], "the serial executor runs one unit at a time"),
+    (["--address", "127.0.0.1:1", "--executor", "local"], "--address names a Ray cluster"),
+])
+def test_bad_executor_options_are_one_line_errors(tmp_path, args, message):
+    out = cli(["run", "-r", "bc", "--seeds", "1", "--no-progress", *args], tmp_path)
+    assert out.returncode == 2
+    assert out.stderr.strip().splitlines() == [f"error: {out.stderr.strip().removeprefix('error: ')}"]
+    assert message in out.stderr
+
+
+def test_make_executor_defaults():
+    assert make_executor().name == "serial"
+    with pytest.raises(UserError, match="unknown executor"):
+        make_executor("dask")
+
+
+PROFILE = """
+description = "a reduced grid for tests"
+seeds = 2
+[config.bc]
+n_epochs = 3
+[config.graql]
+episodes = 200
+[[section]]
+name = "minigrid"
+tasks = ["GRAIL/MiniGrid-Optimal-v0", "GRAIL/MiniGrid-Biased-v0"]
+recognizers = ["bc", "graql"]
+scorers = ["mse", "kl"]
+[[section]]
+name = "panda"
+tasks = ["GRAIL/PandaReach-Optimal-v0", "GRAIL/PandaReach-Gaussian-0.1-v0"]
+recognizers = ["bc"]
+scorers = ["mse", "wasserstein"]
+params = { expert = "scripted", n_demos = 8, n_train = 6 }
+"""
+
+
+@pytest.mark.slow
+def test_reproduce_writes_every_table_figure_and_the_manifest(tmp_path):
+    profile = tmp_path / "tiny.toml"
+    profile.write_text(PROFILE)
+    out = tmp_path / "out"
+    result = cli(["reproduce", "--profile", str(profile), "--out", str(out), "--workers", "2", "--no-progress"],
+                 tmp_path)
+    assert result.returncode == 0, result.stderr
+    tables = (out / "TABLES.md").read_text()
+    for title in ("## minigrid / optimal (subset)", "## minigrid / biased (prefix)", "## panda_reach / optimal"):
+        assert title in tables
+    assert "BC-GRAIL *(paper)*" in tables and "Against the paper's 95 % intervals" in tables
+    for stem in ("f1_vs_observability", "panda_regimes", "scoring_time", "training_time", "model_size"):
+        assert (out / f"{stem}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert (out / f"{stem}.svg").read_text().lstrip().startswith("<?xml")
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["executor"] == "local" and manifest["workers"] == 2 and manifest["cores"] >= 1
+    assert manifest["packages"]["torch"].startswith("2.13.0") and manifest["command"][1:3] == ["reproduce", "--profile"]
+    assert manifest["sweep"]["units"] == (2 * 2 + 2 * 1) * 2 and manifest["sweep"]["models trained"] > 0
+    # Everything is stored: a second call runs nothing and writes the same tables.
+    again = cli(["reproduce", "--profile", str(profile), "--out", str(out), "--no-progress"], tmp_path)
+    assert again.returncode == 0 and json.loads((out / "manifest.json").read_text())["sweep"]["rows"] == 0
+    assert (out / "TABLES.md").read_text() == tables
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--profile", "huge"], "unknown profile 'huge'"),
+    (["--profile", "quick", "--only", "atari"], "profile 'quick' has no section 'atari'"),
+])
+def test_reproduce_bad_input_is_one_line(tmp_path, args, message):
+    out = cli(["reproduce", "--out", str(tmp_path / "o"), *args], tmp_path)
+    assert out.returncode == 2 and message in out.stderr and len(out.stderr.strip().splitlines()) == 1
