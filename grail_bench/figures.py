@@ -167,7 +167,7 @@ def _per_domain(records: Records, value: Callable[[dict[str, Any]], float | None
 def scoring_time(records: Records, out: Path) -> list[Path]:
     """Figure 5: scoring µs per observation per method and scorer (mean over tasks and levels)."""
     return _per_domain(records, lambda r: r["score_us_per_observation"], lambda r: f"{r['recognizer']}/{r['scorer']}",
-                       "scoring µs / observation", "scoring_time", out, log=True)
+                       "scoring µs / observation", "scoring_time", out)
 
 
 def training_time(records: Records, out: Path) -> list[Path]:

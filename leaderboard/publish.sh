@@ -5,5 +5,5 @@ cd "$(dirname "$0")/.."
 export GRAIL_BENCH_STORE=leaderboard/results.sqlite COLUMNS=200
 GB=".venv/bin/grail-bench"
 $GB leaderboard --scorer bc/mse --scorer graql/kl --scorer gail/mse --scorer airl/mse --scorer draco/wasserstein \
-    --reference leaderboard/paper_reported.csv --markdown leaderboard/LEADERBOARD.md > /dev/null
+    --reference grail_bench/paper_reported.csv --markdown leaderboard/LEADERBOARD.md > /dev/null
 $GB leaderboard --ablation --plot leaderboard/ablation.png --markdown leaderboard/ABLATION.md > /dev/null
