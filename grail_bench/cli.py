@@ -238,6 +238,8 @@ def leaderboard(
     no_ceiling: bool = typer.Option(False, "--no-ceiling", help="Do not compute or show Bayes ceilings."),
     ablation: bool = typer.Option(False, "--ablation", help="Compare scorers: F1 and scoring time per scorer."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="With --ablation: also write a PNG plot here."),
+    html: Optional[Path] = typer.Option(
+        None, "--html", help="Also write the leaderboard as a static web page into this folder (index.html)."),
 ) -> None:
     """Paper-style F1 tables from the results store."""
     from grail_bench.evaluation.runner import aggregate
@@ -253,8 +255,9 @@ def leaderboard(
         ref = read_reference(reference) if reference else None
         with _open_store(path) as store:
             where = ({"protocol": protocol} if protocol else {}) | ({"task": task} if task else {})
-            records = [r for r in aggregate(store.rows(**where))
-                       if not scorer or r["scorer"] in scorer or f"{r['recognizer']}/{r['scorer']}" in scorer]
+            rows = [r for r in store.rows(**where)
+                    if not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer]
+            records = aggregate(rows)
     except OSError as exc:
         raise fail(f"cannot read {exc.filename}: {exc.strerror}") from None
     except _user_errors() as exc:
@@ -286,6 +289,15 @@ def leaderboard(
         markdown_path.parent.mkdir(parents=True, exist_ok=True)
         markdown_path.write_text(markdown(boards, records), encoding="utf-8")
         console.print(f"Markdown written to {markdown_path}", highlight=False)
+    if html is not None:
+        from grail_bench.site import write_site
+
+        try:
+            with console.status("web page (bootstrap intervals)"):
+                index = write_site(rows, html, ref, None if no_ceiling else ceiling_samples)[0]
+        except OSError as exc:
+            raise fail(f"cannot write {exc.filename}: {exc.strerror}") from None
+        console.print(f"web page written to {index}", highlight=False)
 
 
 @app.command()

@@ -314,19 +314,23 @@ def markdown(boards: list[Board], records: list[dict[str, Any]], ci: bool = Fals
     lines += ["## Runs and timings", "",
               "| task | column | seeds | fit s/goal | score µs/observation | ties |",
               "|---|---|---|---|---|---|"]
-    variants = config_variants(records)
-    seen = set()
-    for r in records:
-        key = (r["task"], r["recognizer"], r["scorer"], r["config_hash"])
-        if key in seen:
-            continue
-        seen.add(key)
-        same = [x for x in records if (x["task"], x["recognizer"], x["scorer"], x["config_hash"]) == key]
-        score_us = sum(x["score_us_per_observation"] for x in same) / len(same)
-        ties = sum(x["tie_rate"] for x in same) / len(same)
-        lines.append(f"| {r['task']} | {column_label(r, variants)} | {r['n_seeds']} | "
-                     f"{r['fit_seconds_per_goal']:.2f} | {score_us:.0f} | {ties:.1%} |")
+    for t in timing_rows(records):
+        lines.append(f"| {t['task']} | {t['column']} | {t['seeds']} | {t['fit_seconds_per_goal']:.2f} | "
+                     f"{t['score_us_per_observation']:.0f} | {t['tie_rate']:.1%} |")
     return "\n".join(lines) + "\n"
+
+
+def timing_rows(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per task and column: seeds, training seconds per goal, scoring µs per observation (mean over levels), tie rate."""
+    variants = config_variants(records)
+    groups: dict[tuple, list[dict[str, Any]]] = defaultdict(list)
+    for r in records:
+        groups[(r["task"], r["recognizer"], r["scorer"], r["config_hash"])].append(r)
+    return [{"task": same[0]["task"], "column": column_label(same[0], variants), "recognizer": same[0]["recognizer"],
+             "seeds": same[0]["n_seeds"],
+             "fit_seconds_per_goal": same[0]["fit_seconds_per_goal"],
+             "score_us_per_observation": sum(x["score_us_per_observation"] for x in same) / len(same),
+             "tie_rate": sum(x["tie_rate"] for x in same) / len(same)} for same in groups.values()]
 
 
 def ablation_rows(records: list[dict[str, Any]]) -> list[dict[str, Any]]:

@@ -11,17 +11,14 @@ from the store alone, so the outputs never depend on which units ran now.
 from __future__ import annotations
 
 import json
-import os
-import platform
-import subprocess
-import sys
 import tomllib
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import datetime
 from importlib import metadata, resources
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
+from grail_bench import provenance
 from grail_bench.errors import UserError
 from grail_bench.evaluation.runner import RecognizerSpec
 from grail_bench.evaluation.sweep import Request, SweepSummary
@@ -110,41 +107,17 @@ def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executo
         "command": list(argv),
         "profile": profile.name,
         "only": list(only),
-        "git_commit": _git_commit(),
-        "python": sys.version.split()[0],
-        "platform": platform.platform(),
-        "cpu": _cpu_model(),
-        "cores": os.cpu_count(),
+        "git_commit": provenance.git_commit(),
+        **provenance.machine(),
         "executor": executor.name,
         "workers": executor.workers,
         "started": started.isoformat(timespec="seconds"),
-        "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "finished": provenance.now(),
         "sweep": {"units": summary.units, "skipped (already stored)": summary.skipped, "rows": summary.rows,
                   "models trained": summary.trained, "models reused from the cache": summary.reused,
                   "models a run without reuse would train": summary.naive, "seconds": round(summary.seconds, 1)},
         "packages": dict(packages),
     }
-
-
-def _git_commit() -> str | None:
-    """The commit of the grail-bench checkout, when it is one."""
-    root = Path(__file__).resolve().parent.parent
-    try:
-        out = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
-                             timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return out.stdout.strip() or None if out.returncode == 0 else None
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def reference_path() -> Path:

@@ -20,7 +20,7 @@ from typing import Any, Iterable, Sequence
 
 from grail_bench.errors import UserError
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 KEY = ("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol")
 
 
@@ -51,12 +51,13 @@ class ResultRow:
     versions: str
     brier: float | None = None
     nll: float | None = None
+    provenance: str | None = None  # JSON of grail_bench.provenance.stamp(); None for rows stored before it
 
 
 _COLUMNS = [f.name for f in fields(ResultRow)]
 _TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash": "TEXT", "seed": "INTEGER",
           "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
-          "config": "TEXT", "versions": "TEXT"}
+          "config": "TEXT", "versions": "TEXT", "provenance": "TEXT"}
 _CREATE = (
     "CREATE TABLE IF NOT EXISTS results ("
     + ", ".join(f"{c} {_TYPES.get(c, 'REAL')}" + (" NOT NULL" if c in KEY else "") for c in _COLUMNS)
@@ -101,6 +102,8 @@ class ResultsStore:
             with self._conn:
                 if tables and version < 2:
                     _migrate_v1(self._conn)
+                if tables and version < 3:
+                    _migrate_v2(self._conn)
                 self._conn.execute(_CREATE)
                 self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
         except sqlite3.Error as exc:
@@ -169,6 +172,13 @@ def _migrate_v1(conn: sqlite3.Connection) -> None:
     columns = {r[1] for r in conn.execute("PRAGMA table_info(results)")}
     if "sampling" in columns and "protocol" not in columns:
         conn.execute("ALTER TABLE results RENAME COLUMN sampling TO protocol")
+
+
+def _migrate_v2(conn: sqlite3.Connection) -> None:
+    """Schema 2 -> 3: a ``provenance`` column, empty for the rows already stored."""
+    columns = {r[1] for r in conn.execute("PRAGMA table_info(results)")}
+    if "provenance" not in columns:
+        conn.execute("ALTER TABLE results ADD COLUMN provenance TEXT")
 
 
 def config_hash(payload: dict[str, Any]) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing as mp
 import sqlite3
 
@@ -78,3 +79,19 @@ def test_default_location(monkeypatch, tmp_path):
     monkeypatch.delenv("GRAIL_BENCH_STORE")
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path))
     assert default_store_path() == tmp_path / "grail-bench" / "results.sqlite"
+
+
+def test_schema_2_store_gains_provenance_and_keeps_rows(tmp_path):
+    path = tmp_path / "v2.sqlite"
+    with ResultsStore(path) as store:
+        store.add([row(seed=s) for s in range(3)])
+    conn = sqlite3.connect(path)  # make it a schema-2 file: no provenance column
+    conn.execute("ALTER TABLE results DROP COLUMN provenance")
+    conn.execute("PRAGMA user_version = 2")
+    conn.commit()
+    conn.close()
+    with ResultsStore(path) as store:
+        rows = store.rows()
+        assert len(rows) == 3 and all(r.provenance is None for r in rows)
+        store.add([dataclasses.replace(row(seed=9), provenance='{"command": ["grail-bench"]}')])
+        assert store.rows(seed=9)[0].provenance == '{"command": ["grail-bench"]}'

@@ -9,7 +9,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from grail_bench.evaluation import metrics
+from grail_bench.evaluation import metrics, robust
 from grail_bench.evaluation.protocol import (
     cell_rng, get_protocol, observe, parse_observability, protocol_label, seed_list,
 )
@@ -202,12 +202,14 @@ def aggregate(rows: Iterable[ResultRow]) -> list[dict[str, Any]]:
         groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability), []).append(r)
     records = []
     for (task, rec, scorer, chash, protocol, level), group in groups.items():
+        group.sort(key=lambda r: r.seed)
         f1 = metrics.summarize([r.f1 for r in group])
         n_obs = sum(r.n_observations for r in group)
         records.append({
             "task": task, "recognizer": rec, "scorer": scorer, "protocol": protocol, "observability": level,
             "n_seeds": len(group), "f1_mean": f1["mean"], "f1_std": f1["std"], "f1_ci95_low": f1["ci_low"],
-            "f1_ci95_high": f1["ci_high"],
+            "f1_ci95_high": f1["ci_high"], "f1_iqm": robust.iqm([r.f1 for r in group]),
+            "seeds": [r.seed for r in group], "f1_values": [r.f1 for r in group],
             "accuracy_mean": float(np.mean([r.accuracy for r in group])),
             "precision_mean": float(np.mean([r.precision for r in group])),
             "recall_mean": float(np.mean([r.recall for r in group])),

@@ -14,13 +14,14 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Any, Mapping, Sequence
 
 from grail_bench.evaluation.protocol import get_protocol, protocol_label
 from grail_bench.evaluation.runner import Planned, RecognizerSpec, plan, run_seed
 from grail_bench.executors import Executor, SerialExecutor
+from grail_bench.provenance import stamp
 from grail_bench.store import ResultRow, ResultsStore, package_versions
 from grail_bench.task import GRTask, make_task
 
@@ -171,7 +172,7 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
 
     Every request is checked before any unit runs. Rows are stored as each
     unit finishes, so a crash, a lost worker or Ctrl-C loses only the units in
-    flight.
+    flight; each carries the sweep's provenance (command, commit, machine, date).
 
     Raises:
         grail_bench.errors.UserError: For a bad request (nothing runs).
@@ -183,6 +184,7 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
 
     executor = executor or SerialExecutor()
     summary = SweepSummary()
+    origin = stamp()
     units: list[Unit] = []
     for request in requests:
         _, todo, skipped = plan_request(request, store)
@@ -197,7 +199,7 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
     with Progress(*columns, disable=not progress, transient=False) as bar:
         job = bar.add_task(f"{description} ({executor.name}, {executor.workers} worker(s))", total=len(units))
         for unit, result in executor.map_unordered(run_unit, units):
-            summary.rows += store.add(result.rows)
+            summary.rows += store.add(replace(r, provenance=origin) for r in result.rows)
             summary.trained += result.trained
             summary.reused += result.reused
             bar.advance(job)
