@@ -314,7 +314,6 @@ def reproduce(
     """Run a profile's grid (resuming from the store), then write the paper's tables and figures."""
     from datetime import datetime, timezone
 
-    from grail_bench.evaluation.runner import aggregate
     from grail_bench.evaluation.sweep import run_sweep
     from grail_bench.reproduce import load_profile, manifest, write_outputs
 
@@ -326,9 +325,9 @@ def reproduce(
                 _executor(executor, workers, address) as chosen:
             summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
             meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary)
-            records = aggregate(store.rows(task=sorted({r.task_id for r in requests})))
-        with console.status("tables and figures"):
-            written = write_outputs(records, chosen_profile, requests, out, meta)
+            rows = store.rows(task=sorted({r.task_id for r in requests}))
+        with console.status("tables, figures and web page"):
+            written = write_outputs(rows, chosen_profile, requests, out, meta)
     except _user_errors() as exc:
         raise fail(str(exc)) from None
     except WorkerLost as exc:

@@ -5,7 +5,7 @@ lists sections (``minigrid``, ``panda``), each with tasks, recognizers,
 scorers and optional task parameters, plus the seeds and recognizer configs
 shared by all. The grid runs through :func:`grail_bench.evaluation.sweep.run_sweep`
 (resumable through the store), then :func:`write_outputs` renders everything
-from the store alone, so the outputs never depend on which units ran now.
+(tables, figures, the web page) from the store alone, so the outputs never depend on which units ran now.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from grail_bench import provenance
 from grail_bench.errors import UserError
 from grail_bench.evaluation.runner import RecognizerSpec
 from grail_bench.evaluation.sweep import Request, SweepSummary
+from grail_bench.store import ResultRow
 
 PROFILES = ("quick", "paper")
 
@@ -125,21 +126,26 @@ def reference_path() -> Path:
     return Path(str(resources.files("grail_bench").joinpath("paper_reported.csv")))
 
 
-def write_outputs(records: list[dict[str, Any]], profile: Profile, requests: Sequence[Request], out: Path,
+def write_outputs(rows: Sequence[ResultRow], profile: Profile, requests: Sequence[Request], out: Path,
                   meta: dict[str, Any]) -> list[Path]:
-    """Tables, figures and the manifest into ``out``; returns the files written."""
+    """Tables, figures, the web page (``site/``) and the manifest into ``out``; returns the files written."""
     from grail_bench import figures
+    from grail_bench.evaluation.runner import aggregate
     from grail_bench.leaderboard import build_boards, markdown, read_reference
+    from grail_bench.site import write_site
 
     out.mkdir(parents=True, exist_ok=True)
     wanted = {(r.task_id, r.label) for r in requests}
-    records = [r for r in records if (r["task"], r["protocol"]) in wanted]
+    rows = [r for r in rows if (r.task, r.protocol) in wanted]
+    records = aggregate(rows)
+    reference = read_reference(reference_path())
     paper_scorers = figures.own_scorer_records(records)
-    boards = build_boards(paper_scorers, read_reference(reference_path()))
+    boards = build_boards(paper_scorers, reference)
+    title = f"grail-bench reproduce: {profile.name}"
     written = [out / "TABLES.md"]
-    written[0].write_text(markdown(boards, paper_scorers, ci=True, title=f"grail-bench reproduce: {profile.name}"),
-                          encoding="utf-8")
+    written[0].write_text(markdown(boards, paper_scorers, ci=True, title=title), encoding="utf-8")
     written += figures.write_all(records, out, models=model_sizes(records))
+    written += write_site(rows, out / "site", reference, title=title)
     (out / "manifest.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     written.append(out / "manifest.json")
     return written

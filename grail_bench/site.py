@@ -46,7 +46,7 @@ class Cell:
     iqm: float
     std: float
     seeds: int
-    run: int | None
+    runs: list[int]  # the invocations that stored its rows
     paper: Reported | None = None
     place: str | None = None
     normalised: float | None = None
@@ -181,10 +181,10 @@ def build_page(rows: Sequence[ResultRow], reference: dict | None = None, ceiling
     rows = list(rows)
     records = aggregate(rows)
     runs, run_index = _runs(rows)
-    latest: dict[tuple, int] = {}  # each record's most recent run
+    runs_of: dict[tuple, set[int]] = defaultdict(set)  # the runs behind each record
     for r in rows:
         key = (r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability)
-        latest[key] = max(latest.get(key, -1), run_index[r.provenance or f"versions:{r.versions}"])
+        runs_of[key].add(run_index[r.provenance or f"versions:{r.versions}"])
     variants = config_variants(records)
     position = {id(r): i for i, r in enumerate(records)}
     boards = build_boards(records, reference, ceiling_samples)
@@ -209,7 +209,7 @@ def build_page(rows: Sequence[ResultRow], reference: dict | None = None, ceiling
                 key = (record["task"], record["recognizer"], record["scorer"], record["config_hash"],
                        record["protocol"], record["observability"])
                 cell = Cell(position[id(record)], record["recognizer"], record["f1_mean"], interval,
-                            record["f1_iqm"], record["f1_std"], record["n_seeds"], latest.get(key), reported,
+                            record["f1_iqm"], record["f1_std"], record["n_seeds"], sorted(runs_of[key]), reported,
                             reported.place(record["f1_mean"]) if reported else None,
                             normalised(record["f1_mean"], ceiling.accuracy, ceiling.chance) if ceiling else None)
                 shown[label] = cells[(row[1], row[3], label, section.id)] = cell
@@ -233,7 +233,7 @@ def build_page(rows: Sequence[ResultRow], reference: dict | None = None, ceiling
                          "paper_f1": c.paper.text if c and c.paper else None,
                          "paper_place": c.place if c else None,
                          "normalised_f1": c.normalised if c else None,
-                         "run": c.run if c else None})
+                         "runs": c.runs if c else []})
     return {"sections": sections, "summaries": summaries, "runs": runs, "records": exported,
             "timings": timing_rows(records), "domains": sorted(by_domain),
             "regimes": sorted({s.regime for s in sections}),

@@ -63,7 +63,8 @@ def test_page_has_a_cell_per_record_and_a_run_per_invocation(page):
     assert page["domains"] == ["minigrid", "panda_reach"]
     for c in cells:
         assert c.interval.low <= c.mean <= c.interval.high
-        assert 0 <= c.run < len(page["runs"])
+        assert c.runs and all(0 <= i < len(page["runs"]) for i in c.runs)
+    assert {tuple(c.runs) for c in cells} == {(0, 1)}  # seeds 0-2 by the stamped sweep, 3-4 from before
 
 
 def test_ties_are_every_cell_overlapping_the_best(page):
