@@ -315,16 +315,18 @@ def reproduce(
     from datetime import datetime, timezone
 
     from grail_bench.evaluation.sweep import run_sweep
+    from grail_bench.provenance import git_commit
     from grail_bench.reproduce import load_profile, manifest, write_outputs
 
     started = datetime.now(timezone.utc)
+    commit = git_commit()
     try:
         chosen_profile = load_profile(profile)
         requests = chosen_profile.requests(only or ())
         with _open_store(store_path or out / "results.sqlite") as store, \
                 _executor(executor, workers, address) as chosen:
             summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
-            meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary)
+            meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary, commit)
             rows = store.rows(task=sorted({r.task_id for r in requests}))
         with console.status("tables, figures and web page"):
             written = write_outputs(rows, chosen_profile, requests, out, meta)

@@ -18,14 +18,18 @@ from typing import Any, Sequence
 
 
 def git_commit() -> str | None:
-    """The commit of the grail-bench checkout, when it is one."""
+    """The commit of the grail-bench checkout, when it is one, suffixed ``+dirty`` when tracked files differ from it."""
     root = Path(__file__).resolve().parent.parent
     try:
-        out = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
-                             timeout=10)
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              timeout=10)
+        if head.returncode != 0 or not head.stdout.strip():
+            return None
+        dirty = subprocess.run(["git", "-C", str(root), "diff", "--quiet", "HEAD", "--", "grail_bench"],
+                               capture_output=True, timeout=10).returncode == 1
     except (OSError, subprocess.SubprocessError):
         return None
-    return out.stdout.strip() or None if out.returncode == 0 else None
+    return head.stdout.strip() + ("+dirty" if dirty else "")
 
 
 def cpu_model() -> str:

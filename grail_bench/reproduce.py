@@ -101,14 +101,17 @@ def load_profile(name_or_path: str) -> Profile:
 
 
 def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executor: Any, started: datetime,
-             summary: SweepSummary) -> dict[str, Any]:
-    """What produced a reproduction: command, code, packages, machine, time, executor and model counts."""
+             summary: SweepSummary, commit: str | None) -> dict[str, Any]:
+    """What produced a reproduction: command, code, packages, machine, time, executor and model counts.
+
+    ``commit`` is the code's commit when the run started (:func:`grail_bench.provenance.git_commit`).
+    """
     packages = sorted({(d.metadata["Name"], d.version) for d in metadata.distributions() if d.metadata["Name"]})
     return {
         "command": list(argv),
         "profile": profile.name,
         "only": list(only),
-        "git_commit": provenance.git_commit(),
+        "git_commit": commit,
         **provenance.machine(),
         "executor": executor.name,
         "workers": executor.workers,

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# Regenerates LEADERBOARD.md, ABLATION.md and ablation.png from the store the run_*.sh scripts fill.
+# Regenerates LEADERBOARD.md, site/ (the web page), ABLATION.md and ablation.png from the store the run_*.sh
+# scripts fill.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export GRAIL_BENCH_STORE=leaderboard/results.sqlite COLUMNS=200
 GB=".venv/bin/grail-bench"
 $GB leaderboard --scorer bc/mse --scorer graql/kl --scorer gail/mse --scorer airl/mse --scorer draco/wasserstein \
-    --reference grail_bench/paper_reported.csv --markdown leaderboard/LEADERBOARD.md > /dev/null
+    --reference grail_bench/paper_reported.csv --markdown leaderboard/LEADERBOARD.md --html leaderboard/site > /dev/null
 $GB leaderboard --ablation --plot leaderboard/ablation.png --markdown leaderboard/ABLATION.md > /dev/null
