@@ -16,7 +16,7 @@ from grail_bench.evaluation.protocol import (
 )
 from grail_bench.evaluation.runner import RecognizerSpec, plan, run_seed
 from grail_bench.seeding import goal_seed
-from grail_bench.store import ResultsStore
+from grail_bench.store import SCHEMA_VERSION, ResultsStore
 
 
 def demo(T: int = 10, horizon: int = 20) -> Trajectory:
@@ -144,7 +144,7 @@ def test_a_schema_1_store_is_migrated_without_losing_rows(tmp_path):
         assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix") == {(0, 0.3), (1, 0.3)}
     with ResultsStore(path) as store:  # reopening a migrated store changes nothing
         assert len(store.rows()) == 3
-    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == 2
+    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
 
 
 def test_observability_levels_round_trip_through_k():
