@@ -20,7 +20,7 @@ from typing import Any, Iterable, Sequence
 
 from grail_bench.errors import UserError
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 KEY = ("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol")
 
 
@@ -52,6 +52,8 @@ class ResultRow:
     brier: float | None = None
     nll: float | None = None
     provenance: str | None = None  # JSON of grail_bench.provenance.stamp(); None for rows stored before it
+    top2: float | None = None  # share of observations whose true goal ranks in the top 2 (None: stored before)
+    mean_rank: float | None = None  # mean rank of the true goal, 1 = best (None: stored before)
 
 
 _COLUMNS = [f.name for f in fields(ResultRow)]
@@ -102,8 +104,8 @@ class ResultsStore:
             with self._conn:
                 if tables and version < 2:
                     _migrate_v1(self._conn)
-                if tables and version < 3:
-                    _migrate_v2(self._conn)
+                if tables and version < SCHEMA_VERSION:
+                    _add_missing_columns(self._conn)
                 self._conn.execute(_CREATE)
                 self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
         except sqlite3.Error as exc:
@@ -174,11 +176,13 @@ def _migrate_v1(conn: sqlite3.Connection) -> None:
         conn.execute("ALTER TABLE results RENAME COLUMN sampling TO protocol")
 
 
-def _migrate_v2(conn: sqlite3.Connection) -> None:
-    """Schema 2 -> 3: a ``provenance`` column, empty for the rows already stored."""
+def _add_missing_columns(conn: sqlite3.Connection) -> None:
+    """Schema 2 -> 3 -> 4: the columns added since (``provenance``; ``top2``, ``mean_rank``), empty for the rows
+    already stored."""
     columns = {r[1] for r in conn.execute("PRAGMA table_info(results)")}
-    if "provenance" not in columns:
-        conn.execute("ALTER TABLE results ADD COLUMN provenance TEXT")
+    for name in _COLUMNS:
+        if name not in columns:
+            conn.execute(f"ALTER TABLE results ADD COLUMN {name} {_TYPES.get(name, 'REAL')}")
 
 
 def config_hash(payload: dict[str, Any]) -> str:

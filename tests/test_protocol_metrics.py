@@ -73,3 +73,15 @@ def test_summarize_t_interval():
     assert s["ci_low"] == pytest.approx(0.675 - half) and s["ci_high"] == pytest.approx(0.675 + half)
     assert metrics.summarize([1.0, 1.0]) == {"mean": 1.0, "std": 0.0, "ci_low": 1.0, "ci_high": 1.0}
     assert metrics.summarize([0.4])["std"] == 0.0
+
+
+@pytest.mark.parametrize("scores, label, rank, top2", [
+    ([0.9, 0.5, 0.1], 0, 1.0, 1.0),        # best
+    ([0.9, 0.5, 0.1], 1, 2.0, 1.0),        # second
+    ([0.9, 0.5, 0.1], 2, 3.0, 0.0),        # last of three
+    ([0.5, 0.5, 0.5, 0.5], 2, 2.5, 0.5),   # a four-way tie: any rank 1-4 equally likely
+    ([0.9, 0.5, 0.5, 0.1], 1, 2.5, 0.5),   # tied for 2nd and 3rd
+    ([0.9, 0.8, 0.5, 0.5], 3, 3.5, 0.0),   # tied for 3rd and 4th: never in the top 2
+])
+def test_ranking_of_the_true_goal_under_random_tie_breaking(scores, label, rank, top2):
+    assert metrics.ranking(np.array(scores), label) == (rank, top2)

@@ -60,6 +60,8 @@ def test_records_have_the_documented_keys(spy):
     # The spy always picks the last goal: accuracy 1/2, F1 = (0 + 2/3) / 2.
     assert records[0]["accuracy_mean"] == 0.5
     assert records[0]["f1_mean"] == pytest.approx(1 / 3)
+    # The first goal's observations rank it second of two, the last goal's first.
+    assert records[0]["mean_rank_mean"] == 1.5 and records[0]["top2_mean"] == 1.0
 
 
 def test_recognizer_never_sees_the_true_goal(spy):

@@ -16,6 +16,19 @@ def predict(scores: np.ndarray) -> tuple[int, bool]:
     return int(winners[0]), len(winners) > 1
 
 
+def ranking(scores: np.ndarray, label: int, k: int = 2) -> tuple[float, float]:
+    """Rank of the true goal (1 = best) and whether it is in the top ``k``, expected under random tie-breaking.
+
+    With ``h`` goals scoring strictly higher than the true goal and ``t``
+    others tying with it, the expected rank is ``h + 1 + t / 2`` and the
+    chance of being among the ``k`` best is ``clip((k - h) / (t + 1), 0, 1)``.
+    """
+    mine = scores[label]
+    higher = int(np.sum(scores > mine))
+    tied = int(np.sum(scores == mine)) - 1
+    return higher + 1 + tied / 2, float(np.clip((k - higher) / (tied + 1), 0.0, 1.0))
+
+
 def classification(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> dict[str, float]:
     """Accuracy and macro precision, recall and F1 over all candidate goals."""
     labels = list(range(n_classes))

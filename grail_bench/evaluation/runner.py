@@ -25,8 +25,8 @@ from grail_bench.trajectory import Demos
 RECORD_KEYS = (
     "task", "recognizer", "scorer", "protocol", "observability", "n_seeds", "f1_mean", "f1_std",
     "f1_ci95_low", "f1_ci95_high", "accuracy_mean", "precision_mean", "recall_mean",
-    "fit_seconds_per_goal", "score_us_per_observation", "tie_rate", "brier_mean", "nll_mean", "config_hash",
-    "task_params",
+    "fit_seconds_per_goal", "score_us_per_observation", "tie_rate", "brier_mean", "nll_mean", "top2_mean",
+    "mean_rank_mean", "config_hash", "task_params",
 )
 
 
@@ -148,7 +148,7 @@ def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float],
         order = rng.permutation(len(labelled))
         observations = [(labelled[j][0], observe(labelled[j][1], level, chosen, rng, rounding)) for j in order]
         for scorer, score_arg, posterior in zip(planned.scorers, planned.score_args, planned.posterior):
-            y_true, y_pred, ties, elapsed_ns, brier, nll = [], [], 0, 0, [], []
+            y_true, y_pred, ties, elapsed_ns, brier, nll, ranks, top2 = [], [], 0, 0, [], [], [], []
             for label, observed in observations:
                 t0 = time.perf_counter_ns()
                 scores = recognizer.score(observed, score_arg)
@@ -158,6 +158,9 @@ def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float],
                 y_true.append(label)
                 y_pred.append(pred)
                 ties += tied
+                rank, in_top2 = metrics.ranking(values, label)
+                ranks.append(rank)
+                top2.append(in_top2)
                 if posterior:
                     b, n = metrics.calibration(values, len(observed.acts), label)
                     brier.append(b)
@@ -168,7 +171,8 @@ def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float],
                 observability=level, protocol=stored_protocol, n_observations=len(y_true), n_ties=ties,
                 fit_seconds_per_goal=fit_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
                 config=planned.config, versions=versions,
-                brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None, **m,
+                brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None,
+                top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)), **m,
             ))
     return rows, report
 
@@ -218,6 +222,8 @@ def aggregate(rows: Iterable[ResultRow]) -> list[dict[str, Any]]:
             "tie_rate": sum(r.n_ties for r in group) / n_obs if n_obs else 0.0,
             "brier_mean": _mean_or_none([r.brier for r in group]),
             "nll_mean": _mean_or_none([r.nll for r in group]),
+            "top2_mean": _mean_or_none([r.top2 for r in group]),
+            "mean_rank_mean": _mean_or_none([r.mean_rank for r in group]),
             "config_hash": chash,
             "task_params": _task_params(group[0].config),
             "recognizer_config": _recognizer_config(group[0].config),
