@@ -107,51 +107,50 @@ def _svg(fig: Any) -> str:
     return text[text.index("<svg"):]
 
 
-def _figure(section: Section, cells: dict[tuple, Cell], records: list[Record]) -> str | None:
-    """F1 against observability per task of a section, a line and interval band per own-scorer column."""
-    from grail_bench.figures import _pyplot, own_scorer_records
+def _figure(section: Section, cells: dict[tuple, Cell], own: set[int]) -> str | None:
+    """F1 against observability per task of a section, a line and interval band per own-scorer column.
 
-    own = {id(r) for r in own_scorer_records(records)}
+    ``own`` holds the record indices run under their recognizer's own scorer.
+    """
+    from grail_bench.figures import _pyplot
+
     tasks = sorted({row["task"] for row in section.rows})
     levels = {t: sorted({row["obs"] for row in section.rows if row["task"] == t}) for t in tasks}
     tasks = [t for t in tasks if len(levels[t]) > 1]
     if not tasks:
         return None
     plt = _pyplot()
-    plt.rcParams["svg.fonttype"] = "none"
-    plt.rcParams["svg.hashsalt"] = "grail-bench"
-    fig, axes = plt.subplots(1, len(tasks), figsize=(3.4 * len(tasks), 2.8), squeeze=False)
-    for ax, task in zip(axes.flat, tasks):
-        for i, (label, _) in enumerate(section.columns):
-            line = [(lv, cells[(task, lv, label, section.id)]) for lv in levels[task]
-                    if (task, lv, label, section.id) in cells]
-            line = [(lv, c) for lv, c in line if id(records[c.record]) in own]
-            if not line:
-                continue
-            x = [100 * lv for lv, _ in line]
-            ax.plot(x, [c.mean for _, c in line], marker="o", color=f"C{i % 10}", label=label)
-            ax.fill_between(x, [c.interval.low for _, c in line], [c.interval.high for _, c in line],
-                            color=f"C{i % 10}", alpha=0.2)
-        ax.set_title(short_name(task), fontsize=9)
-        ax.set_xlabel("observed (%)")
-        ax.set_ylim(0, 1.05)
-    axes.flat[0].set_ylabel("F1")
-    axes.flat[0].legend(fontsize=7)
-    return _svg(fig)
+    # Text as text (smaller, selectable) and stable element IDs (same rows, same page).
+    with plt.rc_context({"svg.fonttype": "none", "svg.hashsalt": "grail-bench"}):
+        fig, axes = plt.subplots(1, len(tasks), figsize=(3.4 * len(tasks), 2.8), squeeze=False)
+        for ax, task in zip(axes.flat, tasks):
+            for i, (label, _) in enumerate(section.columns):
+                line = [(lv, cells[(task, lv, label, section.id)]) for lv in levels[task]
+                        if (task, lv, label, section.id) in cells]
+                line = [(lv, c) for lv, c in line if c.record in own]
+                if not line:
+                    continue
+                x = [100 * lv for lv, _ in line]
+                ax.plot(x, [c.mean for _, c in line], marker="o", color=f"C{i % 10}", label=label)
+                ax.fill_between(x, [c.interval.low for _, c in line], [c.interval.high for _, c in line],
+                                color=f"C{i % 10}", alpha=0.2)
+            ax.set_title(short_name(task), fontsize=9)
+            ax.set_xlabel("observed (%)")
+            ax.set_ylim(0, 1.05)
+        axes.flat[0].set_ylabel("F1")
+        axes.flat[0].legend(fontsize=7)
+        return _svg(fig)
 
 
-def _summary(domain: str, sections: list[Section], cells: dict[tuple, Cell], records: list[Record],
+def _summary(domain: str, sections: list[Section], cells: dict[tuple, Cell], records: list[Record], own: set[int],
              reps: int, seed: int) -> dict[str, Any]:
     """IQM per own-scorer column across the domain's (task, protocol, level) strata, and P(improvement)."""
-    from grail_bench.figures import own_scorer_records
-
-    own = {id(r) for r in own_scorer_records(records)}
     strata: dict[str, dict[tuple, list[float]]] = defaultdict(dict)
     for section in sections:
         for row in section.rows:
             for label, _ in section.columns:
                 cell = cells.get((row["task"], row["obs"], label, section.id))
-                if cell is not None and id(records[cell.record]) in own:
+                if cell is not None and cell.record in own:
                     strata[label][(row["task"], section.id, row["obs"])] = records[cell.record]["f1_values"]
     names = sorted(strata)
     iqms = {n: stratified_bootstrap(strata[n], pooled_iqm, reps=reps, seed=seed) for n in names}
@@ -177,6 +176,7 @@ def build_page(rows: Sequence[ResultRow], reference: dict | None = None, ceiling
     """
     from grail_bench.evaluation.ceiling import normalised
     from grail_bench.evaluation.runner import aggregate
+    from grail_bench.figures import own_scorer_records
 
     rows = list(rows)
     records = aggregate(rows)
@@ -219,10 +219,11 @@ def build_page(rows: Sequence[ResultRow], reference: dict | None = None, ceiling
                                  "ceiling": ceiling, "cells": [shown.get(label) for label, _ in section.columns]})
         by_domain[domain].append(section)
         sections.append(section)
+    own = {position[id(r)] for r in own_scorer_records(records)}  # records under their recognizer's own scorer
     for section in sections:
-        section.figure = _figure(section, cells, records)
+        section.figure = _figure(section, cells, own)
 
-    summaries = [_summary(d, by_domain[d], cells, records, reps, seed) for d in sorted(by_domain)]
+    summaries = [_summary(d, by_domain[d], cells, records, own, reps, seed) for d in sorted(by_domain)]
     cell_of = {c.record: c for c in cells.values()}
     exported = []
     for i, r in enumerate(records):
