@@ -181,11 +181,19 @@ def run(
     workers: Optional[int] = typer.Option(None, "--workers", "-w", help=WORKERS_HELP),
     executor: Optional[str] = typer.Option(None, "--executor", "-x", help=EXECUTOR_HELP),
     address: Optional[str] = typer.Option(None, "--address", help=ADDRESS_HELP),
+    online: bool = typer.Option(False, "--online", help="Score every prefix k = 1..T: convergence point, step "
+                                "accuracy, F1 area (no --observability)."),
+    open_set: bool = typer.Option(False, "--open-set", help="Hold one goal out per seed (each in turn) and "
+                                  "measure answering 'none of these' (tasks with 3 or more goals)."),
 ) -> None:
     """Benchmark recognizers on one task; finished seeds in the store are reused."""
     from grail_bench.evaluation.runner import RecognizerSpec, evaluate
-    from grail_bench.leaderboard import build_boards, rich_tables
 
+    if online and open_set:
+        raise fail("choose one of --online and --open-set")
+    if online and observability is not None:
+        raise fail("--online scores every prefix k = 1..T; it takes no --observability")
+    mode = "online" if online else "open-set" if open_set else "offline"
     names = list(dict.fromkeys(recognizer or DEFAULT_RECOGNIZERS))
     if sampling is not None:
         if protocol is not None:
@@ -198,12 +206,30 @@ def run(
             scorers = tuple(dict.fromkeys(scorer or []))
             records = evaluate(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
                                observability=observability, protocol=protocol, rounding=rounding, store=store,
-                               progress=progress, task_params=_parse_params(params or []), executor=chosen)
+                               progress=progress, task_params=_parse_params(params or []), executor=chosen,
+                               mode=mode)
             where = store.path
     except _user_errors() as exc:
         raise fail(str(exc)) from None
     except WorkerLost as exc:
         raise _lost(exc) from None
+    if mode == "offline":
+        _offline_tables(records)
+    else:
+        from grail_bench.reports import ONLINE_TITLE, OPEN_SET_TITLE, online_grid, open_set_grid, rich_table
+
+        grid, title = (online_grid, ONLINE_TITLE) if online else (open_set_grid, OPEN_SET_TITLE)
+        console.print(rich_table(grid(records), title))
+    console.print(f"results stored in {where}", highlight=False)
+    if json_path is not None:
+        json_path.write_text(json.dumps(records, indent=2) + "\n", encoding="utf-8")
+        console.print(f"records written to {json_path}", highlight=False)
+
+
+def _offline_tables(records: list[dict[str, Any]]) -> None:
+    """The paper-style F1 tables (with Bayes ceilings) and the timings of a run."""
+    from grail_bench.leaderboard import build_boards, rich_tables
+
     with console.status("Bayes ceilings (computed once, then cached)"):
         boards = build_boards(records)
     for table in rich_tables(boards):
@@ -217,10 +243,6 @@ def run(
         timing.add_row(name, scorer_name, f"{mine[0]['fit_seconds_per_goal']:.2f}",
                        f"{sum(r['score_us_per_observation'] for r in mine) / len(mine):.0f}")
     console.print(timing)
-    console.print(f"results stored in {where}", highlight=False)
-    if json_path is not None:
-        json_path.write_text(json.dumps(records, indent=2) + "\n", encoding="utf-8")
-        console.print(f"records written to {json_path}", highlight=False)
 
 
 @app.command()
@@ -237,7 +259,10 @@ def leaderboard(
     ceiling_samples: int = typer.Option(2000, min=2, help="Monte Carlo samples of the Bayes ceilings (cached)."),
     no_ceiling: bool = typer.Option(False, "--no-ceiling", help="Do not compute or show Bayes ceilings."),
     ablation: bool = typer.Option(False, "--ablation", help="Compare scorers: F1 and scoring time per scorer."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="With --ablation: also write a PNG plot here."),
+    online: bool = typer.Option(False, "--online", help="The online runs (`run --online`) instead."),
+    open_set: bool = typer.Option(False, "--open-set", help="The open-set runs (`run --open-set`) instead."),
+    plot: Optional[Path] = typer.Option(
+        None, "--plot", help="With --ablation or --online: also write a PNG plot here."),
     html: Optional[Path] = typer.Option(
         None, "--html", help="Also write the leaderboard as a static web page into this folder (index.html)."),
 ) -> None:
@@ -248,9 +273,18 @@ def leaderboard(
 
     from grail_bench.store import default_store_path
 
+    if sum((ablation, online, open_set)) > 1:
+        raise fail("choose one of --ablation, --online and --open-set")
+    if plot is not None and not (ablation or online):
+        raise fail("--plot needs --ablation or --online")
+    if html is not None and (online or open_set):
+        raise fail("--html shows the paper's protocol only; drop --online / --open-set")
     path = store_path or default_store_path()
     if not path.exists():
         raise fail(f"no results store at {path}; run `grail-bench run` first")
+    if online or open_set:
+        _study_board(path, online, task, scorer, protocol, markdown_path, plot)
+        return
     try:
         ref = read_reference(reference) if reference else None
         with _open_store(path) as store:
@@ -298,6 +332,40 @@ def leaderboard(
         except OSError as exc:
             raise fail(f"cannot write {exc.filename}: {exc.strerror}") from None
         console.print(f"web page written to {index}", highlight=False)
+
+
+def _study_board(path: Path, online: bool, task: Optional[List[str]], scorer: Optional[List[str]],
+                 protocol: Optional[List[str]], markdown_path: Optional[Path], plot: Optional[Path]) -> None:
+    """``leaderboard --online`` / ``--open-set``: across-seed tables (and the online plot) from the store."""
+    from grail_bench.evaluation.online import aggregate_online
+    from grail_bench.evaluation.open_set import aggregate_open_set
+    from grail_bench.reports import (ONLINE_INTRO, ONLINE_TITLE, OPEN_SET_INTRO, OPEN_SET_TITLE, markdown_table,
+                                     online_grid, online_plot, open_set_grid, rich_table)
+    from grail_bench.store import OnlineRow, OpenSetRow
+
+    kind, flag = (OnlineRow, "--online") if online else (OpenSetRow, "--open-set")
+    try:
+        with _open_store(path) as store:
+            where = ({"protocol": protocol} if protocol else {}) | ({"task": task} if task else {})
+            rows = [r for r in store.select(kind, **where)
+                    if not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer]
+    except _user_errors() as exc:
+        raise fail(str(exc)) from None
+    if not rows:
+        raise fail(f"no {flag.removeprefix('--')} results in {path} yet; run `grail-bench run {flag}` first")
+    records = (aggregate_online if online else aggregate_open_set)(rows)
+    grid, title, intro = ((online_grid(records), ONLINE_TITLE, ONLINE_INTRO) if online
+                          else (open_set_grid(records), OPEN_SET_TITLE, OPEN_SET_INTRO))
+    console.print(rich_table(grid, title))
+    try:
+        if markdown_path is not None:
+            markdown_path.parent.mkdir(parents=True, exist_ok=True)
+            markdown_path.write_text(markdown_table(grid, title, intro), encoding="utf-8")
+            console.print(f"Markdown written to {markdown_path}", highlight=False)
+        if plot is not None:
+            console.print(f"plot written to {online_plot(records, plot)}", highlight=False)
+    except OSError as exc:
+        raise fail(f"cannot write {exc.filename}: {exc.strerror}") from None
 
 
 @app.command()

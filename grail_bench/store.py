@@ -1,7 +1,11 @@
 """The results store: an embedded SQLite database, the only code that touches it.
 
-One row per (task, recognizer, scorer, config hash, seed, observability,
-observation protocol). Rows are written in one transaction per fitted seed with
+Three tables, one per kind of run: ``results`` (the paper's protocol), one
+:class:`ResultRow` per (task, recognizer, scorer, config hash, seed,
+observability, observation protocol); ``online`` (every prefix scored), one
+:class:`OnlineRow` per (task, recognizer, scorer, config hash, seed, protocol);
+``open_set`` (a goal held out), one :class:`OpenSetRow` per (task, recognizer,
+scorer, config hash, seed, observability, protocol). Rows are written in one transaction per fitted seed with
 ``INSERT OR IGNORE``, in WAL mode with a busy timeout, so an interrupted run
 keeps what it finished and concurrent writers lose nothing.
 
@@ -20,8 +24,9 @@ from typing import Any, Iterable, Sequence
 
 from grail_bench.errors import UserError
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 KEY = ("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol")
+ONLINE_KEY = ("task", "recognizer", "scorer", "config_hash", "seed", "protocol")
 
 
 class StoreError(UserError):
@@ -56,16 +61,82 @@ class ResultRow:
     mean_rank: float | None = None  # mean rank of the true goal, 1 = best (None: stored before)
 
 
+@dataclass(frozen=True)
+class OnlineRow:
+    """Online recognition of one recognizer on one task and seed: every prefix of every test observation scored.
+
+    Per test trajectory the harness records the convergence point (the
+    observed fraction from which the prediction stays correct; 1.0 when it is
+    not correct at the end) and the share of prefixes predicted correctly;
+    the row holds their means over trajectories.
+    """
+
+    task: str
+    recognizer: str
+    scorer: str
+    config_hash: str
+    seed: int
+    protocol: str
+    n_trajectories: int
+    convergence: float  # mean convergence point, a fraction of the observation (1.0 for never)
+    never: float  # share of trajectories whose prediction is wrong after the last step
+    step_accuracy: float  # mean share of prefixes predicted correctly
+    f1_auc: float  # area under macro F1 against the observed fraction, over all prefixes
+    curve: str  # JSON: {"fractions": [...], "accuracy": [...], "f1": [...]} on a fixed grid
+    fit_seconds_per_goal: float
+    score_us_per_prefix: float
+    config: str
+    versions: str
+    provenance: str | None = None
+
+
+@dataclass(frozen=True)
+class OpenSetRow:
+    """Open-set recognition of one recognizer on one task, seed and level: one goal held out of the fit.
+
+    Observations of the held-out goal should be answered "none of these";
+    the decision rule was calibrated on the training demonstrations only.
+    """
+
+    task: str
+    recognizer: str
+    scorer: str
+    config_hash: str
+    seed: int
+    observability: float
+    protocol: str
+    held_out: str  # JSON list: the goal the recognizer was not fitted on
+    auroc: float  # known versus unknown, ranking observations by their best score
+    f1: float  # macro F1 over the known goals and the extra class "none of these"
+    accuracy: float
+    unknown_recall: float  # share of the held-out goal's observations answered "none of these"
+    false_alarm: float  # share of known goals' observations answered "none of these"
+    threshold: float  # the calibrated rule's threshold on the best score
+    n_observations: int
+    fit_seconds_per_goal: float
+    config: str
+    versions: str
+    provenance: str | None = None
+
+
+Row = ResultRow | OnlineRow | OpenSetRow
+TABLES: dict[type, tuple[str, tuple[str, ...]]] = {  # row type -> (table, primary key)
+    ResultRow: ("results", KEY), OnlineRow: ("online", ONLINE_KEY), OpenSetRow: ("open_set", KEY),
+}
 _COLUMNS = [f.name for f in fields(ResultRow)]
 _TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash": "TEXT", "seed": "INTEGER",
           "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
-          "config": "TEXT", "versions": "TEXT", "provenance": "TEXT"}
-_CREATE = (
-    "CREATE TABLE IF NOT EXISTS results ("
-    + ", ".join(f"{c} {_TYPES.get(c, 'REAL')}" + (" NOT NULL" if c in KEY else "") for c in _COLUMNS)
-    + ", created_at TEXT NOT NULL DEFAULT (datetime('now'))"
-    + f", PRIMARY KEY ({', '.join(KEY)}))"
-)
+          "config": "TEXT", "versions": "TEXT", "provenance": "TEXT", "n_trajectories": "INTEGER",
+          "curve": "TEXT", "held_out": "TEXT"}
+
+
+def _create(kind: type) -> str:
+    table, key = TABLES[kind]
+    return (f"CREATE TABLE IF NOT EXISTS {table} ("
+            + ", ".join(f"{f.name} {_TYPES.get(f.name, 'REAL')}" + (" NOT NULL" if f.name in key else "")
+                        for f in fields(kind))
+            + ", created_at TEXT NOT NULL DEFAULT (datetime('now'))"
+            + f", PRIMARY KEY ({', '.join(key)}))")
 
 
 def default_store_path() -> Path:
@@ -106,7 +177,8 @@ class ResultsStore:
                     _migrate_v1(self._conn)
                 if tables and version < SCHEMA_VERSION:
                     _add_missing_columns(self._conn)
-                self._conn.execute(_CREATE)
+                for kind in TABLES:
+                    self._conn.execute(_create(kind))
                 self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
         except sqlite3.Error as exc:
             raise StoreError(f"cannot use results store {self.path}: {exc}") from None
@@ -122,45 +194,55 @@ class ResultsStore:
     def __exit__(self, *exc: Any) -> None:
         self.close()
 
-    def add(self, rows: Iterable[ResultRow]) -> int:
-        """Insert rows in one transaction, ignoring ones already stored.
+    def add(self, rows: Iterable[Row]) -> int:
+        """Insert rows (of any kind, each into its table) in one transaction, ignoring ones already stored.
 
         Returns:
             How many rows were new.
         """
-        rows = list(rows)
-        sql = f"INSERT OR IGNORE INTO results ({', '.join(_COLUMNS)}) VALUES ({', '.join('?' * len(_COLUMNS))})"
+        by_kind: dict[type, list[tuple]] = {}
+        for r in rows:
+            by_kind.setdefault(type(r), []).append(tuple(asdict(r).values()))
         try:
             with self._conn:
                 before = self._conn.total_changes
-                self._conn.executemany(sql, [tuple(asdict(r).values()) for r in rows])
+                for kind, values in by_kind.items():
+                    names = [f.name for f in fields(kind)]
+                    self._conn.executemany(f"INSERT OR IGNORE INTO {TABLES[kind][0]} ({', '.join(names)}) "
+                                           f"VALUES ({', '.join('?' * len(names))})", values)
                 return self._conn.total_changes - before
         except sqlite3.Error as exc:
             raise StoreError(f"cannot write to results store {self.path}: {exc}") from None
 
     def rows(self, **where: Any) -> list[ResultRow]:
-        """Stored rows, optionally filtered by column equality (a list means any of)."""
+        """Stored :class:`ResultRow` rows, optionally filtered by column equality (a list means any of)."""
+        return self.select(ResultRow, **where)
+
+    def select(self, kind: type[Row], **where: Any) -> list[Any]:
+        """Stored rows of one kind (:data:`TABLES`), optionally filtered by column equality (a list means any of)."""
+        columns = [f.name for f in fields(kind)]
         clauses, params = [], []
         for column, value in where.items():
-            if column not in _COLUMNS:
+            if column not in columns:
                 raise ValueError(f"unknown column {column!r}")
             values = list(value) if isinstance(value, (list, tuple, set)) else [value]
             clauses.append(f"{column} IN ({', '.join('?' * len(values))})")
             params += values
-        sql = f"SELECT {', '.join(_COLUMNS)} FROM results"
+        sql = f"SELECT {', '.join(columns)} FROM {TABLES[kind][0]}"
         if clauses:
             sql += " WHERE " + " AND ".join(clauses)
-        sql += " ORDER BY task, recognizer, scorer, observability, seed"
+        sql += " ORDER BY task, recognizer, scorer, " + ("observability, " if "observability" in columns else "") + "seed"
         try:
-            return [ResultRow(*r) for r in self._conn.execute(sql, params)]
+            return [kind(*r) for r in self._conn.execute(sql, params)]
         except sqlite3.Error as exc:
             raise StoreError(f"cannot read results store {self.path}: {exc}") from None
 
-    def completed(self, task: str, recognizer: str, scorer: str, config_hash: str,
-                  protocol: str) -> set[tuple[int, float]]:
-        """``(seed, observability)`` pairs already stored for one configuration."""
-        return {(r.seed, r.observability) for r in
-                self.rows(task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash, protocol=protocol)}
+    def completed(self, task: str, recognizer: str, scorer: str, config_hash: str, protocol: str,
+                  kind: type[Row] = ResultRow) -> set[tuple[int, float | None]]:
+        """``(seed, observability)`` pairs already stored for one configuration (observability ``None`` online)."""
+        return {(r.seed, getattr(r, "observability", None)) for r in
+                self.select(kind, task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash,
+                            protocol=protocol)}
 
 
 def _migrate_v1(conn: sqlite3.Connection) -> None:
@@ -178,7 +260,7 @@ def _migrate_v1(conn: sqlite3.Connection) -> None:
 
 def _add_missing_columns(conn: sqlite3.Connection) -> None:
     """Schema 2 -> 3 -> 4: the columns added since (``provenance``; ``top2``, ``mean_rank``), empty for the rows
-    already stored."""
+    already stored. (Schema 5 only adds tables.)"""
     columns = {r[1] for r in conn.execute("PRAGMA table_info(results)")}
     for name in _COLUMNS:
         if name not in columns:

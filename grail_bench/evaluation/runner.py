@@ -100,13 +100,32 @@ def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
     )
 
 
-def _check_scores(name: str, scores: Any, goals: Sequence[tuple]) -> np.ndarray:
+def check_scores(name: str, scores: Any, goals: Sequence[tuple]) -> np.ndarray:
+    """A recognizer's ``{goal: score}`` as a ``(K,)`` array in the order of ``goals``.
+
+    Raises:
+        RecognizerError: Unless there is one finite score per goal.
+    """
     if not isinstance(scores, Mapping) or {tuple(g) for g in scores} != set(goals):
         raise RecognizerError(f"recognizer {name!r} must return one score per candidate goal {list(goals)}")
     out = np.array([float(scores[g]) for g in goals])
     if not np.all(np.isfinite(out)):
         raise RecognizerError(f"recognizer {name!r} returned a non-finite score: {out.tolist()}")
     return out
+
+
+def fit_recognizer(task: GRTask, planned: Planned, seed: int,
+                   train: Mapping[tuple, Sequence[Any]]) -> tuple[Any, FitReport | None, float]:
+    """A new recognizer of ``planned``, fitted on ``train`` (the goals it is to recognise).
+
+    Returns:
+        ``(recognizer, its fit report, fit seconds per goal)``.
+    """
+    recognizer = make_recognizer(planned.spec.name, **planned.spec.config)
+    start = time.perf_counter()
+    report = recognizer.fit(train, task.env_factory(), seed=seed, cache_key=task.env_key)
+    fit_seconds = report.train_seconds if report is not None else time.perf_counter() - start
+    return recognizer, report, fit_seconds / len(train)
 
 
 def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float], protocol: str,
@@ -134,12 +153,8 @@ def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float],
     chosen = get_protocol(protocol)
     stored_protocol = protocol_label(chosen.name, rounding)
     name = planned.spec.name
-    recognizer = make_recognizer(name, **planned.spec.config)
     train, test = task.split(demos if demos is not None else task.generate_demos(seed))
-    start = time.perf_counter()
-    report = recognizer.fit(train, task.env_factory(), seed=seed, cache_key=task.env_key)
-    fit_seconds = report.train_seconds if report is not None else time.perf_counter() - start
-    fit_per_goal = fit_seconds / len(task.goals)
+    recognizer, report, fit_per_goal = fit_recognizer(task, planned, seed, train)
 
     labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
     rows = []
@@ -153,7 +168,7 @@ def run_seed(task: GRTask, planned: Planned, seed: int, levels: Sequence[float],
                 t0 = time.perf_counter_ns()
                 scores = recognizer.score(observed, score_arg)
                 elapsed_ns += time.perf_counter_ns() - t0
-                values = _check_scores(name, scores, task.goals)
+                values = check_scores(name, scores, task.goals)
                 pred, tied = metrics.predict(values)
                 y_true.append(label)
                 y_pred.append(pred)
@@ -243,6 +258,7 @@ def evaluate(
     progress: bool = False,
     task_params: Mapping[str, Any] | None = None,
     executor: Executor | None = None,
+    mode: str = "offline",
 ) -> list[dict[str, Any]]:
     """Benchmark recognizers on one task.
 
@@ -265,26 +281,40 @@ def evaluate(
             ``{"turn_prob": 0.5}`` or ``{"n_demos": 20, "n_train": 14}``).
         executor: Where the (recognizer, seed) units run
             (:mod:`grail_bench.executors`); in this process if ``None``.
+        mode: ``offline`` (the protocol at each level), ``online`` (every
+            prefix; no ``observability``) or ``open-set`` (one goal held out
+            per seed; at least 3 goals).
 
     Returns:
-        One record per recognizer and observability level (keys: :data:`RECORD_KEYS`).
+        Offline: one record per recognizer, scorer and observability level
+        (keys: :data:`RECORD_KEYS`). Online: one per recognizer and scorer
+        (:func:`~grail_bench.evaluation.online.aggregate_online`). Open set:
+        one per recognizer, scorer and level
+        (:func:`~grail_bench.evaluation.open_set.aggregate_open_set`).
     """
-    from grail_bench.evaluation.sweep import Request, plan_request, run_sweep
+    from grail_bench.evaluation.online import aggregate_online
+    from grail_bench.evaluation.open_set import aggregate_open_set
+    from grail_bench.evaluation.sweep import MODES, Request, plan_request, run_sweep
 
     task = make_task(task_id, **dict(task_params or {}))
-    levels = parse_observability(observability) if observability is not None else task.observability
+    if mode == "online":
+        if observability is not None:
+            raise UserError("online mode scores every prefix k = 1..T; it takes no observability levels")
+        levels: tuple[float, ...] = ()
+    else:
+        levels = parse_observability(observability) if observability is not None else task.observability
     specs = [_spec(r) for r in recognizers]
     if not specs:
         raise UserError("name at least one recognizer")
     request = Request(task.id, tuple(specs), tuple(seed_list(seeds)), tuple(levels),
                       get_protocol(protocol or task.protocol).name,  # maps deprecated names, with a warning
-                      rounding, dict(task_params or {}))
+                      rounding, dict(task_params or {}), mode)
     store = store if store is not None else ResultsStore(":memory:")
-    run_sweep([request], store, executor, progress=progress, description=task.id)
+    run_sweep([request], store, executor, progress=progress, description=f"{task.id} ({mode})")
     planned, _, _ = plan_request(request, store)
     rows = []
     for p in planned:
-        rows += [r for r in store.rows(task=task.id, recognizer=p.spec.name, scorer=list(p.scorers),
-                                       config_hash=p.config_hash, protocol=request.label, seed=list(request.seeds))
-                 if r.observability in levels]
-    return aggregate(rows)
+        rows += [r for r in store.select(MODES[mode], task=task.id, recognizer=p.spec.name, scorer=list(p.scorers),
+                                         config_hash=p.config_hash, protocol=request.label, seed=list(request.seeds))
+                 if getattr(r, "observability", None) in (levels or (None,))]
+    return {"offline": aggregate, "online": aggregate_online, "open-set": aggregate_open_set}[mode](rows)

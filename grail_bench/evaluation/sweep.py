@@ -8,6 +8,11 @@ executor, and their rows come back here, where the driver alone writes them to
 the store as each unit finishes. A unit whose rows are all stored is not run
 again, so an interrupted sweep resumes where it stopped; rows are keyed, so
 nothing is stored twice.
+
+A request's ``mode`` says what a unit measures: ``offline`` (the paper's
+protocol, :func:`~grail_bench.evaluation.runner.run_seed`), ``online`` (every
+prefix, :mod:`grail_bench.evaluation.online`) or ``open-set`` (a goal held
+out, :mod:`grail_bench.evaluation.open_set`).
 """
 
 from __future__ import annotations
@@ -18,12 +23,18 @@ from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from typing import Any, Mapping, Sequence
 
+from grail_bench.errors import UserError
+from grail_bench.evaluation.online import run_online_seed
+from grail_bench.evaluation.open_set import held_out_goal, run_open_set_seed
 from grail_bench.evaluation.protocol import get_protocol, protocol_label
 from grail_bench.evaluation.runner import Planned, RecognizerSpec, plan, run_seed
 from grail_bench.executors import Executor, SerialExecutor
 from grail_bench.provenance import stamp
-from grail_bench.store import ResultRow, ResultsStore, package_versions
+from grail_bench.store import OnlineRow, OpenSetRow, ResultRow, ResultsStore, Row, package_versions
 from grail_bench.task import GRTask, make_task
+
+#: What a unit measures -> the kind of row it stores.
+MODES: dict[str, type] = {"offline": ResultRow, "online": OnlineRow, "open-set": OpenSetRow}
 
 
 @dataclass(frozen=True)
@@ -38,6 +49,7 @@ class Request:
         protocol: Observation protocol name.
         rounding: ``"ceil"`` or ``"floor"``.
         task_params: Task overrides, as ``gym.make`` takes them.
+        mode: ``offline``, ``online`` (no levels: every prefix) or ``open-set``.
     """
 
     task_id: str
@@ -47,6 +59,7 @@ class Request:
     protocol: str
     rounding: str = "ceil"
     task_params: Mapping[str, Any] = field(default_factory=dict)
+    mode: str = "offline"
 
     @property
     def label(self) -> str:
@@ -66,6 +79,7 @@ class Unit:
     protocol: str
     rounding: str
     goals: int
+    mode: str = "offline"
 
     def describe(self) -> str:
         return f"{self.task_id.removeprefix('GRAIL/')} {self.planned.spec.name} seed {self.seed}"
@@ -75,7 +89,7 @@ class Unit:
 class UnitResult:
     """What a worker sends back: the unit's rows and how its models were obtained."""
 
-    rows: list[ResultRow]
+    rows: list[Row]
     trained: int  # models trained by this unit
     reused: int  # models loaded from the cache
 
@@ -121,8 +135,13 @@ def run_unit(unit: Unit) -> UnitResult:
     task = _task(unit.task_id, unit.task_params)
     demos = _demos(unit.task_id, unit.task_params, unit.seed)
     with single_thread():  # as every worker does: the same arithmetic wherever a unit runs
-        rows, report = run_seed(task, unit.planned, unit.seed, unit.levels, unit.protocol, _versions(), demos,
-                                unit.rounding)
+        if unit.mode == "online":
+            rows, report = run_online_seed(task, unit.planned, unit.seed, unit.protocol, _versions(), demos,
+                                           unit.rounding)
+        else:
+            run = run_open_set_seed if unit.mode == "open-set" else run_seed
+            rows, report = run(task, unit.planned, unit.seed, unit.levels, unit.protocol, _versions(), demos,
+                               unit.rounding)
     if report is None:  # a recognizer that reports nothing trained every goal
         return UnitResult(rows, trained=unit.goals, reused=0)
     return UnitResult(rows, trained=report.trained, reused=report.reused)
@@ -144,6 +163,13 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
     """
     task = make_task(request.task_id, **dict(request.task_params))
     get_protocol(request.protocol)
+    if request.mode not in MODES:
+        raise UserError(f"unknown mode {request.mode!r}; choose one of {', '.join(MODES)}")
+    if request.mode == "online" and request.levels:
+        raise UserError("online mode scores every prefix; it takes no observability levels")
+    if request.mode == "open-set":
+        held_out_goal(task.goals, 0)  # refuses tasks with fewer than 3 goals
+    levels = request.levels or (None,)  # an online row has no level
     env = task.make_env()
     action_space = env.action_space
     env.close()
@@ -151,19 +177,20 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
     params = json.dumps(dict(request.task_params), sort_keys=True)
     units, skipped = [], 0
     for p in planned:
-        done = [store.completed(task.id, p.spec.name, scorer, p.config_hash, request.label) for scorer in p.scorers]
+        done = [store.completed(task.id, p.spec.name, scorer, p.config_hash, request.label, MODES[request.mode])
+                for scorer in p.scorers]
         for seed in request.seeds:
-            if all((seed, lv) in d for lv in request.levels for d in done):
+            if all((seed, lv) in d for lv in levels for d in done):
                 skipped += 1
                 continue
             units.append(Unit(task.id, params, p, seed, tuple(request.levels), request.protocol, request.rounding,
-                              len(task.goals)))
+                              len(task.goals) - (request.mode == "open-set"), request.mode))
     return planned, units, skipped
 
 
 def order_units(units: Sequence[Unit]) -> list[Unit]:
     """Seed by seed, each task's recognizers together (a worker reuses the demonstrations it generated)."""
-    return sorted(units, key=lambda u: (u.seed, u.task_id, u.planned.spec.name))
+    return sorted(units, key=lambda u: (u.seed, u.task_id, u.planned.spec.name, u.mode))
 
 
 def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Executor | None = None,

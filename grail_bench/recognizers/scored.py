@@ -45,3 +45,14 @@ class ScoredRecognizer(abc.ABC):
         output, actions = self.policy_output(observed)
         chosen = check_scorer(scorer or self.default_scorer, output.exposes(), self.name)
         return dict(zip(self.goals, chosen.fn(output, actions).tolist()))
+
+    def score_prefixes(self, observed: Any, scorer: str | None = None) -> dict[Goal, np.ndarray]:
+        """Scores of every prefix ``k = 1..T`` of ``observed``, per goal a ``(T,)`` array, from one pass.
+
+        Column ``k - 1`` equals :meth:`score` on the first ``k`` pairs: the
+        policies are evaluated once on all ``T`` states and the scorer's
+        per-step scores are accumulated.
+        """
+        output, actions = self.policy_output(observed)
+        chosen = check_scorer(scorer or self.default_scorer, output.exposes(), self.name)
+        return dict(zip(self.goals, chosen.prefix_scores(output, actions)))

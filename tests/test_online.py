@@ -1,0 +1,211 @@
+"""Online mode: every prefix scored in one pass, equal to offline scoring at the same k; its metrics."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from sklearn.metrics import f1_score
+from typer.testing import CliRunner
+
+import grail_bench
+from grail_bench.cli import app
+from grail_bench.evaluation import evaluate
+from grail_bench.evaluation.online import (
+    GRID, convergence, curves, f1_auc, head, macro_f1, prefix_scores, run_online_seed,
+)
+from grail_bench.evaluation.protocol import observe
+from grail_bench.evaluation.runner import RecognizerSpec, plan, run_seed
+from grail_bench.recognizers import make_recognizer
+from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
+from grail_bench.store import OnlineRow, ResultsStore
+
+from conftest import FAST
+
+TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
+DEMOS = TASK.generate_demos(0)
+TRAIN, TEST = TASK.split(DEMOS)
+
+
+@pytest.mark.parametrize("correct, expected", [
+    ([False, False, True, True], (0.75, True)),
+    ([True, True, True], (1 / 3, True)),
+    ([True, False, True], (1.0, True)),  # right only after the last step: converged at T
+    ([True, True, False], (1.0, False)),  # wrong at the end: never
+    ([False], (1.0, False)),
+    ([True], (1.0, True)),
+])
+def test_convergence_point_of_hand_made_sequences(correct, expected):
+    assert convergence(correct) == pytest.approx(expected)
+
+
+def test_convergence_of_nothing_is_an_error():
+    with pytest.raises(ValueError):
+        convergence([])
+
+
+def test_macro_f1_matches_scikit_learn(rng):
+    for _ in range(50):
+        n = int(rng.integers(2, 7))
+        y_true, y_pred = rng.integers(0, n, size=20), rng.integers(0, n, size=20)
+        expected = f1_score(y_true, y_pred, labels=list(range(n)), average="macro", zero_division=0)
+        assert macro_f1(y_true, y_pred, n) == pytest.approx(expected)
+
+
+def test_f1_area_of_a_hand_made_case():
+    # A (goal 0, T = 2) is wrong after one step and right after two; B (goal 1, T = 1) is always right.
+    # (0, 1/2]: predictions (1, 1), macro F1 = (0 + 2/3) / 2; (1/2, 1]: all right, F1 = 1.
+    predictions, labels = [np.array([1, 0]), np.array([1])], [0, 1]
+    assert f1_auc(predictions, labels, 2) == pytest.approx(0.5 * (1 / 3) + 0.5 * 1.0)
+
+
+def test_f1_area_is_the_limit_of_a_fine_grid(rng):
+    predictions = [rng.integers(0, 3, size=int(rng.integers(1, 12))) for _ in range(15)]
+    labels = rng.integers(0, 3, size=15).tolist()
+    fractions = (np.arange(20000) + 0.5) / 20000
+    for rounding in ("ceil", "floor"):
+        _, f1 = curves(predictions, labels, 3, fractions, rounding)
+        assert f1_auc(predictions, labels, 3, rounding) == pytest.approx(f1.mean(), abs=2e-3)
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    out = {}
+    for name in ("bc", "graql"):
+        out[name] = make_recognizer(name, **FAST[name])
+        out[name].fit(TRAIN, TASK.make_env, seed=0)
+    return out
+
+
+@pytest.mark.parametrize("name, scorers", [("bc", ("mse", "wasserstein", "loglik")),
+                                           ("graql", ("kl", "mse", "loglik"))])
+def test_prefix_scores_equal_scoring_each_prefix(fitted, name, scorers):
+    rec = fitted[name]
+    observed = observe(TEST[TASK.goals[2]][0], 1.0, "prefix")
+    for scorer in scorers:
+        all_prefixes = prefix_scores(rec, observed, scorer, TASK.goals, name)
+        assert all_prefixes.shape == (len(observed.acts), 6)
+        for k in range(1, len(observed.acts) + 1):
+            one = rec.score(head(observed, k), scorer)
+            np.testing.assert_allclose(all_prefixes[k - 1], [one[g] for g in TASK.goals], rtol=1e-5, atol=1e-6)
+
+
+def test_continuous_prefix_scores_equal_scoring_each_prefix():
+    task = grail_bench.make_task("GRAIL/PointMaze-Optimal-v0", n_demos=2, n_train=1)
+    train, test = task.split(task.generate_demos(0))
+    rec = make_recognizer("bc", n_epochs=1)
+    rec.fit(train, task.make_env, seed=0)
+    observed = observe(test[task.goals[0]][0], 0.2, "prefix")
+    for scorer in ("mse", "wasserstein", "loglik"):
+        all_prefixes = prefix_scores(rec, observed, scorer, task.goals, "bc")
+        for k in (1, len(observed.acts) // 2, len(observed.acts)):
+            one = rec.score(head(observed, k), scorer)
+            np.testing.assert_allclose(all_prefixes[k - 1], [one[g] for g in task.goals], rtol=1e-5, atol=1e-6)
+
+
+class Counting:
+    """A plugin-style recognizer without ``score_prefixes``: the harness must score each prefix."""
+
+    name = "counting"
+    config: dict = {}
+    default_scorer = "default"
+    lengths: list = []
+
+    def exposes(self, action_space):
+        return frozenset()
+
+    def fit(self, demos, env_factory, *, seed, cache_key=None):
+        self.goals = list(demos)
+
+    def score(self, observed, scorer=None):
+        Counting.lengths.append(len(observed.acts))
+        return {g: float(i == len(observed.acts) % len(self.goals)) for i, g in enumerate(self.goals)}
+
+
+def test_recognizers_without_prefix_scoring_are_asked_per_prefix():
+    rec = Counting()
+    rec.fit(TRAIN, None, seed=0)
+    Counting.lengths = []
+    observed = observe(TEST[TASK.goals[0]][0], 1.0, "prefix")
+    scores = prefix_scores(rec, observed, None, TASK.goals, "counting")
+    assert Counting.lengths == list(range(1, len(observed.acts) + 1))
+    assert scores.argmax(axis=1).tolist() == [k % 6 for k in range(1, len(observed.acts) + 1)]
+
+
+@pytest.mark.parametrize("protocol, levels", [("prefix", (0.1, 0.3, 0.5, 0.85, 1.0)), ("subset", (1.0,))])
+def test_online_equals_offline_at_the_same_k(protocol, levels):
+    spec = RecognizerSpec("bc", FAST["bc"], ("mse", "loglik"))
+    planned = plan(TASK, spec, TASK.make_env().action_space)
+    offline, _ = run_seed(TASK, planned, 0, levels, protocol, "{}", DEMOS)
+    online, _ = run_online_seed(TASK, planned, 0, protocol, "{}", DEMOS)
+    assert {r.scorer for r in online} == {"mse", "loglik"}
+    for row in online:
+        curve = json.loads(row.curve)
+        for r in (r for r in offline if r.scorer == row.scorer):
+            i = curve["fractions"].index(r.observability)
+            assert curve["f1"][i] == pytest.approx(r.f1, abs=1e-6)
+            assert curve["accuracy"][i] == pytest.approx(r.accuracy, abs=1e-6)
+
+
+def test_online_rows_are_deterministic_and_consistent():
+    spec = RecognizerSpec("graql", FAST["graql"])
+    planned = plan(TASK, spec, TASK.make_env().action_space)
+    timing = ("fit_seconds_per_goal", "score_us_per_prefix")
+    first, second = (run_online_seed(TASK, planned, 1, "subset", "{}")[0] for _ in range(2))
+    strip = [{k: v for k, v in dataclasses.asdict(r).items() if k not in timing} for r in first]
+    assert strip == [{k: v for k, v in dataclasses.asdict(r).items() if k not in timing} for r in second]
+    (row,) = first
+    assert row.n_trajectories == sum(len(t) for t in TEST.values())
+    assert 0 < row.convergence <= 1 and 0 <= row.never <= 1 and 0 <= row.step_accuracy <= 1
+    assert len(json.loads(row.curve)["accuracy"]) == len(GRID)
+
+
+def test_online_runs_are_stored_resumed_and_aggregated(tmp_path):
+    with ResultsStore(tmp_path / "r.sqlite") as store:
+        records = evaluate(TASK.id, [("graql", FAST["graql"])], seeds=2, mode="online", store=store)
+        assert len(store.select(OnlineRow)) == 2 and store.rows() == []
+        again = evaluate(TASK.id, [("graql", FAST["graql"])], seeds=2, mode="online", store=store)
+    assert again == records
+    (record,) = records
+    assert record["n_seeds"] == 2 and record["seeds"] == [0, 1]
+    assert record["accuracy_curve_low"][-1] <= record["accuracy_curve"][-1] <= record["accuracy_curve_high"][-1]
+    assert record["convergence_ci95_low"] <= record["convergence_mean"] <= record["convergence_ci95_high"]
+
+
+def test_online_takes_no_levels():
+    with pytest.raises(grail_bench.UserError, match="no observability"):
+        evaluate(TASK.id, ["bc"], seeds=1, mode="online", observability=[0.3])
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--online", "-o", "0.1,0.3"], "--online scores every prefix"),
+    (["--online", "--open-set"], "choose one of --online and --open-set"),
+    (["--open-set", "--task", "GRAIL/MiniGrid-Biased-v0"], "needs at least 3 candidate goals"),
+])
+def test_bad_combinations_are_one_line_and_exit_2(tmp_path, args, message):
+    store = tmp_path / "r.sqlite"
+    result = CliRunner().invoke(app, ["run", "-r", "bc", "--store", str(store), "--no-progress", *args])
+    assert result.exit_code == 2
+    assert message in result.output and len(result.output.strip().splitlines()) == 1
+    assert not store.exists() or ResultsStore(store).select(OnlineRow) == []
+
+
+def test_cli_online_run_then_leaderboard_plot(tmp_path, monkeypatch):
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path / "cache"))
+    store, plot, md = tmp_path / "r.sqlite", tmp_path / "online.png", tmp_path / "online.md"
+    runner = CliRunner()
+    result = runner.invoke(app, ["run", "-t", TASK.id, "-r", "bc", "--set", "bc.n_epochs=3", "--online",
+                                 "--seeds", "2", "--store", str(store), "--no-progress"])
+    assert result.exit_code == 0, result.output
+    assert "online recognition" in result.output
+    result = runner.invoke(app, ["leaderboard", "--online", "--store", str(store), "--plot", str(plot),
+                                 "--markdown", str(md)])
+    assert result.exit_code == 0, result.output
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "| MiniGrid-Suboptimal-6Goals-v0 | subset | bc/mse | 2 |" in md.read_text()
+    result = runner.invoke(app, ["leaderboard", "--open-set", "--store", str(store)])
+    assert result.exit_code == 2 and "no open-set results" in result.output
+    result = runner.invoke(app, ["leaderboard", "--store", str(store), "--plot", str(plot)])
+    assert result.exit_code == 2 and "--plot needs --ablation or --online" in result.output
