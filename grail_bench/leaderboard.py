@@ -311,17 +311,22 @@ def markdown(boards: list[Board], records: list[dict[str, Any]], ci: bool = Fals
         lines += ["| " + " | ".join(f"**{text}**" if best else text for text, best in cells) + " |"
                   for cells in rows]
         lines.append("")
-    lines += ["## Runs and timings", "",
-              "| task | column | seeds | fit s/goal | score µs/observation | ties |",
-              "|---|---|---|---|---|---|"]
+    lines += ["## Runs, timings and ranking", "",
+              "Top-2: share of observations whose true goal is among the 2 best scored; mean rank of the true",
+              "goal (1 = best); both averaged over levels and protocols (– where rows stored before they were",
+              "recorded take part).", "",
+              "| task | column | seeds | fit s/goal | score µs/observation | ties | top-2 | mean rank |",
+              "|---|---|---|---|---|---|---|---|"]
     for t in timing_rows(records):
+        ranking = " | ".join("–" if t[k] is None else f"{t[k]:.2f}" for k in ("top2", "mean_rank"))
         lines.append(f"| {t['task']} | {t['column']} | {t['seeds']} | {t['fit_seconds_per_goal']:.2f} | "
-                     f"{t['score_us_per_observation']:.0f} | {t['tie_rate']:.1%} |")
+                     f"{t['score_us_per_observation']:.0f} | {t['tie_rate']:.1%} | {ranking} |")
     return "\n".join(lines) + "\n"
 
 
 def timing_rows(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per task and column: seeds, training seconds per goal, scoring µs per observation (mean over levels), tie rate."""
+    """Per task and column: seeds, training seconds per goal, and the means over levels of the scoring µs per
+    observation, tie rate, top-2 accuracy and mean rank (``None`` when a level lacks them)."""
     variants = config_variants(records)
     groups: dict[tuple, list[dict[str, Any]]] = defaultdict(list)
     for r in records:
@@ -330,7 +335,13 @@ def timing_rows(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
              "seeds": same[0]["n_seeds"],
              "fit_seconds_per_goal": same[0]["fit_seconds_per_goal"],
              "score_us_per_observation": sum(x["score_us_per_observation"] for x in same) / len(same),
-             "tie_rate": sum(x["tie_rate"] for x in same) / len(same)} for same in groups.values()]
+             "tie_rate": sum(x["tie_rate"] for x in same) / len(same),
+             **{key: _level_mean(same, f"{key}_mean") for key in ("top2", "mean_rank")}} for same in groups.values()]
+
+
+def _level_mean(records: list[dict[str, Any]], key: str) -> float | None:
+    values = [r.get(key) for r in records]
+    return None if any(v is None for v in values) else sum(values) / len(values)
 
 
 def ablation_rows(records: list[dict[str, Any]]) -> list[dict[str, Any]]:

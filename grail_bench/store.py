@@ -34,14 +34,20 @@ class StoreError(UserError):
 
 
 @dataclass(frozen=True)
-class ResultRow:
-    """Metrics of one recognizer on one task, seed and observability level."""
+class _Run:
+    """What every row is about: one recognizer (its scorer and configuration) on one task and seed."""
 
     task: str
     recognizer: str
     scorer: str
     config_hash: str
     seed: int
+
+
+@dataclass(frozen=True)
+class ResultRow(_Run):
+    """Metrics of one recognizer on one task, seed and observability level."""
+
     observability: float
     protocol: str
     accuracy: float
@@ -62,7 +68,7 @@ class ResultRow:
 
 
 @dataclass(frozen=True)
-class OnlineRow:
+class OnlineRow(_Run):
     """Online recognition of one recognizer on one task and seed: every prefix of every test observation scored.
 
     Per test trajectory the harness records the convergence point (the
@@ -71,11 +77,6 @@ class OnlineRow:
     the row holds their means over trajectories.
     """
 
-    task: str
-    recognizer: str
-    scorer: str
-    config_hash: str
-    seed: int
     protocol: str
     n_trajectories: int
     convergence: float  # mean convergence point, a fraction of the observation (1.0 for never)
@@ -91,18 +92,13 @@ class OnlineRow:
 
 
 @dataclass(frozen=True)
-class OpenSetRow:
+class OpenSetRow(_Run):
     """Open-set recognition of one recognizer on one task, seed and level: one goal held out of the fit.
 
     Observations of the held-out goal should be answered "none of these";
     the decision rule was calibrated on the training demonstrations only.
     """
 
-    task: str
-    recognizer: str
-    scorer: str
-    config_hash: str
-    seed: int
     observability: float
     protocol: str
     held_out: str  # JSON list: the goal the recognizer was not fitted on

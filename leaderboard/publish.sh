@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Regenerates LEADERBOARD.md, site/ (the web page), ABLATION.md and ablation.png from the store the run_*.sh
-# scripts fill.
+# Regenerates LEADERBOARD.md, site/ (the web page), ABLATION.md, ablation.png, ONLINE.md, online.png and
+# OPEN_SET.md from the store the run_*.sh scripts fill.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export GRAIL_BENCH_STORE=leaderboard/results.sqlite COLUMNS=200
@@ -8,3 +8,6 @@ GB=".venv/bin/grail-bench"
 $GB leaderboard --scorer bc/mse --scorer graql/kl --scorer gail/mse --scorer airl/mse --scorer draco/wasserstein \
     --reference grail_bench/paper_reported.csv --markdown leaderboard/LEADERBOARD.md --html leaderboard/site > /dev/null
 $GB leaderboard --ablation --plot leaderboard/ablation.png --markdown leaderboard/ABLATION.md > /dev/null
+# Beyond the paper (leaderboard/run_online.sh): online recognition and open set.
+$GB leaderboard --online --plot leaderboard/online.png --markdown leaderboard/ONLINE.md > /dev/null
+$GB leaderboard --open-set --markdown leaderboard/OPEN_SET.md > /dev/null

@@ -70,3 +70,13 @@ def test_a_recognizer_run_with_two_configurations_gets_a_column_per_setting():
     same = {**longer, "recognizer_config": {"sac_steps": 15000}}
     (board,) = build_boards([default, same], ceiling_samples=None)
     assert board.columns == ["draco/wasserstein [012345]", "draco/wasserstein [abcdef]"]
+
+
+def test_runs_table_shows_ranking_metrics_averaged_over_levels():
+    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", lv, 0.5) | {"top2_mean": t, "mean_rank_mean": m}
+               for lv, t, m in ((0.1, 0.8, 1.6), (0.3, 1.0, 1.2))]
+    records.append(record("GRAIL/MiniGrid-Optimal-v0", "graql", "kl", 0.1, 0.5))  # stored before: no ranking
+    boards = build_boards(records, ceiling_samples=None)
+    text = markdown(boards, records)
+    assert "| GRAIL/MiniGrid-Optimal-v0 | bc/mse | 2 | 1.00 | 10 | 0.0% | 0.90 | 1.40 |" in text
+    assert "| GRAIL/MiniGrid-Optimal-v0 | graql/kl | 2 | 1.00 | 10 | 0.0% | – | – |" in text

@@ -45,7 +45,10 @@ class Recognizer(Protocol):
             a recognizer with its own scoring.
 
     A registered class may also carry ``paper_name``, the method's name in
-    publications (e.g. ``"BC-GRAIL"``), which the leaderboard shows.
+    publications (e.g. ``"BC-GRAIL"``), which the leaderboard shows, and
+    ``score_prefixes(observed, scorer=None) -> {goal: (T,) array}``, the
+    scores of every prefix ``k = 1..T`` at once, which online mode then uses
+    instead of calling :meth:`score` once per prefix.
     """
 
     name: str

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Online and open-set runs behind leaderboard/ONLINE.md, online.png and OPEN_SET.md (see leaderboard/README.md).
+# Every recognizer at its defaults, as in the paper profile, so with the same model cache (GRAIL_BENCH_CACHE)
+# the models of run_minigrid.sh are reused. Both loops resume from the store where they stop.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+GB=".venv/bin/grail-bench"
+RECOGNIZERS="-r bc -r graql -r gail -r airl"
+# Online: every prefix of every test trajectory, each recognizer's own scorer, 10 seeds.
+for t in Optimal Optimal-4Goals Optimal-6Goals Suboptimal Suboptimal-4Goals Suboptimal-6Goals Biased; do
+  $GB run -t GRAIL/MiniGrid-$t-v0 $RECOGNIZERS --online --seeds 10 --workers 2 --no-progress \
+      --store leaderboard/results.sqlite --json leaderboard/results/MiniGrid-$t-online.json
+done
+# Open set: one goal held out per seed (each in turn), the tasks with 4 and 6 goals, their default levels.
+for t in Optimal-4Goals Optimal-6Goals Suboptimal-4Goals Suboptimal-6Goals; do
+  $GB run -t GRAIL/MiniGrid-$t-v0 $RECOGNIZERS --open-set --seeds 10 --workers 2 --no-progress \
+      --store leaderboard/results.sqlite --json leaderboard/results/MiniGrid-$t-open-set.json
+done
