@@ -95,3 +95,25 @@ def test_schema_2_store_gains_provenance_and_keeps_rows(tmp_path):
         assert len(rows) == 3 and all(r.provenance is None for r in rows)
         store.add([dataclasses.replace(row(seed=9), provenance='{"command": ["grail-bench"]}')])
         assert store.rows(seed=9)[0].provenance == '{"command": ["grail-bench"]}'
+
+
+def test_schema_4_store_gains_the_online_and_open_set_tables(tmp_path):
+    from grail_bench.store import OnlineRow, OpenSetRow
+
+    path = tmp_path / "v4.sqlite"
+    with ResultsStore(path) as store:
+        store.add([row(seed=s) for s in range(2)])
+    conn = sqlite3.connect(path)  # make it a schema-4 file: one table
+    conn.execute("DROP TABLE online")
+    conn.execute("DROP TABLE open_set")
+    conn.execute("PRAGMA user_version = 4")
+    conn.commit()
+    conn.close()
+    online = OnlineRow(task="GRAIL/T-v0", recognizer="bc", scorer="mse", config_hash="abc", seed=0, protocol="prefix",
+                       n_trajectories=6, convergence=0.5, never=0.0, step_accuracy=0.7, f1_auc=0.6, curve="{}",
+                       fit_seconds_per_goal=0.1, score_us_per_prefix=1.0, config="{}", versions="{}")
+    with ResultsStore(path) as store:
+        assert len(store.rows()) == 2 and store.select(OnlineRow) == [] and store.select(OpenSetRow) == []
+        assert store.add([online, row(seed=5)]) == 2  # one transaction, each row into its own table
+        assert store.select(OnlineRow) == [online] and len(store.rows()) == 3
+        assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix", OnlineRow) == {(0, None)}
