@@ -271,7 +271,7 @@ def leaderboard(
     from grail_bench.leaderboard import (ablation_markdown, ablation_plot, ablation_rows, ablation_table,
                                          build_boards, markdown, read_reference, rich_tables)
 
-    from grail_bench.store import default_store_path
+    from grail_bench.store import OnlineRow, OpenSetRow, ResultRow, default_store_path
 
     if sum((ablation, online, open_set)) > 1:
         raise fail("choose one of --ablation, --online and --open-set")
@@ -288,9 +288,9 @@ def leaderboard(
     try:
         ref = read_reference(reference) if reference else None
         with _open_store(path) as store:
-            where = ({"protocol": protocol} if protocol else {}) | ({"task": task} if task else {})
-            rows = [r for r in store.rows(**where)
-                    if not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer]
+            rows = _select(store, ResultRow, task, scorer, protocol)
+            studies = ({"online": _select(store, OnlineRow, task, scorer, protocol),
+                        "open_set": _select(store, OpenSetRow, task, scorer, protocol)} if html is not None else {})
             records = aggregate(rows)
     except OSError as exc:
         raise fail(f"cannot read {exc.filename}: {exc.strerror}") from None
@@ -328,10 +328,18 @@ def leaderboard(
 
         try:
             with console.status("web page (bootstrap intervals)"):
-                index = write_site(rows, html, ref, None if no_ceiling else ceiling_samples)[0]
+                index = write_site(rows, html, ref, None if no_ceiling else ceiling_samples, **studies)[0]
         except OSError as exc:
             raise fail(f"cannot write {exc.filename}: {exc.strerror}") from None
         console.print(f"web page written to {index}", highlight=False)
+
+
+def _select(store: Any, kind: type, task: Optional[List[str]], scorer: Optional[List[str]],
+            protocol: Optional[List[str]]) -> list[Any]:
+    """Stored rows of one kind, narrowed by the leaderboard's --task, --scorer and --protocol."""
+    where = ({"protocol": protocol} if protocol else {}) | ({"task": task} if task else {})
+    return [r for r in store.select(kind, **where)
+            if not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer]
 
 
 def _study_board(path: Path, online: bool, task: Optional[List[str]], scorer: Optional[List[str]],
@@ -346,9 +354,7 @@ def _study_board(path: Path, online: bool, task: Optional[List[str]], scorer: Op
     kind, flag = (OnlineRow, "--online") if online else (OpenSetRow, "--open-set")
     try:
         with _open_store(path) as store:
-            where = ({"protocol": protocol} if protocol else {}) | ({"task": task} if task else {})
-            rows = [r for r in store.select(kind, **where)
-                    if not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer]
+            rows = _select(store, kind, task, scorer, protocol)
     except _user_errors() as exc:
         raise fail(str(exc)) from None
     if not rows:

@@ -8,8 +8,9 @@ Markdown.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from rich.table import Table
 
@@ -21,31 +22,63 @@ def _label(record: dict[str, Any]) -> str:
     return f"{record['recognizer']}/{record['scorer']}"
 
 
-def _interval(record: dict[str, Any], key: str, percent: bool = False) -> str:
+def _interval(key: str, percent: bool = False) -> Callable[[dict[str, Any]], str]:
     """``mean [low, high]`` of a record's metric, the interval clipped to [0, 1]."""
-    mean, low, high = (record[f"{key}_{part}"] for part in ("mean", "ci95_low", "ci95_high"))
     fmt = "{:.0%}" if percent else "{:.2f}"
-    return f"{fmt.format(mean)} [{fmt.format(max(low, 0.0))}, {fmt.format(min(high, 1.0))}]"
+
+    def text(record: dict[str, Any]) -> str:
+        mean, low, high = (record[f"{key}_{part}"] for part in ("mean", "ci95_low", "ci95_high"))
+        return f"{fmt.format(mean)} [{fmt.format(max(low, 0.0))}, {fmt.format(min(high, 1.0))}]"
+
+    return text
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of a table: its header, a cell's text and the value it sorts by."""
+
+    header: str
+    text: Callable[[dict[str, Any]], str]
+    value: Callable[[dict[str, Any]], Any]
+
+
+def _task(r: dict[str, Any]) -> str:
+    return r["task"].removeprefix("GRAIL/")
+
+
+_LEAD = [Column("task", _task, _task), Column("protocol", lambda r: r["protocol"], lambda r: r["protocol"])]
+_WHO = [Column("recognizer/scorer", _label, _label), Column("seeds", lambda r: str(r["n_seeds"]), lambda r: r["n_seeds"])]
+ONLINE_COLUMNS = _LEAD + _WHO + [
+    Column("convergence (of T)", _interval("convergence", percent=True), lambda r: r["convergence_mean"]),
+    Column("never", lambda r: f"{r['never_mean']:.0%}", lambda r: r["never_mean"]),
+    Column("step accuracy", _interval("step_accuracy"), lambda r: r["step_accuracy_mean"]),
+    Column("F1 AUC", _interval("f1_auc"), lambda r: r["f1_auc_mean"]),
+    Column("µs / prefix", lambda r: f"{r['score_us_per_prefix']:.1f}", lambda r: r["score_us_per_prefix"]),
+]
+OPEN_SET_COLUMNS = _LEAD + [
+    Column("obs", lambda r: f"{r['observability']:.0%}", lambda r: r["observability"]),
+] + _WHO + [
+    Column("AUROC", _interval("auroc"), lambda r: r["auroc_mean"]),
+    Column("F1 (+ none)", _interval("f1"), lambda r: r["f1_mean"]),
+    Column("accuracy", lambda r: f"{r['accuracy_mean']:.2f}", lambda r: r["accuracy_mean"]),
+    Column("unknown found", lambda r: f"{r['unknown_recall_mean']:.0%}", lambda r: r["unknown_recall_mean"]),
+    Column("false alarms", lambda r: f"{r['false_alarm_mean']:.0%}", lambda r: r["false_alarm_mean"]),
+]
+
+
+def grid(records: Records, columns: list[Column]) -> Grid:
+    """Header and the rows of text of a table (one row per record)."""
+    return [c.header for c in columns], [[c.text(r) for c in columns] for r in records]
 
 
 def online_grid(records: Records) -> Grid:
     """One row per task, protocol, recognizer and scorer."""
-    header = ["task", "protocol", "recognizer/scorer", "seeds", "convergence (of T)", "never", "step accuracy",
-              "F1 AUC", "µs / prefix"]
-    rows = [[r["task"].removeprefix("GRAIL/"), r["protocol"], _label(r), str(r["n_seeds"]),
-             _interval(r, "convergence", percent=True), f"{r['never_mean']:.0%}", _interval(r, "step_accuracy"),
-             _interval(r, "f1_auc"), f"{r['score_us_per_prefix']:.1f}"] for r in records]
-    return header, rows
+    return grid(records, ONLINE_COLUMNS)
 
 
 def open_set_grid(records: Records) -> Grid:
     """One row per task, protocol, level, recognizer and scorer."""
-    header = ["task", "protocol", "obs", "recognizer/scorer", "seeds", "AUROC", "F1 (+ none)", "accuracy",
-              "unknown found", "false alarms"]
-    rows = [[r["task"].removeprefix("GRAIL/"), r["protocol"], f"{r['observability']:.0%}", _label(r),
-             str(r["n_seeds"]), _interval(r, "auroc"), _interval(r, "f1"), f"{r['accuracy_mean']:.2f}",
-             f"{r['unknown_recall_mean']:.0%}", f"{r['false_alarm_mean']:.0%}"] for r in records]
-    return header, rows
+    return grid(records, OPEN_SET_COLUMNS)
 
 
 def rich_table(grid: Grid, title: str) -> Table:
@@ -67,17 +100,17 @@ def markdown_table(grid: Grid, title: str, intro: str) -> str:
 
 ONLINE_TITLE = "online recognition (every prefix scored)"
 ONLINE_INTRO = ("Mean over seeds [95 % interval]. Convergence: the observed fraction from which the prediction "
-                "stays correct (100 % when it is wrong at the end, counted in *never*). Step accuracy: the share "
+                "stays correct (100 % when it is wrong at the end, counted in 'never'). Step accuracy: the share "
                 "of prefixes predicted correctly. F1 AUC: area under macro F1 against the observed fraction.")
 OPEN_SET_TITLE = "open set (one goal held out per seed)"
 OPEN_SET_INTRO = ("Mean over seeds [95 % interval]. AUROC: known against held-out goal, observations ranked by "
-                  "their best score. F1 over the known goals plus *none of these*, answered when the best score "
+                  "their best score. F1 over the known goals plus 'none of these', answered when the best score "
                   "is below the 5 % quantile of the training demonstrations' best scores.")
 
 
-def online_plot(records: Records, path: str | Path) -> Path:
+def online_figure(records: Records) -> Any:
     """Accuracy against the observed fraction, one panel per task and protocol, one line per
-    recognizer/scorer with its 95 % interval over seeds as a band."""
+    recognizer/scorer with its 95 % interval over seeds as a band (a matplotlib figure)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -86,7 +119,7 @@ def online_plot(records: Records, path: str | Path) -> Path:
 
     panels = sorted({(r["task"], r["protocol"]) for r in records})
     labels = sorted({_label(r) for r in records})
-    colours = {label: f"C{i}" for i, label in enumerate(labels)}
+    colours = {label: f"C{i % 10}" for i, label in enumerate(labels)}
     cols = min(3, len(panels))
     rows = -(-len(panels) // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(4.4 * cols, 3.3 * rows), squeeze=False)
@@ -107,6 +140,14 @@ def online_plot(records: Records, path: str | Path) -> Path:
     for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
     fig.tight_layout()
+    return fig
+
+
+def online_plot(records: Records, path: str | Path) -> Path:
+    """:func:`online_figure` written to ``path`` (PNG)."""
+    import matplotlib.pyplot as plt
+
+    fig = online_figure(records)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

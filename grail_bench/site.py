@@ -12,7 +12,8 @@ scorer). Each cell shows the mean F1 over seeds with a 95 % bootstrap interval
 (:mod:`grail_bench.evaluation.robust`); the cells whose intervals overlap the
 best one's are all marked, rather than one winner by a hair. Each domain gets
 an aggregate (IQM with a bootstrap stratified by task and level) and the
-probability of improvement between its recognizers.
+probability of improvement between its recognizers. Online and open-set runs,
+when the store has them, get a table each (and the online accuracy curves).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from grail_bench.evaluation.robust import (
 from grail_bench.leaderboard import (
     MARKS, Board, Reported, build_boards, column_label, config_variants, short_name, timing_rows,
 )
-from grail_bench.store import ResultRow
+from grail_bench.store import OnlineRow, OpenSetRow, ResultRow
 
 Record = dict[str, Any]
 
@@ -163,8 +164,37 @@ def _summary(domain: str, sections: list[Section], cells: dict[tuple, Cell], rec
             "strata": {n: len(strata[n]) for n in names}, "recognizer": recognizer}
 
 
+def _studies(online: Sequence[OnlineRow], open_set: Sequence[OpenSetRow]) -> list[dict[str, Any]]:
+    """The tables (and the online figure) of the runs beyond the paper's protocol, when there are any."""
+    from grail_bench.evaluation.online import aggregate_online
+    from grail_bench.evaluation.open_set import aggregate_open_set
+    from grail_bench import reports
+
+    studies = []
+    for sid, rows, aggregate, columns, title, intro in (
+            ("online", online, aggregate_online, reports.ONLINE_COLUMNS, reports.ONLINE_TITLE, reports.ONLINE_INTRO),
+            ("open-set", open_set, aggregate_open_set, reports.OPEN_SET_COLUMNS, reports.OPEN_SET_TITLE,
+             reports.OPEN_SET_INTRO)):
+        records = aggregate(rows)
+        if not records:
+            continue
+        figure = None
+        if sid == "online":
+            import matplotlib.pyplot as plt
+
+            with plt.rc_context({"svg.fonttype": "none", "svg.hashsalt": "grail-bench"}):
+                figure = _svg(reports.online_figure(records))
+        studies.append({
+            "id": sid, "title": title, "intro": intro, "figure": figure,
+            "header": [(c.header, isinstance(c.value(records[0]), str)) for c in columns],
+            "rows": [{"recognizer": r["recognizer"], "cells": [(c.text(r), c.value(r)) for c in columns]}
+                     for r in records]})
+    return studies
+
+
 def build_page(rows: Sequence[ResultRow], reference: dict | None = None, ceiling_samples: int | None = 2000,
-               reps: int = 2000, seed: int = 0) -> dict[str, Any]:
+               reps: int = 2000, seed: int = 0, online: Sequence[OnlineRow] = (),
+               open_set: Sequence[OpenSetRow] = ()) -> dict[str, Any]:
     """Everything the template shows, from stored rows.
 
     Args:
@@ -173,6 +203,8 @@ def build_page(rows: Sequence[ResultRow], reference: dict | None = None, ceiling
         ceiling_samples: Monte Carlo samples of the Bayes ceilings; None shows none.
         reps: Bootstrap replicates of every interval.
         seed: Seed of every bootstrap (same seed, same page).
+        online: Stored online rows, shown in a table and a figure of their own.
+        open_set: Stored open-set rows, shown in a table of their own.
     """
     from grail_bench.evaluation.ceiling import normalised
     from grail_bench.evaluation.runner import aggregate
@@ -239,6 +271,7 @@ def build_page(rows: Sequence[ResultRow], reference: dict | None = None, ceiling
             "timings": timing_rows(records), "domains": sorted(by_domain),
             "regimes": sorted({s.regime for s in sections}),
             "recognizers": sorted({r["recognizer"] for r in records}), "reps": reps, "seed": seed,
+            "studies": _studies(online, open_set),
             "n_seeds": sorted({r["n_seeds"] for r in records})}
 
 
@@ -262,10 +295,11 @@ def render(page: dict[str, Any], title: str = "grail-bench leaderboard") -> str:
 
 
 def write_site(rows: Iterable[ResultRow], out: str | Path, reference: dict | None = None,
-               ceiling_samples: int | None = 2000, title: str = "grail-bench leaderboard") -> list[Path]:
+               ceiling_samples: int | None = 2000, title: str = "grail-bench leaderboard",
+               online: Sequence[OnlineRow] = (), open_set: Sequence[OpenSetRow] = ()) -> list[Path]:
     """Render the page into ``out`` (``index.html`` and ``records.json``); returns the files written."""
     out = Path(out)
-    page = build_page(list(rows), reference, ceiling_samples)
+    page = build_page(list(rows), reference, ceiling_samples, online=online, open_set=open_set)
     out.mkdir(parents=True, exist_ok=True)
     index, data = out / "index.html", out / "records.json"
     index.write_text(render(page, title), encoding="utf-8")

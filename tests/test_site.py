@@ -16,7 +16,7 @@ from grail_bench.cli import app
 from grail_bench.leaderboard import read_reference
 from grail_bench.reproduce import reference_path
 from grail_bench.site import build_page, render, write_site
-from grail_bench.store import ResultRow, ResultsStore
+from grail_bench.store import OnlineRow, OpenSetRow, ResultRow, ResultsStore
 
 TASKS = {  # task -> levels
     "GRAIL/MiniGrid-Optimal-v0": (0.1, 0.2, 0.3),
@@ -44,6 +44,19 @@ def rows(seeds: int = 5) -> list[ResultRow]:
                                          f1, f1, f1, f1, 6, 0, 1.5, 40.0, "{}", '{"torch": "2.13.0"}',
                                          provenance=STAMP if seed < 3 else None))
     return out
+
+
+def online_rows() -> list[OnlineRow]:
+    curve = json.dumps({"fractions": [0.5, 1.0], "accuracy": [0.5, 0.9], "f1": [0.4, 0.9]})
+    return [OnlineRow("GRAIL/MiniGrid-Optimal-v0", rec, scorer, "h" + rec, seed, "subset", 6, 0.3 + 0.1 * seed,
+                      0.0, acc, acc, curve, 1.0, 5.0, "{}", "{}")
+            for rec, scorer, acc in (("bc", "mse", 0.8), ("graql", "kl", 0.6)) for seed in range(3)]
+
+
+def open_set_rows() -> list[OpenSetRow]:
+    return [OpenSetRow("GRAIL/MiniGrid-Optimal-4Goals-v0", rec, scorer, "h" + rec, seed, 0.3, "subset", "[7, 1]",
+                       auroc, 0.5, 0.5, 0.3, 0.1, -0.2, 12, 1.0, "{}", "{}")
+            for rec, scorer, auroc in (("bc", "mse", 0.6), ("graql", "kl", 0.9)) for seed in range(3)]
 
 
 def n_records(rs: list[ResultRow]) -> int:
@@ -119,6 +132,20 @@ def test_embedded_records_cannot_close_the_script(page):
         assert ref not in html  # nothing loads from the network
 
 
+def test_online_and_open_set_runs_get_tables_of_their_own(page):
+    assert page["studies"] == []  # none stored, none shown
+    with_studies = build_page(rows(seeds=2), ceiling_samples=None, reps=100, online=online_rows(),
+                              open_set=open_set_rows())
+    online, open_set = with_studies["studies"]
+    assert (online["id"], open_set["id"]) == ("online", "open-set")
+    assert [r["recognizer"] for r in online["rows"]] == ["bc", "graql"]  # one row per recognizer over 3 seeds
+    assert online["figure"].startswith("<svg") and open_set["figure"] is None
+    auroc = [h for h, _ in open_set["header"]].index("AUROC")
+    assert [r["cells"][auroc][1] for r in open_set["rows"]] == pytest.approx([0.6, 0.9])
+    html = render(with_studies)
+    assert 'id="online"' in html and 'id="open-set"' in html and 'href="#online"' in html
+
+
 def test_cli_writes_the_page(tmp_path):
     store_path = tmp_path / "r.sqlite"
     with ResultsStore(store_path) as store:
@@ -160,7 +187,8 @@ def browser():
 @pytest.fixture(scope="module")
 def site(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("site")
-    write_site(rows(), out, read_reference(reference_path()), ceiling_samples=None)
+    write_site(rows(), out, read_reference(reference_path()), ceiling_samples=None, online=online_rows(),
+               open_set=open_set_rows())
     return out / "index.html"
 
 
@@ -233,8 +261,24 @@ def test_filters_hide_exactly_what_they_should(browser, site):
     page.select_option("select[name=recognizer]", "graql")
     assert page.locator("td.cell:visible").count() == n_records([r for r in rows() if r.recognizer == "graql"])
     assert page.locator("td.cell[data-recognizer=bc]:visible").count() == 0
+    assert page.locator("section.study tbody tr:visible").count() == 2  # graql's online and open-set rows
+    assert page.locator("section.study tr[data-recognizer=bc]:visible").count() == 0
     page.select_option("select[name=recognizer]", "")
     assert page.locator("td.cell:visible").count() == n_records(rows())
+    assert page.locator("section.study tbody tr:visible").count() == 4
+    assert errors == []
+    page.context.close()
+
+
+def test_online_table_sorts_by_value(browser, site):
+    page, errors, _ = open_page(browser, site)
+    table = page.locator("section#online table")
+    col = table.locator("thead th").all_inner_texts().index("step accuracy")
+    table.locator("thead th").nth(col).click()
+    assert column_values(page, table, col) == pytest.approx([0.8, 0.6])
+    table.locator("thead th").nth(col).click()
+    assert column_values(page, table, col) == pytest.approx([0.6, 0.8])
+    assert page.locator("section#online figure svg").count() == 1
     assert errors == []
     page.context.close()
 
