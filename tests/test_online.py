@@ -14,12 +14,11 @@ import grail_bench
 from grail_bench.cli import app
 from grail_bench.evaluation import evaluate
 from grail_bench.evaluation.online import (
-    GRID, convergence, curves, f1_auc, head, macro_f1, prefix_scores, run_online_seed,
+    GRID, convergence, curves, f1_auc, head, macro_f1, online_metrics, prefix_scores, run_online_seed,
 )
 from grail_bench.evaluation.protocol import observe
 from grail_bench.evaluation.runner import RecognizerSpec, plan, run_seed
 from grail_bench.recognizers import make_recognizer
-from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
 from grail_bench.store import OnlineRow, ResultsStore
 
 from conftest import FAST
@@ -39,6 +38,19 @@ TRAIN, TEST = TASK.split(DEMOS)
 ])
 def test_convergence_point_of_hand_made_sequences(correct, expected):
     assert convergence(correct) == pytest.approx(expected)
+
+
+def test_metrics_of_hand_made_score_sequences():
+    # Two trajectories of goal 0 against 2 goals, scores after each step (rows: k = 1..T).
+    settles = np.array([[0.1, 0.5], [0.4, 0.3], [0.6, 0.2]])  # wrong, right, right: converges at k = 2 of 3
+    flips = np.array([[0.9, 0.1], [0.2, 0.3]])  # right, then wrong at the end: never
+    predictions = [np.argmax(settles, axis=1), np.argmax(flips, axis=1)]
+    m = online_metrics(predictions, [0, 0], 2)
+    assert m["convergence"] == pytest.approx((2 / 3 + 1.0) / 2)
+    assert m["never"] == 0.5
+    assert m["step_accuracy"] == pytest.approx((2 / 3 + 1 / 2) / 2)
+    curve = json.loads(m["curve"])
+    assert curve["accuracy"][curve["fractions"].index(1.0)] == 0.5  # the last predictions: right, wrong
 
 
 def test_convergence_of_nothing_is_an_error():

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import json
 import time
-from typing import TYPE_CHECKING, Any, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -61,7 +61,7 @@ def prefix_scores(recognizer: Any, observed: Trajectory, scorer: str | None, goa
         return np.stack([check_scores(name, recognizer.score(head(observed, k), scorer), goals)
                          for k in range(1, n + 1)])
     scores = recognizer.score_prefixes(observed, scorer)
-    if not isinstance(scores, dict) or {tuple(g) for g in scores} != set(goals):
+    if not isinstance(scores, Mapping) or {tuple(g) for g in scores} != set(goals):
         raise RecognizerError(f"recognizer {name!r} must return prefix scores for every candidate goal {list(goals)}")
     out = np.stack([np.asarray(scores[g], dtype=float) for g in goals], axis=1)
     if out.shape != (n, len(goals)) or not np.all(np.isfinite(out)):

@@ -297,12 +297,10 @@ def evaluate(
     from grail_bench.evaluation.sweep import MODES, Request, plan_request, run_sweep
 
     task = make_task(task_id, **dict(task_params or {}))
-    if mode == "online":
-        if observability is not None:
-            raise UserError("online mode scores every prefix k = 1..T; it takes no observability levels")
-        levels: tuple[float, ...] = ()
+    if observability is not None:
+        levels = parse_observability(observability)  # refused online, when the request is planned
     else:
-        levels = parse_observability(observability) if observability is not None else task.observability
+        levels = () if mode == "online" else task.observability
     specs = [_spec(r) for r in recognizers]
     if not specs:
         raise UserError("name at least one recognizer")
