@@ -283,7 +283,7 @@ def leaderboard(
     if not path.exists():
         raise fail(f"no results store at {path}; run `grail-bench run` first")
     if online or open_set:
-        _study_board(path, online, task, scorer, protocol, markdown_path, plot)
+        _study_board(path, online, task, scorer, protocol, markdown_path, plot, None if no_ceiling else ceiling_samples)
         return
     try:
         ref = read_reference(reference) if reference else None
@@ -343,12 +343,14 @@ def _select(store: Any, kind: type, task: Optional[List[str]], scorer: Optional[
 
 
 def _study_board(path: Path, online: bool, task: Optional[List[str]], scorer: Optional[List[str]],
-                 protocol: Optional[List[str]], markdown_path: Optional[Path], plot: Optional[Path]) -> None:
-    """``leaderboard --online`` / ``--open-set``: across-seed tables (and the online plot) from the store."""
+                 protocol: Optional[List[str]], markdown_path: Optional[Path], plot: Optional[Path],
+                 ceiling_samples: Optional[int]) -> None:
+    """``leaderboard --online`` / ``--open-set``: across-seed tables (and the online plot, with the Bayes
+    ceiling where the task has one) from the store."""
     from grail_bench.evaluation.online import aggregate_online
     from grail_bench.evaluation.open_set import aggregate_open_set
     from grail_bench.reports import (ONLINE_INTRO, ONLINE_TITLE, OPEN_SET_INTRO, OPEN_SET_TITLE, markdown_table,
-                                     online_grid, online_plot, open_set_grid, rich_table)
+                                     online_ceilings, online_grid, online_plot, open_set_grid, rich_table)
     from grail_bench.store import OnlineRow, OpenSetRow
 
     kind, flag = (OnlineRow, "--online") if online else (OpenSetRow, "--open-set")
@@ -369,9 +371,13 @@ def _study_board(path: Path, online: bool, task: Optional[List[str]], scorer: Op
             markdown_path.write_text(markdown_table(grid, title, intro), encoding="utf-8")
             console.print(f"Markdown written to {markdown_path}", highlight=False)
         if plot is not None:
-            console.print(f"plot written to {online_plot(records, plot)}", highlight=False)
+            with console.status("Bayes ceilings (computed once, then cached)"):
+                ceilings = online_ceilings(records, ceiling_samples)
+            console.print(f"plot written to {online_plot(records, plot, ceilings)}", highlight=False)
     except OSError as exc:
         raise fail(f"cannot write {exc.filename}: {exc.strerror}") from None
+    except _user_errors() as exc:
+        raise fail(str(exc)) from None
 
 
 @app.command()

@@ -108,9 +108,14 @@ OPEN_SET_INTRO = ("Mean over seeds [95 % interval]. AUROC: known against held-ou
                   "is below the 5 % quantile of the training demonstrations' best scores.")
 
 
-def online_figure(records: Records) -> Any:
+def online_figure(records: Records, ceilings: dict[tuple[str, str], list[float] | None] | None = None) -> Any:
     """Accuracy against the observed fraction, one panel per task and protocol, one line per
-    recognizer/scorer with its 95 % interval over seeds as a band (a matplotlib figure)."""
+    recognizer/scorer with its 95 % interval over seeds as a band (a matplotlib figure).
+
+    Args:
+        ceilings: Per (task, protocol), the Bayes ceiling at the records' fractions
+            (:func:`grail_bench.evaluation.online.ceiling_curve`), drawn dashed where known.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -132,6 +137,10 @@ def online_figure(records: Records) -> Any:
             ax.plot(x, r["accuracy_curve"], color=colour, label=f"{_label(r)} ({r['n_seeds']} seeds)")
             ax.fill_between(x, np.clip(r["accuracy_curve_low"], 0, 1), np.clip(r["accuracy_curve_high"], 0, 1),
                             color=colour, alpha=0.2)
+        ceiling = (ceilings or {}).get((task, protocol))
+        if ceiling is not None:
+            x = [100 * f for f in next(r for r in records if (r["task"], r["protocol"]) == (task, protocol))["fractions"]]
+            ax.plot(x, ceiling, color="black", linestyle="--", linewidth=1, label="Bayes ceiling")
         ax.set_title(f"{task.removeprefix('GRAIL/')} ({protocol})", fontsize=9)
         ax.set_xlabel("observed (% of the trajectory)")
         ax.set_ylabel("accuracy")
@@ -143,11 +152,22 @@ def online_figure(records: Records) -> Any:
     return fig
 
 
-def online_plot(records: Records, path: str | Path) -> Path:
+def online_ceilings(records: Records, samples: int | None) -> dict[tuple[str, str], list[float] | None]:
+    """The Bayes ceiling curve of every (task, protocol) of online records; none with ``samples=None``."""
+    from grail_bench.evaluation.online import ceiling_curve
+
+    if samples is None:
+        return {}
+    first = {(r["task"], r["protocol"]): r for r in reversed(records)}
+    return {key: ceiling_curve(r, samples) for key, r in sorted(first.items())}
+
+
+def online_plot(records: Records, path: str | Path,
+                ceilings: dict[tuple[str, str], list[float] | None] | None = None) -> Path:
     """:func:`online_figure` written to ``path`` (PNG)."""
     import matplotlib.pyplot as plt
 
-    fig = online_figure(records)
+    fig = online_figure(records, ceilings)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)

@@ -164,7 +164,8 @@ def _summary(domain: str, sections: list[Section], cells: dict[tuple, Cell], rec
             "strata": {n: len(strata[n]) for n in names}, "recognizer": recognizer}
 
 
-def _studies(online: Sequence[OnlineRow], open_set: Sequence[OpenSetRow]) -> list[dict[str, Any]]:
+def _studies(online: Sequence[OnlineRow], open_set: Sequence[OpenSetRow],
+             ceiling_samples: int | None) -> list[dict[str, Any]]:
     """The tables (and the online figure) of the runs beyond the paper's protocol, when there are any."""
     from grail_bench.evaluation.online import aggregate_online
     from grail_bench.evaluation.open_set import aggregate_open_set
@@ -183,7 +184,7 @@ def _studies(online: Sequence[OnlineRow], open_set: Sequence[OpenSetRow]) -> lis
             import matplotlib.pyplot as plt
 
             with plt.rc_context({"svg.fonttype": "none", "svg.hashsalt": "grail-bench"}):
-                figure = _svg(reports.online_figure(records))
+                figure = _svg(reports.online_figure(records, reports.online_ceilings(records, ceiling_samples)))
         studies.append({
             "id": sid, "title": title, "intro": intro, "figure": figure,
             "header": [(c.header, isinstance(c.value(records[0]), str)) for c in columns],
@@ -271,7 +272,7 @@ def build_page(rows: Sequence[ResultRow], reference: dict | None = None, ceiling
             "timings": timing_rows(records), "domains": sorted(by_domain),
             "regimes": sorted({s.regime for s in sections}),
             "recognizers": sorted({r["recognizer"] for r in records}), "reps": reps, "seed": seed,
-            "studies": _studies(online, open_set),
+            "studies": _studies(online, open_set, ceiling_samples),
             "n_seeds": sorted({r["n_seeds"] for r in records})}
 
 

@@ -213,7 +213,7 @@ def test_cli_online_run_then_leaderboard_plot(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     assert "online recognition" in result.output
     result = runner.invoke(app, ["leaderboard", "--online", "--store", str(store), "--plot", str(plot),
-                                 "--markdown", str(md)])
+                                 "--markdown", str(md), "--no-ceiling"])
     assert result.exit_code == 0, result.output
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "| MiniGrid-Suboptimal-6Goals-v0 | subset | bc/mse | 2 |" in md.read_text()
@@ -221,3 +221,15 @@ def test_cli_online_run_then_leaderboard_plot(tmp_path, monkeypatch):
     assert result.exit_code == 2 and "no open-set results" in result.output
     result = runner.invoke(app, ["leaderboard", "--store", str(store), "--plot", str(plot)])
     assert result.exit_code == 2 and "--plot needs --ablation or --online" in result.output
+
+
+def test_ceiling_curve_is_the_prefix_protocols_bayes_ceiling():
+    from grail_bench.evaluation.ceiling import bayes_ceiling
+    from grail_bench.evaluation.online import ceiling_curve
+
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0")
+    record = {"task": task.id, "protocol": "subset", "fractions": [0.1, 0.5, 1.0], "task_params": {}}
+    expected = [bayes_ceiling(task, "prefix", p).accuracy for p in record["fractions"]]
+    assert ceiling_curve(record) == pytest.approx(expected)
+    assert expected[0] < expected[1] <= expected[2] == 1.0
+    assert ceiling_curve(record | {"task": "GRAIL/PandaReach-Optimal-v0"}) is None  # no ceiling there

@@ -25,8 +25,8 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from grail_bench.evaluation import metrics
-from grail_bench.evaluation.protocol import cell_rng, get_protocol, observe, protocol_label
-from grail_bench.evaluation.runner import Planned, check_scores, fit_recognizer
+from grail_bench.evaluation.protocol import cell_rng, get_protocol, observe, parse_label, protocol_label
+from grail_bench.evaluation.runner import Planned, _task_params, check_scores, fit_recognizer
 from grail_bench.recognizers.base import FitReport, RecognizerError
 from grail_bench.store import OnlineRow
 from grail_bench.task import GRTask
@@ -37,6 +37,9 @@ if TYPE_CHECKING:
 
 #: Observed fractions the stored curves are sampled at.
 GRID = tuple(round(0.05 * i, 2) for i in range(1, 21))
+#: For each built-in protocol, the offline protocol whose observation at level ``p`` is the online prefix at ``p``.
+PREFIX_OF = {"subset": "prefix", "prefix": "prefix", "horizon-subset": "horizon-prefix",
+             "horizon-prefix": "horizon-prefix"}
 
 
 def head(observed: Trajectory, k: int) -> Trajectory:
@@ -211,5 +214,29 @@ def aggregate_online(rows: Iterable[OnlineRow]) -> list[dict[str, Any]]:
             record[f"{key}_curve_high"] = [s["ci_high"] for s in per_fraction]
         record["fit_seconds_per_goal"] = float(np.mean([r.fit_seconds_per_goal for r in group]))
         record["score_us_per_prefix"] = float(np.mean([r.score_us_per_prefix for r in group]))
+        record["task_params"] = _task_params(group[0].config)
         records.append(record)
     return records
+
+
+def ceiling_curve(record: dict[str, Any], samples: int = 2000) -> list[float] | None:
+    """The Bayes ceiling of an online record at each of its fractions (cached on disk).
+
+    Online, the first ``n_observed(p, T)`` steps are what the offline prefix
+    protocol of the same span observes at level ``p``, so the ceiling is that
+    protocol's. ``None`` where there is none (other domains, plugin protocols).
+    """
+    from grail_bench.evaluation.ceiling import cached_ceiling
+    from grail_bench.leaderboard import _task
+
+    name, rounding = parse_label(record["protocol"])
+    task = _task(record["task"], record.get("task_params"))
+    if name not in PREFIX_OF or task is None:
+        return None
+    curve = []
+    for fraction in record["fractions"]:
+        ceiling = cached_ceiling(task, protocol_label(PREFIX_OF[name], rounding), fraction, samples=samples)
+        if ceiling is None:
+            return None
+        curve.append(ceiling.accuracy)
+    return curve
