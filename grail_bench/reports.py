@@ -140,7 +140,7 @@ def online_figure(records: Records, ceilings: dict[tuple[str, str], list[float] 
         ceiling = (ceilings or {}).get((task, protocol))
         if ceiling is not None:
             x = [100 * f for f in next(r for r in records if (r["task"], r["protocol"]) == (task, protocol))["fractions"]]
-            ax.plot(x, ceiling, color="black", linestyle="--", linewidth=1, label="Bayes ceiling")
+            ax.plot(x, ceiling, color="black", linestyle="--", linewidth=1, label="Bayes ceiling (bound)")
         ax.set_title(f"{task.removeprefix('GRAIL/')} ({protocol})", fontsize=9)
         ax.set_xlabel("observed (% of the trajectory)")
         ax.set_ylabel("accuracy")
