@@ -67,3 +67,9 @@ def summarize(values: Sequence[float], confidence: float = 0.95) -> dict[str, fl
         return {"mean": mean, "std": 0.0, "ci_low": mean, "ci_high": mean}
     low, high = stats.t.interval(confidence, df=len(x) - 1, loc=mean, scale=std / np.sqrt(len(x)))
     return {"mean": mean, "std": std, "ci_low": float(low), "ci_high": float(high)}
+
+
+def summary_fields(name: str, values: Sequence[float]) -> dict[str, float]:
+    """``{name}_mean``, ``{name}_ci95_low`` and ``{name}_ci95_high`` of :func:`summarize`, as records carry them."""
+    s = summarize(values)
+    return {f"{name}_mean": s["mean"], f"{name}_ci95_low": s["ci_low"], f"{name}_ci95_high": s["ci_high"]}

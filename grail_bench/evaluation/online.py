@@ -202,8 +202,7 @@ def aggregate_online(rows: Iterable[OnlineRow]) -> list[dict[str, Any]]:
         record: dict[str, Any] = {"task": task, "recognizer": rec, "scorer": scorer, "protocol": protocol,
                                   "config_hash": chash, "n_seeds": len(group), "seeds": [r.seed for r in group]}
         for key in ("convergence", "step_accuracy", "f1_auc"):
-            s = metrics.summarize([getattr(r, key) for r in group])
-            record |= {f"{key}_mean": s["mean"], f"{key}_ci95_low": s["ci_low"], f"{key}_ci95_high": s["ci_high"]}
+            record |= metrics.summary_fields(key, [getattr(r, key) for r in group])
         record["never_mean"] = float(np.mean([r.never for r in group]))
         parsed = [json.loads(r.curve) for r in group]
         record["fractions"] = parsed[0]["fractions"]

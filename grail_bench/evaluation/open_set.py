@@ -144,8 +144,7 @@ def aggregate_open_set(rows: Iterable[OpenSetRow]) -> list[dict[str, Any]]:
                                   "seeds": [r.seed for r in group],
                                   "held_out": [json.loads(r.held_out) for r in group]}
         for key in ("auroc", "f1"):
-            s = metrics.summarize([getattr(r, key) for r in group])
-            record |= {f"{key}_mean": s["mean"], f"{key}_ci95_low": s["ci_low"], f"{key}_ci95_high": s["ci_high"]}
+            record |= metrics.summary_fields(key, [getattr(r, key) for r in group])
         for key in ("accuracy", "unknown_recall", "false_alarm"):
             record[f"{key}_mean"] = float(np.mean([getattr(r, key) for r in group]))
         record["fit_seconds_per_goal"] = float(np.mean([r.fit_seconds_per_goal for r in group]))
