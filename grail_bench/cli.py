@@ -371,8 +371,7 @@ def _study_board(path: Path, online: bool, task: Optional[List[str]], scorer: Op
             markdown_path.write_text(markdown_table(grid, title, intro), encoding="utf-8")
             console.print(f"Markdown written to {markdown_path}", highlight=False)
         if plot is not None:
-            with console.status("Bayes ceilings (computed once, then cached)"):
-                ceilings = online_ceilings(records, ceiling_samples)
+            ceilings = online_ceilings(records, ceiling_samples, progress=True)
             console.print(f"plot written to {online_plot(records, plot, ceilings)}", highlight=False)
     except OSError as exc:
         raise fail(f"cannot write {exc.filename}: {exc.strerror}") from None

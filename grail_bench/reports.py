@@ -152,14 +152,24 @@ def online_figure(records: Records, ceilings: dict[tuple[str, str], list[float] 
     return fig
 
 
-def online_ceilings(records: Records, samples: int | None) -> dict[tuple[str, str], list[float] | None]:
-    """The Bayes ceiling curve of every (task, protocol) of online records; none with ``samples=None``."""
+def online_ceilings(records: Records, samples: int | None,
+                    progress: bool = False) -> dict[tuple[str, str], list[float] | None]:
+    """The Bayes ceiling curve of every (task, protocol) of online records; none with ``samples=None``.
+
+    Each level is computed once and cached; a Monte Carlo one takes about 20 s on MiniGrid's suboptimal
+    tasks, so ``progress`` shows a bar.
+    """
+    from rich.progress import Progress
+
     from grail_bench.evaluation.online import ceiling_curve
 
     if samples is None:
         return {}
     first = {(r["task"], r["protocol"]): r for r in reversed(records)}
-    return {key: ceiling_curve(r, samples) for key, r in sorted(first.items())}
+    with Progress(disable=not progress, transient=True) as bar:
+        job = bar.add_task("Bayes ceilings (computed once, then cached)",
+                           total=sum(len(r["fractions"]) for r in first.values()))
+        return {key: ceiling_curve(r, samples, lambda: bar.advance(job)) for key, r in sorted(first.items())}
 
 
 def online_plot(records: Records, path: str | Path,

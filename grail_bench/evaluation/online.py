@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import json
 import time
-from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -218,12 +218,14 @@ def aggregate_online(rows: Iterable[OnlineRow]) -> list[dict[str, Any]]:
     return records
 
 
-def ceiling_curve(record: dict[str, Any], samples: int = 2000) -> list[float] | None:
+def ceiling_curve(record: dict[str, Any], samples: int = 2000,
+                  on_level: Callable[[], None] | None = None) -> list[float] | None:
     """The Bayes ceiling of an online record at each of its fractions (cached on disk).
 
     Online, the first ``n_observed(p, T)`` steps are what the offline prefix
     protocol of the same span observes at level ``p``, so the ceiling is that
     protocol's. ``None`` where there is none (other domains, plugin protocols).
+    ``on_level`` is called after each fraction (for a progress bar).
     """
     from grail_bench.evaluation.ceiling import cached_ceiling
     from grail_bench.leaderboard import _task
@@ -238,4 +240,6 @@ def ceiling_curve(record: dict[str, Any], samples: int = 2000) -> list[float] | 
         if ceiling is None:
             return None
         curve.append(ceiling.accuracy)
+        if on_level is not None:
+            on_level()
     return curve
