@@ -156,7 +156,7 @@ def online_ceilings(records: Records, samples: int | None,
                     progress: bool = False) -> dict[tuple[str, str], list[float] | None]:
     """The Bayes ceiling curve of every (task, protocol) of online records; none with ``samples=None``.
 
-    Each level is computed once and cached; a Monte Carlo one takes about 20 s on MiniGrid's suboptimal
+    Each level is computed once and cached; a Monte Carlo one takes about 5 s on MiniGrid's suboptimal
     tasks, so ``progress`` shows a bar.
     """
     from rich.progress import Progress

@@ -136,13 +136,13 @@ class GoalDemonstrator:
 
     def likelihood(self, observation: Observation, selection: Selection) -> float:
         """Probability that this goal's demonstrator yields ``observation`` under the protocol."""
-        total = 0.0
+        total, matches = 0.0, _matches(observation)
         for path, blocks, pad_pair in self._models:
-            total += self._path_likelihood(path, blocks, pad_pair, observation, selection)
+            total += self._path_likelihood(path, blocks, pad_pair, observation, matches, selection)
         return total / len(self.paths)
 
     def _path_likelihood(self, path: list[int], blocks: list, pad_pair: Pair, obs: Observation,
-                         sel: Selection) -> float:
+                         matches: dict[Pair, np.ndarray], sel: Selection) -> float:
         # a[m, j]: probability mass of demonstrations with m insertions so far, weighted by the number of
         # ways the pairs emitted so far match the first j observed pairs (subset) / match them in full
         # (prefix: j = pairs emitted so far, capped at K).
@@ -151,10 +151,12 @@ class GoalDemonstrator:
         a[0, 0] = 1.0
         share = self.turn_prob / len(self.patterns) if self.patterns else 0.0
         for own, insertions in blocks:
-            nxt = (1.0 - self.turn_prob) * self._emit(a, own, obs, sel.random_subset)
+            nxt = (1.0 - self.turn_prob) * self._emit(a, own, matches, sel.random_subset)
             for pairs in insertions:
-                nxt[1:] += share * self._emit(a, pairs, obs, sel.random_subset)[:-1]
+                nxt[1:] += share * self._emit(a, pairs, matches, sel.random_subset)[:-1]
             a = nxt
+            if not a.any():
+                return 0.0  # a prefix this path cannot emit (subsets never empty the table)
         insertion_len = len(self.patterns[0]) if self.patterns else 0
         out = 0.0
         for m in range(L + 1):
@@ -173,14 +175,23 @@ class GoalDemonstrator:
         return out
 
     @staticmethod
-    def _emit(a: np.ndarray, pairs: list[Pair], obs: Observation, subset: bool) -> np.ndarray:
-        K = len(obs)
+    def _emit(a: np.ndarray, pairs: list[Pair], matches: dict[Pair, np.ndarray], subset: bool) -> np.ndarray:
         for pair in pairs:
-            match = np.array([o == pair for o in obs], dtype=float)
+            match = matches.get(pair)
+            if match is None:  # a pair the observation never shows
+                if not subset:
+                    b = np.zeros_like(a)
+                    b[:, -1] = a[:, -1]
+                    a = b
+                continue
             b = a.copy() if subset else np.zeros_like(a)
             b[:, 1:] += a[:, :-1] * match
             if not subset:
-                b[:, K] += a[:, K]
+                b[:, -1] += a[:, -1]
             a = b
         return a
 
+
+def _matches(obs: Observation) -> dict[Pair, np.ndarray]:
+    """Per distinct observed pair, the indicator of the observed positions that show it."""
+    return {pair: np.array([o == pair for o in obs], dtype=float) for pair in set(obs)}
