@@ -5,7 +5,9 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tempfile
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -119,6 +121,15 @@ def test_renders_in_a_fresh_process_with_a_headless_gl_backend():
         pytest.skip("no EGL on this machine")
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "(480, 480, 3)"
+
+
+def test_envs_leave_no_files_in_the_temp_dir(tmp_path, monkeypatch):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where gymnasium-robotics writes the maze's MJCF
+    env = gym.make("GRAIL/PointMaze-Optimal-v0")
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    env.close()
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_graql_refuses_continuous_states():

@@ -12,6 +12,8 @@ without the library's position noise. Episodes run a fixed horizon
 
 from __future__ import annotations
 
+import contextlib
+import os
 from typing import Any, Sequence
 
 import numpy as np
@@ -53,6 +55,9 @@ class GRPointMazeEnv(Env):
         self.task = None  # set by GRTask.make_env
         self._env = PointMazeEnv(maze_map=self.maze.walls, render_mode=render_mode, reward_type=reward_type,
                                  continuing_task=True, reset_target=False)
+        # The library writes the maze's MJCF to $TMPDIR and never deletes it; MuJoCo has loaded it by now.
+        with contextlib.suppress(OSError):
+            os.remove(self._env.tmp_xml_file_path)
         self._env.position_noise_range = 0.0  # start and goal at their cells' centres
         self._env.point_env.frame_skip = int(action_repeat)
         self._options = {"goal_cell": np.array(self.goal), "reset_cell": np.array(self.start)}
