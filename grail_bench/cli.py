@@ -382,7 +382,7 @@ def _study_board(path: Path, online: bool, task: Optional[List[str]], scorer: Op
 @app.command()
 def reproduce(
     profile: str = typer.Option("quick", "--profile", help="quick (2 seeds, small budgets), paper, or a TOML file."),
-    only: Optional[List[str]] = typer.Option(None, "--only", help="Only this section (minigrid, panda); repeatable."),
+    only: Optional[List[str]] = typer.Option(None, "--only", help="Only this section (minigrid, panda, online, open-set); repeatable."),
     out: Path = typer.Option(..., "--out", help="Folder for the tables, figures and manifest.json."),
     store_path: Optional[Path] = typer.Option(None, "--store", help="Results database (default: OUT/results.sqlite)."),
     workers: Optional[int] = typer.Option(None, "--workers", "-w", help=WORKERS_HELP),
@@ -393,7 +393,7 @@ def reproduce(
     """Run a profile's grid (resuming from the store), then write the paper's tables and figures."""
     from datetime import datetime, timezone
 
-    from grail_bench.evaluation.sweep import run_sweep
+    from grail_bench.evaluation.sweep import MODES, run_sweep
     from grail_bench.provenance import git_commit
     from grail_bench.reproduce import load_profile, manifest, write_outputs
 
@@ -406,7 +406,8 @@ def reproduce(
                 _executor(executor, workers, address) as chosen:
             summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
             meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary, commit)
-            rows = store.rows(task=sorted({r.task_id for r in requests}))
+            tasks = sorted({r.task_id for r in requests})
+            rows = [row for kind in MODES.values() for row in store.select(kind, task=tasks)]
         with console.status("tables, figures and web page"):
             written = write_outputs(rows, chosen_profile, requests, out, meta)
     except _user_errors() as exc:

@@ -1,9 +1,10 @@
 """``grail-bench reproduce``: run a profile's grid, then write the paper's tables, figures and a manifest.
 
 A profile (``grail_bench/profiles/*.toml``, or any TOML file of that shape)
-lists sections (``minigrid``, ``panda``), each with tasks, recognizers,
-scorers and optional task parameters, plus the seeds and recognizer configs
-shared by all. The grid runs through :func:`grail_bench.evaluation.sweep.run_sweep`
+lists sections (``minigrid``, ``panda``, ``online``, ``open-set``), each with
+tasks, recognizers, scorers, optional task parameters and a mode (``offline``,
+the paper's protocol, by default; ``online`` or ``open-set`` for the studies
+beyond it), plus the seeds and recognizer configs shared by all. The grid runs through :func:`grail_bench.evaluation.sweep.run_sweep`
 (resumable through the store), then :func:`write_outputs` renders everything
 (tables, figures, the web page) from the store alone, so the outputs never depend on which units ran now.
 """
@@ -21,8 +22,8 @@ from typing import Any, Mapping, Sequence
 from grail_bench import provenance
 from grail_bench.errors import UserError
 from grail_bench.evaluation.runner import RecognizerSpec
-from grail_bench.evaluation.sweep import Request, SweepSummary
-from grail_bench.store import ResultRow
+from grail_bench.evaluation.sweep import MODES, Request, SweepSummary
+from grail_bench.store import OnlineRow, OpenSetRow, ResultRow
 
 PROFILES = ("quick", "paper")
 
@@ -36,6 +37,7 @@ class Section:
     recognizers: tuple[str, ...]
     scorers: tuple[str, ...] = ()
     params: Mapping[str, Any] = field(default_factory=dict)
+    mode: str = "offline"
 
 
 @dataclass(frozen=True)
@@ -49,7 +51,8 @@ class Profile:
     config: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
     def requests(self, only: Sequence[str] = ()) -> list[Request]:
-        """The sweep's requests: each task's default protocol and levels, every section unless ``only``."""
+        """The sweep's requests: each task's default protocol and levels (online: none), every section unless
+        ``only``."""
         from grail_bench.evaluation.protocol import get_protocol
         from grail_bench.task import make_task
 
@@ -65,8 +68,9 @@ class Profile:
                           for r in section.recognizers)
             for task_id in section.tasks:
                 task = make_task(task_id, **dict(section.params))
-                out.append(Request(task.id, specs, tuple(range(self.seeds)), tuple(task.observability),
-                                   get_protocol(task.protocol).name, "ceil", dict(section.params)))
+                levels = () if section.mode == "online" else tuple(task.observability)
+                out.append(Request(task.id, specs, tuple(range(self.seeds)), levels, get_protocol(task.protocol).name,
+                                   "ceil", dict(section.params), section.mode))
         return out
 
 
@@ -90,13 +94,17 @@ def load_profile(name_or_path: str) -> Profile:
         raise UserError(f"cannot read profile {name_or_path}: {exc}") from None
     try:
         sections = tuple(Section(s["name"], tuple(s["tasks"]), tuple(s["recognizers"]), tuple(s.get("scorers", ())),
-                                 dict(s.get("params", {}))) for s in data["section"])
+                                 dict(s.get("params", {})), str(s.get("mode", "offline"))) for s in data["section"])
         seeds = int(data["seeds"])
         config = {k: dict(v) for k, v in data.get("config", {}).items()}
     except (KeyError, TypeError, ValueError) as exc:
         raise UserError(f"profile {name_or_path}: malformed ({type(exc).__name__}: {exc})") from None
     if seeds < 1 or not sections:
         raise UserError(f"profile {name_or_path}: needs seeds >= 1 and at least one [[section]]")
+    for section in sections:
+        if section.mode not in MODES:
+            raise UserError(f"profile {name_or_path}: section {section.name!r} has mode {section.mode!r}; "
+                            f"choose one of {', '.join(MODES)}")
     return Profile(name, str(data.get("description", "")), seeds, sections, config)
 
 
@@ -129,28 +137,59 @@ def reference_path() -> Path:
     return Path(str(resources.files("grail_bench").joinpath("paper_reported.csv")))
 
 
-def write_outputs(rows: Sequence[ResultRow], profile: Profile, requests: Sequence[Request], out: Path,
-                  meta: dict[str, Any]) -> list[Path]:
-    """Tables, figures, the web page (``site/``) and the manifest into ``out``; returns the files written."""
+def write_outputs(rows: Sequence[ResultRow | OnlineRow | OpenSetRow], profile: Profile, requests: Sequence[Request],
+                  out: Path, meta: dict[str, Any]) -> list[Path]:
+    """Tables, figures, the web page (``site/``) and the manifest into ``out``; returns the files written.
+
+    The paper's tables and figures come from the offline rows; the online rows add ONLINE.md and
+    online.png, the open-set rows OPEN_SET.md. Only rows of the requests' tasks, protocols and modes count.
+    """
     from grail_bench import figures
     from grail_bench.evaluation.runner import aggregate
     from grail_bench.leaderboard import build_boards, markdown, read_reference
     from grail_bench.site import write_site
 
     out.mkdir(parents=True, exist_ok=True)
-    wanted = {(r.task_id, r.label) for r in requests}
-    rows = [r for r in rows if (r.task, r.protocol) in wanted]
-    records = aggregate(rows)
+    wanted = {(r.task_id, r.label, MODES[r.mode]) for r in requests}
+    rows = [r for r in rows if (r.task, r.protocol, type(r)) in wanted]
+    offline, online, open_set = ([r for r in rows if type(r) is kind] for kind in (ResultRow, OnlineRow, OpenSetRow))
     reference = read_reference(reference_path())
-    paper_scorers = figures.own_scorer_records(records)
-    boards = build_boards(paper_scorers, reference)
     title = f"grail-bench reproduce: {profile.name}"
-    written = [out / "TABLES.md"]
-    written[0].write_text(markdown(boards, paper_scorers, ci=True, title=title), encoding="utf-8")
-    written += figures.write_all(records, out, models=model_sizes(records))
-    written += write_site(rows, out / "site", reference, title=title)
+    written: list[Path] = []
+    if offline:
+        records = aggregate(offline)
+        paper_scorers = figures.own_scorer_records(records)
+        boards = build_boards(paper_scorers, reference)
+        written.append(out / "TABLES.md")
+        written[-1].write_text(markdown(boards, paper_scorers, ci=True, title=title), encoding="utf-8")
+        written += figures.write_all(records, out, models=model_sizes(records))
+    written += write_studies(online, open_set, out)
+    written += write_site(offline, out / "site", reference, title=title, online=online, open_set=open_set)
     (out / "manifest.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     written.append(out / "manifest.json")
+    return written
+
+
+def write_studies(online: Sequence[OnlineRow], open_set: Sequence[OpenSetRow], out: Path,
+                  ceiling_samples: int = 2000) -> list[Path]:
+    """ONLINE.md and online.png (with the Bayes ceilings) and OPEN_SET.md, for the kinds of rows given."""
+    from grail_bench import reports
+    from grail_bench.evaluation.online import aggregate_online
+    from grail_bench.evaluation.open_set import aggregate_open_set
+
+    written = []
+    if online:
+        records = aggregate_online(online)
+        written.append(out / "ONLINE.md")
+        written[-1].write_text(reports.markdown_table(reports.online_grid(records), reports.ONLINE_TITLE,
+                                                      reports.ONLINE_INTRO), encoding="utf-8")
+        written.append(reports.online_plot(records, out / "online.png",
+                                           reports.online_ceilings(records, ceiling_samples)))
+    if open_set:
+        records = aggregate_open_set(open_set)
+        written.append(out / "OPEN_SET.md")
+        written[-1].write_text(reports.markdown_table(reports.open_set_grid(records), reports.OPEN_SET_TITLE,
+                                                      reports.OPEN_SET_INTRO), encoding="utf-8")
     return written
 
 

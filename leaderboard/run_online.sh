@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Online and open-set runs behind leaderboard/ONLINE.md, online.png and OPEN_SET.md (see leaderboard/README.md).
 # Every recognizer at its defaults, as in the paper profile, so with the same model cache (GRAIL_BENCH_CACHE)
-# the models of run_minigrid.sh are reused. Both loops resume from the store where they stop.
+# the models of run_minigrid.sh are reused. Both loops resume from the store where they stop. The same units as
+# `grail-bench reproduce --profile paper --only online --only open-set`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 GB=".venv/bin/grail-bench"

@@ -14,7 +14,8 @@ from grail_bench.errors import UserError
 from grail_bench.evaluation.runner import RecognizerSpec
 from grail_bench.evaluation.sweep import Request, plan_request, run_sweep
 from grail_bench.executors import make_executor
-from grail_bench.store import ResultsStore
+from grail_bench.reproduce import load_profile
+from grail_bench.store import OnlineRow, OpenSetRow, ResultsStore
 
 from conftest import install_plugin
 from test_cli import cli
@@ -186,6 +187,46 @@ def test_reproduce_writes_every_table_figure_and_the_manifest(tmp_path):
     assert (out / "site" / "index.html").read_text() == page
 
 
+STUDIES = """
+seeds = 2
+[config.bc]
+n_epochs = 3
+[config.graql]
+episodes = 200
+[[section]]
+name = "online"
+mode = "online"
+tasks = ["GRAIL/MiniGrid-Biased-v0"]
+recognizers = ["bc", "graql"]
+[[section]]
+name = "open-set"
+mode = "open-set"
+tasks = ["GRAIL/MiniGrid-Optimal-4Goals-v0"]
+recognizers = ["bc"]
+"""
+
+
+def test_reproduce_runs_the_online_and_open_set_sections(tmp_path):
+    profile = tmp_path / "studies.toml"
+    profile.write_text(STUDIES)
+    out = tmp_path / "out"
+    result = cli(["reproduce", "--profile", str(profile), "--out", str(out), "--no-progress"], tmp_path)
+    assert result.returncode == 0, result.stderr
+    with ResultsStore(out / "results.sqlite") as store:
+        assert len(store.select(OnlineRow)) == 2 * 2 and len(store.select(OpenSetRow)) == 2 * 3  # 3 levels
+        assert store.rows() == []
+    online, open_set = (out / "ONLINE.md").read_text(), (out / "OPEN_SET.md").read_text()
+    assert "| MiniGrid-Biased-v0 | prefix | bc/mse | 2 |" in online and "graql/kl" in online
+    assert "| MiniGrid-Optimal-4Goals-v0 | subset | 30% | bc/mse | 2 |" in open_set
+    assert (out / "online.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not (out / "TABLES.md").exists()  # no section of the paper's protocol
+    page = (out / "site" / "index.html").read_text()
+    assert 'id="online"' in page and 'id="open-set"' in page
+    only = cli(["reproduce", "--profile", str(profile), "--only", "online", "--out", str(tmp_path / "o2"),
+                "--store", str(out / "results.sqlite"), "--no-progress"], tmp_path)
+    assert only.returncode == 0 and not (tmp_path / "o2" / "OPEN_SET.md").exists()
+
+
 @pytest.mark.parametrize("args, message", [
     (["--profile", "huge"], "unknown profile 'huge'"),
     (["--profile", "quick", "--only", "atari"], "profile 'quick' has no section 'atari'"),
@@ -193,3 +234,19 @@ def test_reproduce_writes_every_table_figure_and_the_manifest(tmp_path):
 def test_reproduce_bad_input_is_one_line(tmp_path, args, message):
     out = cli(["reproduce", "--out", str(tmp_path / "o"), *args], tmp_path)
     assert out.returncode == 2 and message in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("name, units", [("quick", 7 * 4 * 2 + 10 * 4 * 2 + 4 * 2 + 4 * 2),
+                                         ("paper", 7 * 4 * 10 + 10 * 4 * 10 + 7 * 4 * 10 + 4 * 4 * 10)])
+def test_the_shipped_profiles_plan(tmp_path, name, units):
+    with ResultsStore(tmp_path / "r.sqlite") as store:
+        planned = [plan_request(r, store) for r in load_profile(name).requests()]
+    assert sum(len(todo) for _, todo, _ in planned) == units
+
+
+def test_a_profile_section_with_an_unknown_mode_is_one_line(tmp_path):
+    profile = tmp_path / "bad.toml"
+    profile.write_text(STUDIES.replace('mode = "online"', 'mode = "live"'))
+    out = cli(["reproduce", "--profile", str(profile), "--out", str(tmp_path / "o")], tmp_path)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    assert "section 'online' has mode 'live'; choose one of offline, online, open-set" in out.stderr
