@@ -4,7 +4,7 @@ Targets (2-core CPU): BC-GRAIL scores a 30-step observation against 6 goals in
 <= 100 us and fits a goal in <= 1 s; GRAQL fits a goal in <= 10 s and scores
 in <= 100 us. Online mode scores all 30 prefixes of that observation in at
 most twice the time of one full score (compare each ``all_prefixes`` median
-with its ``score`` one).
+with its ``score`` one). One Monte Carlo level of a Bayes ceiling takes <= 10 s.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import pytest
 from imitation.data.types import Trajectory
 
 import grail_bench
+from grail_bench.evaluation.ceiling import bayes_ceiling
 from grail_bench.recognizers import make_recognizer
 from grail_bench.recognizers._torch import single_thread
 
@@ -89,6 +90,12 @@ def test_minigrid_env_step(benchmark):
             env.reset()
 
     benchmark(step)
+
+
+def test_bayes_ceiling_monte_carlo_one_level(benchmark):
+    """One level of the online plot's ceiling on the suboptimal 6-goal task (2000 samples, as by default)."""
+    ceiling = benchmark.pedantic(bayes_ceiling, args=(TASK, "prefix", 0.5), kwargs={"samples": 2000}, rounds=3)
+    assert ceiling.method == "monte-carlo" and 1 / 6 < ceiling.accuracy <= 1
 
 
 # --- scorers side by side (same policies, same observation) ---------------------------------
