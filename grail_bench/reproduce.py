@@ -4,9 +4,10 @@ A profile (``grail_bench/profiles/*.toml``, or any TOML file of that shape)
 lists sections (``minigrid``, ``panda``, ``online``, ``open-set``), each with
 tasks, recognizers, scorers, optional task parameters and a mode (``offline``,
 the paper's protocol, by default; ``online`` or ``open-set`` for the studies
-beyond it), plus the seeds and recognizer configs shared by all. The grid runs through :func:`grail_bench.evaluation.sweep.run_sweep`
-(resumable through the store), then :func:`write_outputs` renders everything
-(tables, figures, the web page) from the store alone, so the outputs never depend on which units ran now.
+beyond it), plus the seeds and recognizer configs shared by all. The grid runs
+through :func:`grail_bench.evaluation.sweep.run_sweep` (resumable through the
+store), then :func:`write_outputs` renders everything (tables, figures, the web
+page) from the store alone, so the outputs never depend on which units ran now.
 """
 
 from __future__ import annotations

@@ -17,3 +17,16 @@ for t in Optimal-4Goals Optimal-6Goals Suboptimal-4Goals Suboptimal-6Goals; do
   $GB run -t GRAIL/MiniGrid-$t-v0 $RECOGNIZERS --open-set --seeds 10 --workers 2 --no-progress \
       --store leaderboard/results.sqlite --json leaderboard/results/MiniGrid-$t-open-set.json
 done
+# PointMaze (gymnasium-robotics), both modes: each method with the seeds of its offline runs in run_point_maze.sh,
+# so the same cache's models serve (BC 5, DRACO 3, GAIL and AIRL 2 seeds; 5 goals, so open set holds out
+# goals 0-4, 0-2 and 0-1 respectively).
+for t in Optimal Biased Noisy-0.1 Noisy-0.3; do
+  for mode in online open-set; do
+    $GB run -t GRAIL/PointMaze-$t-v0 -r bc --seeds 5 --$mode --workers 2 --no-progress \
+        --store leaderboard/results.sqlite --json leaderboard/results/PointMaze-$t-$mode-bc.json
+    $GB run -t GRAIL/PointMaze-$t-v0 -r draco --seeds 3 --$mode --workers 2 --no-progress \
+        --store leaderboard/results.sqlite --json leaderboard/results/PointMaze-$t-$mode-draco.json
+    $GB run -t GRAIL/PointMaze-$t-v0 -r gail -r airl --seeds 2 --$mode --workers 2 --no-progress \
+        --store leaderboard/results.sqlite --json leaderboard/results/PointMaze-$t-$mode-gail-airl.json
+  done
+done
