@@ -137,13 +137,14 @@ def test_make_executor_defaults():
         make_executor("dask")
 
 
-PROFILE = """
-description = "a reduced grid for tests"
+BUDGETS = """
 seeds = 2
 [config.bc]
 n_epochs = 3
 [config.graql]
 episodes = 200
+"""
+PROFILE = 'description = "a reduced grid for tests"' + BUDGETS + """
 [[section]]
 name = "minigrid"
 tasks = ["GRAIL/MiniGrid-Optimal-v0", "GRAIL/MiniGrid-Biased-v0"]
@@ -187,12 +188,7 @@ def test_reproduce_writes_every_table_figure_and_the_manifest(tmp_path):
     assert (out / "site" / "index.html").read_text() == page
 
 
-STUDIES = """
-seeds = 2
-[config.bc]
-n_epochs = 3
-[config.graql]
-episodes = 200
+STUDIES = BUDGETS + """
 [[section]]
 name = "online"
 mode = "online"
