@@ -18,6 +18,7 @@ demo: $(STAMP)
 	$(VENV)/bin/grail-bench run
 
 test: $(STAMP)
+	$(VENV)/bin/lint-imports
 	$(PY) -m pytest
 
 test-fast: $(STAMP)

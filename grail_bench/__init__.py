@@ -3,37 +3,55 @@
 Importing the package registers every ``GRAIL/`` task (idempotently). Members
 that need torch (the evaluation harness, the recognizers) are imported on
 first use, so ``import grail_bench`` stays light.
+
+The package is built in layers, each importing only the layers below it
+(``lint-imports`` checks the contract in ``pyproject.toml``)::
+
+    cli          thin commands: parse, call, map errors
+    report       one table model; terminal, Markdown, HTML, plots; reproduce
+    harness      planning, sweeps, executors, the store, modes, Bayes ceilings
+    recognizers  the contract, registry, scorers and methods   |   domains  one package per domain
+    task         task model, cards, registration, observation protocols, the Domain protocol
+    stats        metrics, robust aggregates, verdicts against reported values
+    core         errors, paths, seeding, plugins, trajectories, cache, provenance, torch/RL helpers
 """
 
 from __future__ import annotations
 
+import importlib
 from typing import Any
 
-from grail_bench.errors import UserError
-from grail_bench.registration import register_envs, task_ids
-from grail_bench.task import GRTask, make_task
+from grail_bench.core.errors import UserError
+from grail_bench.task import GRTask, make_task, register_envs, task_ids
 
 __version__ = "0.1.0"
 __all__ = [
-    "FitReport", "GRTask", "Recognizer", "UserError", "ResultsStore", "__version__", "bayes_ceiling", "evaluate", "make_recognizer", "make_task",
-    "observe", "register_envs", "task_ids",
+    "Capabilities", "Domain", "FitDiagnostics", "FitReport", "GRTask", "GoalModel", "ObservationSpec", "PolicyOutput",
+    "Recognizer", "RecognizerBase", "ResultsStore", "Scorer", "UserError", "__version__", "bayes_ceiling",
+    "evaluate", "make_recognizer", "make_task", "observe", "register_envs", "task_ids",
 ]
 
 _LAZY = {
-    "Recognizer": "grail_bench.recognizers.base",
-    "FitReport": "grail_bench.recognizers.base",
+    "Capabilities": "grail_bench.recognizers.contract",
+    "FitDiagnostics": "grail_bench.recognizers.contract",
+    "FitReport": "grail_bench.recognizers.contract",
+    "Recognizer": "grail_bench.recognizers.contract",
+    "RecognizerBase": "grail_bench.recognizers.contract",
     "make_recognizer": "grail_bench.recognizers.registry",
-    "evaluate": "grail_bench.evaluation.runner",
-    "observe": "grail_bench.evaluation.protocol",
-    "bayes_ceiling": "grail_bench.evaluation.ceiling",
-    "ResultsStore": "grail_bench.store",
+    "PolicyOutput": "grail_bench.recognizers.scoring",
+    "Scorer": "grail_bench.recognizers.scoring",
+    "Domain": "grail_bench.task.domain",
+    "GoalModel": "grail_bench.domains.base",
+    "ObservationSpec": "grail_bench.task.observation",
+    "observe": "grail_bench.task.observation",
+    "evaluate": "grail_bench.harness.api",
+    "bayes_ceiling": "grail_bench.harness.ceiling",
+    "ResultsStore": "grail_bench.harness.store",
 }
 
 
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
-        import importlib
-
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'grail_bench' has no attribute {name!r}")
 

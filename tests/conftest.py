@@ -31,7 +31,8 @@ def install_plugin(root, name: str = "toy", target: str = "toy_recognizer:Lookup
     import shutil
 
     root.mkdir(parents=True, exist_ok=True)
-    shutil.copy(PLUGIN_DIR / "toy_recognizer.py", root / "toy_recognizer.py")
+    for module in ("toy_recognizer.py", "minimal_recognizer.py"):
+        shutil.copy(PLUGIN_DIR / module, root / module)
     dist = root / f"toy_plugin_{root.name}-0.1.dist-info"
     dist.mkdir(exist_ok=True)
     (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: toy-plugin-{root.name}\nVersion: 0.1\n")
@@ -63,3 +64,13 @@ FAST = {
 def _private_cache(tmp_path_factory, monkeypatch):
     """Trained-model caches go to a per-session folder, never the user's."""
     monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+
+
+def run_mode(mode, task, planned, seed, levels, protocol, demos=None, rounding="ceil"):
+    """One seed of a mode's run, as a sweep unit runs it: ``(rows, fit report)``."""
+    from grail_bench.harness.modes import MODES, SeedRun
+    from grail_bench.task.observation import ObservationSpec
+
+    job = SeedRun(task=task, planned=planned, seed=seed, observation=ObservationSpec.resolve(protocol, rounding, levels),
+                  versions="{}", demos=demos if demos is not None else task.generate_demos(seed))
+    return MODES[mode].run(job)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from grail_bench.cache import CacheWarning, cached_state_dict, key_digest
+from grail_bench.core.cache import CacheWarning, cached_state_dict, key_digest
 
 KEY = {"goal": [0.1, 0.1, 0.05], "seed": 0}
 

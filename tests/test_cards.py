@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from grail_bench.cards import CardError, load_cards, parse_card
+from grail_bench.task.cards import CardError, load_cards, parse_card
 
 GOOD = """
 domain = "minigrid"

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 import grail_bench
+from grail_bench.domains import get_domain
 from grail_bench.domains.minigrid.grid import TURN_PATTERNS
 from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
-from grail_bench.evaluation.protocol import Selection
-from grail_bench.domains import get_domain
-from grail_bench.evaluation.ceiling import bayes_ceiling, cached_ceiling, normalised
-from grail_bench.task import GRTask
+from grail_bench.harness.ceiling import bayes_ceiling, cached_ceiling, normalised
+from grail_bench.task.model import GRTask
+from grail_bench.task.observation import Selection
 
 
 def tiny(regime: str = "optimal", **params) -> GRTask:
@@ -82,7 +82,7 @@ def _brute_force_likelihoods(d: GoalDemonstrator, selection: Selection) -> dict:
 def test_likelihood_with_turn_insertions_matches_brute_force(pattern, protocol, level):
     task = tiny("suboptimal", turn_prob=0.4, turn_pattern=pattern)
     task = GRTask(**{**task.__dict__, "env_params": {**task.env_params, "max_steps": 20}})
-    chosen = grail_bench.evaluation.protocol.BUILTIN[protocol]
+    chosen = grail_bench.task.observation.BUILTIN[protocol]
     selection = Selection(horizon=chosen.span == "horizon", random_subset=chosen.random_subset, level=level)
     d = GoalDemonstrator(task, (3, 1))
     brute = _brute_force_likelihoods(d, selection)

@@ -9,12 +9,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import install_plugin
 from typer.testing import CliRunner
 
 import grail_bench
 from grail_bench.cli import app
-
-from conftest import install_plugin
 
 BIN = Path(sys.executable).parent / "grail-bench"
 
@@ -124,7 +123,7 @@ def test_leaderboard_without_results(tmp_path):
     out = cli(["leaderboard"], tmp_path)
     assert out.returncode == 2 and "run `grail-bench run` first" in out.stderr
     assert not (tmp_path / "store.sqlite").exists(), "reading must not create a store"
-    from grail_bench.store import ResultsStore
+    from grail_bench.harness.store import ResultsStore
 
     ResultsStore(tmp_path / "store.sqlite").close()
     out = cli(["leaderboard"], tmp_path)
@@ -181,7 +180,7 @@ def test_protocols_are_listed(tmp_path):
 
 
 def test_ceiling_command_matches_the_library(tmp_path):
-    from grail_bench.evaluation.ceiling import bayes_ceiling
+    from grail_bench.harness.ceiling import bayes_ceiling
 
     path = tmp_path / "ceiling.json"
     out = cli(["ceiling", "-t", "GRAIL/MiniGrid-Optimal-6Goals-v0", "--protocol", "prefix", "--observability",

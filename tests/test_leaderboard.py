@@ -2,14 +2,26 @@
 
 from __future__ import annotations
 
-from grail_bench.leaderboard import Reported, build_boards, markdown, placement_counts
+import dataclasses
+
+from grail_bench.harness.modes.offline import OfflineRecord
+from grail_bench.report import leaderboard
+from grail_bench.report.boards import placement_counts
+from grail_bench.report.reference import Reported
+from grail_bench.report.text import markdown
 
 
-def record(task, rec, scorer, obs, f1, protocol="subset"):
-    return {"task": task, "recognizer": rec, "scorer": scorer, "observability": obs, "f1_mean": f1, "f1_std": 0.1,
-            "protocol": protocol,
-            "config_hash": "abcdef123456", "n_seeds": 2, "fit_seconds_per_goal": 1.0,
-            "score_us_per_observation": 10.0, "tie_rate": 0.0}
+def record(task, rec, scorer, obs, f1, protocol="subset", **fields):
+    base = dict(task=task, recognizer=rec, scorer=scorer, observability=obs, f1_mean=f1, f1_std=0.1,
+                f1_ci95_low=f1 - 0.1, f1_ci95_high=f1 + 0.1, f1_iqm=f1, f1_values=(f1 - 0.1, f1 + 0.1),
+                protocol=protocol, config_hash="abcdef123456", n_seeds=2, seeds=[0, 1], fit_seconds_per_goal=1.0,
+                score_us_per_observation=10.0, tie_rate=0.0, accuracy_mean=f1, precision_mean=f1, recall_mean=f1)
+    return OfflineRecord(**(base | fields))
+
+
+def build_boards(records, reference=None, ceiling_samples=2000):
+    """The boards of records, with the Bayes ceilings (computed through the leaderboard model, as the CLI does)."""
+    return leaderboard.build([], reference, ceiling_samples, records=records).boards
 
 
 def test_tasks_with_equal_goal_counts_get_their_own_rows():
@@ -50,30 +62,30 @@ def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise(
 
 def test_ceilings_use_the_task_parameters_of_the_run():
     plain = record("GRAIL/MiniGrid-Suboptimal-v0", "bc", "mse", 0.2, 0.9, protocol="prefix")
-    no_turns = {**plain, "task_params": {"turn_prob": 0.0}}
+    no_turns = dataclasses.replace(plain, task_params={"turn_prob": 0.0})
     (board,) = build_boards([no_turns], ceiling_samples=50)
     (ceiling,) = board.ceilings.values()
     assert ceiling.method == "exact" and round(ceiling.accuracy, 2) == 0.75  # as the optimal task
-    mixed = [no_turns, {**plain, "recognizer": "graql", "task_params": {"turn_prob": 0.5}}]
+    mixed = [no_turns, dataclasses.replace(plain, recognizer="graql", task_params={"turn_prob": 0.5})]
     (board,) = build_boards(mixed, ceiling_samples=50)
     assert board.ceilings == {}  # runs with different parameters share no ceiling
 
 
 def test_a_recognizer_run_with_two_configurations_gets_a_column_per_setting():
     task = "GRAIL/PandaReach-Gaussian-0.1-v0"
-    default = {**record(task, "draco", "wasserstein", 0.02, 0.5), "recognizer_config": {"sac_steps": 15000}}
-    longer = {**record(task, "draco", "wasserstein", 0.02, 0.8), "config_hash": "0123456789ab",
-              "recognizer_config": {"sac_steps": 60000}}
+    default = record(task, "draco", "wasserstein", 0.02, 0.5, recognizer_config={"sac_steps": 15000})
+    longer = record(task, "draco", "wasserstein", 0.02, 0.8, config_hash="0123456789ab",
+                    recognizer_config={"sac_steps": 60000})
     (board,) = build_boards([default, longer], ceiling_samples=None)
     assert board.columns == ["draco/wasserstein sac_steps=15000", "draco/wasserstein sac_steps=60000"]
     # Same recognizer settings, different task parameters: only the hash tells the runs apart.
-    same = {**longer, "recognizer_config": {"sac_steps": 15000}}
+    same = dataclasses.replace(longer, recognizer_config={"sac_steps": 15000})
     (board,) = build_boards([default, same], ceiling_samples=None)
     assert board.columns == ["draco/wasserstein [012345]", "draco/wasserstein [abcdef]"]
 
 
 def test_runs_table_shows_ranking_metrics_averaged_over_levels():
-    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", lv, 0.5) | {"top2_mean": t, "mean_rank_mean": m}
+    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", lv, 0.5, top2_mean=t, mean_rank_mean=m)
                for lv, t, m in ((0.1, 0.8, 1.6), (0.3, 1.0, 1.2))]
     records.append(record("GRAIL/MiniGrid-Optimal-v0", "graql", "kl", 0.1, 0.5))  # stored before: no ranking
     boards = build_boards(records, ceiling_samples=None)

@@ -7,21 +7,25 @@ import json
 
 import numpy as np
 import pytest
-from sklearn.metrics import f1_score
+from conftest import FAST, run_mode
 from typer.testing import CliRunner
 
 import grail_bench
 from grail_bench.cli import app
-from grail_bench.evaluation import evaluate
-from grail_bench.evaluation.online import (
-    GRID, convergence, curves, f1_auc, head, macro_f1, online_metrics, prefix_scores, run_online_seed,
+from grail_bench.harness.api import evaluate
+from grail_bench.harness.modes.online import (
+    GRID,
+    convergence,
+    curves,
+    f1_auc,
+    head,
+    online_metrics,
+    prefix_scores,
 )
-from grail_bench.evaluation.protocol import observe
-from grail_bench.evaluation.runner import RecognizerSpec, plan, run_seed
-from grail_bench.recognizers import make_recognizer
-from grail_bench.store import OnlineRow, ResultsStore
-
-from conftest import FAST
+from grail_bench.harness.planning import RecognizerSpec, plan
+from grail_bench.harness.store import OnlineRow, ResultsStore
+from grail_bench.recognizers import capabilities, make_recognizer
+from grail_bench.task.observation import observe
 
 TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
 DEMOS = TASK.generate_demos(0)
@@ -58,14 +62,6 @@ def test_convergence_of_nothing_is_an_error():
         convergence([])
 
 
-def test_macro_f1_matches_scikit_learn(rng):
-    for _ in range(50):
-        n = int(rng.integers(2, 7))
-        y_true, y_pred = rng.integers(0, n, size=20), rng.integers(0, n, size=20)
-        expected = f1_score(y_true, y_pred, labels=list(range(n)), average="macro", zero_division=0)
-        assert macro_f1(y_true, y_pred, n) == pytest.approx(expected)
-
-
 def test_f1_area_of_a_hand_made_case():
     # A (goal 0, T = 2) is wrong after one step and right after two; B (goal 1, T = 1) is always right.
     # (0, 1/2]: predictions (1, 1), macro F1 = (0 + 2/3) / 2; (1/2, 1]: all right, F1 = 1.
@@ -97,7 +93,7 @@ def test_prefix_scores_equal_scoring_each_prefix(fitted, name, scorers):
     rec = fitted[name]
     observed = observe(TEST[TASK.goals[2]][0], 1.0, "prefix")
     for scorer in scorers:
-        all_prefixes = prefix_scores(rec, observed, scorer, TASK.goals, name)
+        all_prefixes = prefix_scores(capabilities(rec, name), observed, scorer, TASK.goals)
         assert all_prefixes.shape == (len(observed.acts), 6)
         for k in range(1, len(observed.acts) + 1):
             one = rec.score(head(observed, k), scorer)
@@ -111,7 +107,7 @@ def test_continuous_prefix_scores_equal_scoring_each_prefix():
     rec.fit(train, task.make_env, seed=0)
     observed = observe(test[task.goals[0]][0], 0.2, "prefix")
     for scorer in ("mse", "wasserstein", "loglik"):
-        all_prefixes = prefix_scores(rec, observed, scorer, task.goals, "bc")
+        all_prefixes = prefix_scores(capabilities(rec, "bc"), observed, scorer, task.goals)
         for k in (1, len(observed.acts) // 2, len(observed.acts)):
             one = rec.score(head(observed, k), scorer)
             np.testing.assert_allclose(all_prefixes[k - 1], [one[g] for g in task.goals], rtol=1e-5, atol=1e-6)
@@ -141,7 +137,7 @@ def test_recognizers_without_prefix_scoring_are_asked_per_prefix():
     rec.fit(TRAIN, None, seed=0)
     Counting.lengths = []
     observed = observe(TEST[TASK.goals[0]][0], 1.0, "prefix")
-    scores = prefix_scores(rec, observed, None, TASK.goals, "counting")
+    scores = prefix_scores(capabilities(rec, "counting"), observed, None, TASK.goals)
     assert Counting.lengths == list(range(1, len(observed.acts) + 1))
     assert scores.argmax(axis=1).tolist() == [k % 6 for k in range(1, len(observed.acts) + 1)]
 
@@ -150,8 +146,8 @@ def test_recognizers_without_prefix_scoring_are_asked_per_prefix():
 def test_online_equals_offline_at_the_same_k(protocol, levels):
     spec = RecognizerSpec("bc", FAST["bc"], ("mse", "loglik"))
     planned = plan(TASK, spec, TASK.make_env().action_space)
-    offline, _ = run_seed(TASK, planned, 0, levels, protocol, "{}", DEMOS)
-    online, _ = run_online_seed(TASK, planned, 0, protocol, "{}", DEMOS)
+    offline, _ = run_mode("offline", TASK, planned, 0, levels, protocol, DEMOS)
+    online, _ = run_mode("online", TASK, planned, 0, (), protocol, DEMOS)
     assert {r.scorer for r in online} == {"mse", "loglik"}
     for row in online:
         curve = json.loads(row.curve)
@@ -165,7 +161,7 @@ def test_online_rows_are_deterministic_and_consistent():
     spec = RecognizerSpec("graql", FAST["graql"])
     planned = plan(TASK, spec, TASK.make_env().action_space)
     timing = ("fit_seconds_per_goal", "score_us_per_prefix")
-    first, second = (run_online_seed(TASK, planned, 1, "subset", "{}")[0] for _ in range(2))
+    first, second = (run_mode("online", TASK, planned, 1, (), "subset")[0] for _ in range(2))
     strip = [{k: v for k, v in dataclasses.asdict(r).items() if k not in timing} for r in first]
     assert strip == [{k: v for k, v in dataclasses.asdict(r).items() if k not in timing} for r in second]
     (row,) = first
@@ -181,9 +177,9 @@ def test_online_runs_are_stored_resumed_and_aggregated(tmp_path):
         again = evaluate(TASK.id, [("graql", FAST["graql"])], seeds=2, mode="online", store=store)
     assert again == records
     (record,) = records
-    assert record["n_seeds"] == 2 and record["seeds"] == [0, 1]
-    assert record["accuracy_curve_low"][-1] <= record["accuracy_curve"][-1] <= record["accuracy_curve_high"][-1]
-    assert record["convergence_ci95_low"] <= record["convergence_mean"] <= record["convergence_ci95_high"]
+    assert record.n_seeds == 2 and record.seeds == [0, 1]
+    assert record.accuracy_curve_low[-1] <= record.accuracy_curve[-1] <= record.accuracy_curve_high[-1]
+    assert record.convergence_ci95_low <= record.convergence_mean <= record.convergence_ci95_high
 
 
 def test_online_takes_no_levels():
@@ -224,12 +220,12 @@ def test_cli_online_run_then_leaderboard_plot(tmp_path, monkeypatch):
 
 
 def test_ceiling_curve_is_the_prefix_protocols_bayes_ceiling():
-    from grail_bench.evaluation.ceiling import bayes_ceiling
-    from grail_bench.evaluation.online import ceiling_curve
+    from grail_bench.harness.ceiling import bayes_ceiling, ceiling_curve
 
     task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0")
-    record = {"task": task.id, "protocol": "subset", "fractions": [0.1, 0.5, 1.0], "task_params": {}}
-    expected = [bayes_ceiling(task, "prefix", p).accuracy for p in record["fractions"]]
-    assert ceiling_curve(record) == pytest.approx(expected)
+    fractions = [0.1, 0.5, 1.0]
+    expected = [bayes_ceiling(task, "prefix", p).accuracy for p in fractions]
+    assert ceiling_curve(task, "subset", fractions) == pytest.approx(expected)
     assert expected[0] < expected[1] <= expected[2] == 1.0
-    assert ceiling_curve(record | {"task": "GRAIL/PandaReach-Optimal-v0"}) is None  # no ceiling there
+    panda = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0")
+    assert ceiling_curve(panda, "subset", fractions) is None  # no ceiling there

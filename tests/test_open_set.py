@@ -7,17 +7,16 @@ import json
 
 import numpy as np
 import pytest
+from conftest import FAST, run_mode
 from typer.testing import CliRunner
 
 import grail_bench
 from grail_bench.cli import app
-from grail_bench.evaluation import evaluate
-from grail_bench.evaluation.open_set import held_out_goal, open_set_metrics, run_open_set_seed
-from grail_bench.evaluation.runner import RecognizerSpec, plan
+from grail_bench.harness.api import evaluate
+from grail_bench.harness.modes.open_set import held_out_goal, open_set_metrics
+from grail_bench.harness.planning import RecognizerSpec, plan
+from grail_bench.harness.store import OpenSetRow, ResultsStore
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
-from grail_bench.store import OpenSetRow, ResultsStore
-
-from conftest import FAST
 
 TASK = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0")
 
@@ -82,7 +81,7 @@ def _planned(name, config=None):
 
 def test_the_held_out_goal_is_never_fitted_but_is_tested(spy):
     demos = TASK.generate_demos(2)
-    rows, _ = run_open_set_seed(TASK, _planned("open-spy"), 2, (0.5,), "subset", "{}", demos)
+    rows, _ = run_mode("open-set", TASK, _planned("open-spy"), 2, (0.5,), "subset", demos)
     hidden = TASK.goals[2]
     assert spy.fitted == [sorted(g for g in TASK.goals if g != hidden)]
     (row,) = rows
@@ -91,7 +90,7 @@ def test_the_held_out_goal_is_never_fitted_but_is_tested(spy):
 
 
 def test_calibration_never_sees_test_trajectories(spy, monkeypatch):
-    from grail_bench.evaluation import open_set
+    from grail_bench.harness.modes import open_set
 
     given = []
     real = open_set.calibrate
@@ -103,7 +102,7 @@ def test_calibration_never_sees_test_trajectories(spy, monkeypatch):
     monkeypatch.setattr(open_set, "calibrate", recording)
     demos = TASK.generate_demos(0)
     train, test = TASK.split(demos)
-    rows, _ = run_open_set_seed(TASK, _planned("open-spy"), 0, (0.3, 1.0), "subset", "{}", demos)
+    rows, _ = run_mode("open-set", TASK, _planned("open-spy"), 0, (0.3, 1.0), "subset", demos)
     assert len(given) == 2  # once per level
     for calibration in given:  # only the known goals' training demonstrations
         assert set(calibration) == set(TASK.goals[1:])
@@ -111,7 +110,7 @@ def test_calibration_never_sees_test_trajectories(spy, monkeypatch):
     # Swapping every test trajectory for another seed's changes the test, never the threshold.
     other_test = TASK.split(TASK.generate_demos(5))[1]
     swapped = {g: list(train[g]) + list(other_test[g]) for g in TASK.goals}
-    again, _ = run_open_set_seed(TASK, _planned("open-spy"), 0, (0.3, 1.0), "subset", "{}", swapped)
+    again, _ = run_mode("open-set", TASK, _planned("open-spy"), 0, (0.3, 1.0), "subset", swapped)
     assert [r.threshold for r in rows] == [r.threshold for r in again]
     assert [r.auroc for r in rows] != [r.auroc for r in again]
 
@@ -124,12 +123,12 @@ def test_open_set_runs_are_deterministic_and_stored(tmp_path):
         rows = store.select(OpenSetRow)
     assert len(rows) == 8  # 4 seeds x 2 levels
     assert sorted({r.held_out for r in rows}) == sorted(json.dumps(list(g)) for g in TASK.goals)
-    again, _ = run_open_set_seed(TASK, _planned("bc", FAST["bc"]), 0, (0.3, 1.0), "subset", "{}")
+    again, _ = run_mode("open-set", TASK, _planned("bc", FAST["bc"]), 0, (0.3, 1.0), "subset")
     first = [r for r in rows if r.seed == 0]
     strip = lambda r: {k: v for k, v in dataclasses.asdict(r).items() if k not in timing + ("provenance", "versions")}  # noqa: E731
     assert [strip(r) for r in first] == [strip(r) for r in again]
     for record in records:
-        assert record["n_seeds"] == 4 and 0 <= record["auroc_mean"] <= 1 and 0 <= record["f1_mean"] <= 1
+        assert record.n_seeds == 4 and 0 <= record.auroc_mean <= 1 and 0 <= record.f1_mean <= 1
 
 
 def test_cli_open_set_run_and_leaderboard(tmp_path, monkeypatch):

@@ -9,7 +9,7 @@ from scipy import stats
 import grail_bench
 from grail_bench.domains.panda_reach.demos import scripted_expert
 from grail_bench.domains.panda_reach.env import ALIGNED_GOALS, GOALS, GRPandaReachEnv
-from grail_bench.evaluation import evaluate
+from grail_bench.harness.api import evaluate
 
 PANDA_IDS = [t for t in grail_bench.task_ids() if t.startswith("GRAIL/PandaReach")]
 
@@ -144,17 +144,17 @@ def test_sac_expert_reaches_its_goal():
 def test_end_to_end_bc_beats_chance_with_scripted_expert():
     records = evaluate("GRAIL/PandaReach-Gaussian-0.1-v0", [("bc", {"n_epochs": 5}), ("draco", {"sac_steps": 300})],
                        seeds=1, task_params={"expert": "scripted", "n_demos": 12, "n_train": 8})
-    bc = next(r for r in records if r["recognizer"] == "bc")
-    assert bc["f1_mean"] > 0.5  # chance is 0.25
-    draco = next(r for r in records if r["recognizer"] == "draco")
-    assert draco["scorer"] == "wasserstein" and 0 <= draco["f1_mean"] <= 1
+    bc = next(r for r in records if r.recognizer == "bc")
+    assert bc.f1_mean > 0.5  # chance is 0.25
+    draco = next(r for r in records if r.recognizer == "draco")
+    assert draco.scorer == "wasserstein" and 0 <= draco.f1_mean <= 1
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["gail", "airl"])
 def test_adversarial_grail_runs_on_continuous_actions(name):
     from grail_bench.recognizers import make_recognizer
-    from grail_bench.evaluation.protocol import observe
+    from grail_bench.task.observation import observe
 
     task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", expert="scripted", n_demos=6, n_train=4)
     train, test = task.split(task.generate_demos(seed=0))
@@ -171,10 +171,10 @@ def test_corrupt_cache_is_one_line_in_the_cli(tmp_path):
     import subprocess
     import sys
 
-    from grail_bench.cache import cached_state_dict
+    from grail_bench.core.cache import cached_state_dict
 
-    code = ("import warnings, torch\nfrom grail_bench.cli import _one_line_warnings\n_one_line_warnings()\n"
-            "from grail_bench.cache import cached_state_dict\n"
+    code = ("import warnings, torch\nfrom grail_bench.cli.inputs import one_line_warnings\none_line_warnings()\n"
+            "from grail_bench.core.cache import cached_state_dict\n"
             f"cached_state_dict('m', {{'k': 1}}, lambda: {{'w': torch.ones(1)}}, root=__import__('pathlib').Path({str(tmp_path)!r}))\n")
     cached_state_dict("m", {"k": 1}, lambda: {"w": __import__("torch").ones(1)}, root=tmp_path)
     for f in (tmp_path / "m").glob("*.pt"):

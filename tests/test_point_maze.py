@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 import grail_bench
+from grail_bench.core.trajectory import goal_horizon
 from grail_bench.domains.point_maze.demos import route_controller
 from grail_bench.domains.point_maze.maze import Maze, biased_route, shortest_routes
-from grail_bench.evaluation import evaluate
-from grail_bench.trajectory import goal_horizon
+from grail_bench.harness.api import evaluate
 
 IDS = ["GRAIL/PointMaze-Optimal-v0", "GRAIL/PointMaze-Biased-v0", "GRAIL/PointMaze-Noisy-0.1-v0",
        "GRAIL/PointMaze-Noisy-0.3-v0"]
@@ -142,7 +142,7 @@ def test_graql_refuses_continuous_states():
 def test_bc_beats_chance_end_to_end():
     (record,) = evaluate("GRAIL/PointMaze-Noisy-0.1-v0", [("bc", {"n_epochs": 10})], seeds=1, observability=[1.0],
                          task_params={"n_demos": 6, "n_train": 4})
-    assert record["accuracy_mean"] > 0.2 + 0.15  # 5 goals: chance is 0.2
+    assert record.accuracy_mean > 0.2 + 0.15  # 5 goals: chance is 0.2
 
 
 @pytest.mark.slow
@@ -151,4 +151,4 @@ def test_bc_beats_chance_end_to_end():
 def test_every_policy_recognizer_runs(name, config):
     (record,) = evaluate("GRAIL/PointMaze-Biased-v0", [(name, config)], seeds=1, observability=[0.5],
                          task_params={"n_demos": 3, "n_train": 2})
-    assert record["n_seeds"] == 1 and 0.0 <= record["f1_mean"] <= 1.0
+    assert record.n_seeds == 1 and 0.0 <= record.f1_mean <= 1.0

@@ -9,8 +9,10 @@ import pytest
 from imitation.data.types import Trajectory
 from scipy import stats
 
-from grail_bench.evaluation import metrics
-from grail_bench.evaluation.protocol import goal_horizon, observe, parse_observability, seed_list
+from grail_bench.core.seeding import seed_list
+from grail_bench.core.trajectory import goal_horizon
+from grail_bench.stats import metrics
+from grail_bench.task.observation import observe, parse_observability
 
 
 def demo(T: int = 10, horizon: int = 20) -> Trajectory:
@@ -63,6 +65,19 @@ def test_classification_macro_scores():
     # class 0: P=1, R=.5, F1=2/3; class 1: P=2/3, R=1, F1=.8; class 2 (never true or predicted): 0
     assert m["precision"] == pytest.approx((1 + 2 / 3 + 0) / 3)
     assert m["f1"] == pytest.approx((2 / 3 + 0.8 + 0) / 3)
+
+
+def test_classification_equals_scikit_learn_to_the_last_bit(rng):
+    from sklearn.metrics import accuracy_score, precision_recall_fscore_support
+
+    for _ in range(2000):
+        n, size = int(rng.integers(2, 8)), int(rng.integers(1, 40))
+        y_true, y_pred = rng.integers(0, n, size=size), rng.integers(0, n, size=size)
+        p, r, f, _ = precision_recall_fscore_support(y_true, y_pred, labels=list(range(n)), average="macro",
+                                                     zero_division=0)
+        expected = {"accuracy": accuracy_score(y_true, y_pred), "precision": p, "recall": r, "f1": f}
+        assert metrics.classification(y_true, y_pred, n) == {k: float(v) for k, v in expected.items()}
+        assert metrics.macro_f1(y_true, y_pred, n) == float(f)
 
 
 def test_summarize_t_interval():

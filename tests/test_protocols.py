@@ -8,15 +8,14 @@ from dataclasses import asdict
 
 import numpy as np
 import pytest
+from conftest import run_mode
 from imitation.data.types import Trajectory
 
 import grail_bench
-from grail_bench.evaluation.protocol import (
-    BUILTIN, cell_rng, get_protocol, n_observed, observe, parse_label, protocol_label,
-)
-from grail_bench.evaluation.runner import RecognizerSpec, plan, run_seed
-from grail_bench.seeding import goal_seed
-from grail_bench.store import SCHEMA_VERSION, ResultsStore
+from grail_bench.core.seeding import cell_rng, goal_seed
+from grail_bench.harness.planning import RecognizerSpec, plan
+from grail_bench.harness.store import SCHEMA_VERSION, ResultsStore
+from grail_bench.task.observation import BUILTIN, get_protocol, n_observed, observe, parse_label, protocol_label
 
 
 def demo(T: int = 10, horizon: int = 20) -> Trajectory:
@@ -91,8 +90,8 @@ def test_levels_together_or_one_at_a_time_give_identical_rows():
     task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0")
     spec = plan(task, RecognizerSpec("graql", {"episodes": 150}), task.make_env().action_space)
     demos = task.generate_demos(0)
-    together, _ = run_seed(task, spec, 0, [0.1, 0.2, 0.3], "subset", "{}", demos)
-    apart = [row for level in (0.3, 0.1, 0.2) for row in run_seed(task, spec, 0, [level], "subset", "{}", demos)[0]]
+    together, _ = run_mode("offline", task, spec, 0, [0.1, 0.2, 0.3], "subset", demos)
+    apart = [row for level in (0.3, 0.1, 0.2) for row in run_mode("offline", task, spec, 0, [level], "subset", demos)[0]]
     key = lambda r: r["observability"]  # noqa: E731
     assert sorted(_metrics(together), key=key) == sorted(_metrics(apart), key=key)
     assert {r.protocol for r in together} == {"subset"}
@@ -153,7 +152,7 @@ def test_observability_levels_round_trip_through_k():
 
 
 def test_a_goal_gets_the_same_trained_policy_in_every_goal_set():
-    from grail_bench.evaluation.protocol import observe as see
+    from grail_bench.task.observation import observe as see
 
     fits = {}
     for task_id in ("GRAIL/MiniGrid-Optimal-4Goals-v0", "GRAIL/MiniGrid-Optimal-6Goals-v0"):

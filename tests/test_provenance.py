@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import re
 
-from grail_bench.provenance import git_commit, stamp
+from grail_bench.core.provenance import git_commit, stamp
 
 
 def test_stamp_names_command_machine_and_date():

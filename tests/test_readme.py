@@ -23,7 +23,9 @@ def test_readme_block_runs(index, tmp_path):
     code = BLOCKS[index]
     if "class MyRecognizer" in code:  # a definition: check it satisfies the protocol
         code += ("\nimport grail_bench\nassert isinstance(MyRecognizer(), grail_bench.Recognizer)\n"
-                 "r = MyRecognizer(); r.fit({(7, 1): [], (7, 7): []}, None, seed=0)\nprint(r.score(None))\n")
+                 "from grail_bench.recognizers import register_recognizer\nregister_recognizer('mine', MyRecognizer)\n"
+                 "(record, *_) = grail_bench.evaluate('GRAIL/MiniGrid-Biased-v0', ['mine'], seeds=1)\n"
+                 "assert record.recognizer == 'mine' and record.scorer == 'default'\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert out.returncode == 0, out.stderr
     assert "Traceback" not in out.stderr

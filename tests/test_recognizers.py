@@ -7,14 +7,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import torch
+from conftest import FAST
 from imitation.data.types import Trajectory
 
 import grail_bench
-from grail_bench.evaluation.protocol import observe
 from grail_bench.recognizers import Recognizer, UnknownRecognizerError, available_recognizers, make_recognizer
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
-
-from conftest import FAST
+from grail_bench.task.observation import observe
 
 TASK = grail_bench.make_task("GRAIL/MiniGrid-Biased-v0")
 TRAIN, TEST = TASK.split(TASK.generate_demos(seed=0))
@@ -126,7 +125,7 @@ def test_registry_errors():
         make_recognizer("nope")
     with pytest.raises(ValueError, match="already registered"):
         register_recognizer("bc", lambda: None)
-    with pytest.raises(ValueError, match="does not satisfy the Recognizer protocol: it lacks name, config"):
+    with pytest.raises(ValueError, match="does not satisfy the recognizer contract: it lacks fit and score"):
         register_recognizer("broken", lambda: object())
         try:
             make_recognizer("broken")

@@ -13,7 +13,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import grail_bench
-from grail_bench.registration import register_envs
+from grail_bench.task.registration import register_envs
 
 TASK_IDS = grail_bench.task_ids()
 EXPECTED = {

@@ -5,10 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from grail_bench.errors import UserError
-from grail_bench.evaluation.robust import (
-    Interval, iqm, pooled_iqm, pooled_mean, probability_of_improvement, probability_of_improvement_ci,
-    stratified_bootstrap, tied_best,
+from grail_bench.core.errors import UserError
+from grail_bench.stats.robust import (
+    Interval,
+    iqm,
+    pooled_iqm,
+    pooled_mean,
+    probability_of_improvement,
+    probability_of_improvement_ci,
+    stratified_bootstrap,
+    tied_best,
 )
 
 

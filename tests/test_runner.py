@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 import grail_bench
-from grail_bench.evaluation import evaluate
-from grail_bench.evaluation.runner import RECORD_KEYS
+from grail_bench.harness.api import evaluate
+from grail_bench.harness.modes.offline import OfflineRecord
+from grail_bench.harness.store import ResultsStore
 from grail_bench.recognizers import RecognizerError, UnknownRecognizerError
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
-from grail_bench.store import ResultsStore
 
 TASK_ID = "GRAIL/MiniGrid-Biased-v0"
 
@@ -51,17 +51,25 @@ def spy():
     unregister_recognizer("spy")
 
 
+RECORD_KEYS = (
+    "task", "recognizer", "scorer", "protocol", "observability", "n_seeds", "f1_mean", "f1_std",
+    "f1_ci95_low", "f1_ci95_high", "accuracy_mean", "precision_mean", "recall_mean",
+    "fit_seconds_per_goal", "score_us_per_observation", "tie_rate", "brier_mean", "nll_mean", "top2_mean",
+    "mean_rank_mean", "config_hash", "task_params",
+)
+
+
 def test_records_have_the_documented_keys(spy):
     records = evaluate(TASK_ID, ["spy"], seeds=2, observability=[0.2, 0.4])
     assert len(records) == 2
     for r in records:
-        assert set(RECORD_KEYS) <= set(r)
-        assert r["n_seeds"] == 2
+        assert isinstance(r, OfflineRecord) and set(RECORD_KEYS) <= set(r.to_dict())
+        assert r.n_seeds == 2
     # The spy always picks the last goal: accuracy 1/2, F1 = (0 + 2/3) / 2.
-    assert records[0]["accuracy_mean"] == 0.5
-    assert records[0]["f1_mean"] == pytest.approx(1 / 3)
+    assert records[0].accuracy_mean == 0.5
+    assert records[0].f1_mean == pytest.approx(1 / 3)
     # The first goal's observations rank it second of two, the last goal's first.
-    assert records[0]["mean_rank_mean"] == 1.5 and records[0]["top2_mean"] == 1.0
+    assert records[0].mean_rank_mean == 1.5 and records[0].top2_mean == 1.0
 
 
 def test_recognizer_never_sees_the_true_goal(spy):
@@ -87,7 +95,7 @@ def test_resume_skips_finished_seeds_and_adds_no_duplicates(spy, tmp_path):
         records = evaluate(TASK_ID, ["spy"], seeds=3, store=store)
         assert [s for s, _ in spy.fits] == [0, 1, 2]
         assert len(store.rows()) == 3 * 3
-        assert all(r["n_seeds"] == 3 for r in records)
+        assert all(r.n_seeds == 3 for r in records)
 
 
 def test_interrupted_run_keeps_finished_seeds_and_resumes(spy, tmp_path):
@@ -137,27 +145,27 @@ def test_random_subsets_are_seeded(spy):
 @pytest.mark.slow
 def test_end_to_end_bc_beats_chance_on_biased_task():
     records = evaluate(TASK_ID, [("bc", {"n_epochs": 10}), ("graql", {"episodes": 1000})], seeds=2)
-    bc = [r for r in records if r["recognizer"] == "bc"]
+    bc = [r for r in records if r.recognizer == "bc"]
     assert len(bc) == 3
-    assert all(r["f1_mean"] > 0.8 for r in bc), bc  # chance is 0.5
-    assert all(0 <= r["f1_mean"] <= 1 for r in records)
-    assert all(r["fit_seconds_per_goal"] > 0 and r["score_us_per_observation"] > 0 for r in records)
+    assert all(r.f1_mean > 0.8 for r in bc), bc  # chance is 0.5
+    assert all(0 <= r.f1_mean <= 1 for r in records)
+    assert all(r.fit_seconds_per_goal > 0 and r.score_us_per_observation > 0 for r in records)
 
 
 def test_several_scorers_share_one_fit_and_loglik_reports_calibration(tmp_path):
-    from grail_bench.evaluation.runner import RecognizerSpec
+    from grail_bench.harness.planning import RecognizerSpec
 
     records = evaluate(TASK_ID, [RecognizerSpec("bc", {"n_epochs": 3}, ("mse", "wasserstein", "loglik"))],
                        seeds=1, observability=[0.3])
-    by_scorer = {r["scorer"]: r for r in records}
+    by_scorer = {r.scorer: r for r in records}
     assert set(by_scorer) == {"mse", "wasserstein", "loglik"}
-    assert len({r["fit_seconds_per_goal"] for r in records}) == 1  # one fit
-    assert by_scorer["mse"]["brier_mean"] is None
-    assert 0 <= by_scorer["loglik"]["brier_mean"] <= 2 and by_scorer["loglik"]["nll_mean"] >= 0
+    assert len({r.fit_seconds_per_goal for r in records}) == 1  # one fit
+    assert by_scorer["mse"].brier_mean is None
+    assert 0 <= by_scorer["loglik"].brier_mean <= 2 and by_scorer["loglik"].nll_mean >= 0
 
 
 def test_scorers_need_a_recognizer_that_has_them(spy):
-    from grail_bench.evaluation.runner import RecognizerSpec
+    from grail_bench.harness.planning import RecognizerSpec
 
     with pytest.raises(ValueError, match="scores with its own default scorer only"):
         evaluate(TASK_ID, [RecognizerSpec("spy", {}, ("mse",))], seeds=1)
@@ -173,5 +181,5 @@ def test_end_to_end_adversarial_beats_chance_on_biased_task(name, tmp_path, monk
     monkeypatch.setattr(tempfile, "tempdir", None)
     budget = {"total_timesteps": 8192, "n_envs": 8, "n_steps": 64}
     records = evaluate(TASK_ID, [(name, budget)], seeds=2)
-    assert np.mean([r["f1_mean"] for r in records]) > 0.6, records  # chance is 0.5
+    assert np.mean([r.f1_mean for r in records]) > 0.6, records  # chance is 0.5
     assert list(tmp_path.iterdir()) == [], "imitation and SB3 must not leave logs behind"

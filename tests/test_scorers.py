@@ -7,10 +7,16 @@ import pytest
 from gymnasium import spaces
 from scipy import stats
 
-from grail_bench import scoring
-from grail_bench.evaluation import metrics
-from grail_bench.recognizers import make_recognizer
-from grail_bench.scoring import BUILTIN, PolicyOutput, UnknownScorerError, available_scorers, check_scorer, get_scorer
+from grail_bench.recognizers import make_recognizer, scoring
+from grail_bench.recognizers.scoring import (
+    BUILTIN,
+    PolicyOutput,
+    UnknownScorerError,
+    available_scorers,
+    check_scorer,
+    get_scorer,
+)
+from grail_bench.stats import metrics
 
 
 def test_builtin_scorers_listed():
@@ -82,7 +88,7 @@ def test_unsupported_scorer_names_both():
 
 def test_scorer_plugin_through_entry_point(tmp_path, monkeypatch):
     (tmp_path / "my_scorers.py").write_text(
-        "import numpy as np\nfrom grail_bench.scoring import Scorer\n"
+        "import numpy as np\nfrom grail_bench.recognizers.scoring import Scorer\n"
         "constant = Scorer('constant', lambda out, acts: np.zeros(out.probs.shape[0]), (frozenset({'probs'}),), 'zeros')\n"
     )
     dist = tmp_path / "my_scorers-0.1.dist-info"

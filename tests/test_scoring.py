@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from grail_bench import scoring
+from grail_bench.recognizers import scoring
 
 
 def test_one_hot():

@@ -12,10 +12,11 @@ import pytest
 from typer.testing import CliRunner
 
 from grail_bench.cli import app
-from grail_bench.leaderboard import read_reference
-from grail_bench.reproduce import reference_path
-from grail_bench.site import build_page, render, write_site
-from grail_bench.store import OnlineRow, OpenSetRow, ResultRow, ResultsStore
+from grail_bench.harness.store import OnlineRow, OpenSetRow, ResultRow, ResultsStore
+from grail_bench.report import leaderboard
+from grail_bench.report.html import build_page, common_strata, render, write_site
+from grail_bench.report.reference import paper_reference_path as reference_path
+from grail_bench.report.reference import read_reference
 
 TASKS = {  # task -> levels
     "GRAIL/MiniGrid-Optimal-v0": (0.1, 0.2, 0.3),
@@ -58,13 +59,18 @@ def open_set_rows() -> list[OpenSetRow]:
             for rec, scorer, auroc in (("bc", "mse", 0.6), ("graql", "kl", 0.9)) for seed in range(3)]
 
 
+def board(offline, reference=None, online=(), open_set=()):
+    """The leaderboard model the page draws (no Bayes ceilings: these rows' scores are made up)."""
+    return leaderboard.build(offline, reference, None, studies={"online": online, "open-set": open_set})
+
+
 def n_records(rs: list[ResultRow]) -> int:
     return len({(r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability) for r in rs})
 
 
 @pytest.fixture(scope="module")
 def page() -> dict:
-    return build_page(rows(), read_reference(reference_path()), ceiling_samples=None, reps=500)
+    return build_page(board(rows(), read_reference(reference_path())), reps=500)
 
 
 def test_page_has_a_cell_per_record_and_a_run_per_invocation(page):
@@ -98,11 +104,25 @@ def test_ties_are_every_cell_overlapping_the_best(page):
 def test_domain_summary_iqm_and_probability_of_improvement(page):
     minigrid = next(s for s in page["summaries"] if s["domain"] == "minigrid")
     assert minigrid["names"] == ["bc/mse", "graql/kl"]  # own scorers only
-    assert minigrid["strata"]["bc/mse"] == 9
+    assert minigrid["strata"] == 9 and minigrid["all_strata"] == {"bc/mse": 9, "graql/kl": 9}
     assert minigrid["iqm"]["bc/mse"].point > minigrid["iqm"]["graql/kl"].point
     p, q = minigrid["poi"][("bc/mse", "graql/kl")], minigrid["poi"][("graql/kl", "bc/mse")]
     assert p.point == pytest.approx(1 - q.point) and p.point > 0.8
     assert minigrid["best"] == {"bc/mse"}
+
+
+def test_summaries_compare_recognizers_on_the_strata_they_share():
+    strata = {"a": {1: [0.5], 2: [0.6], 3: [0.7]}, "b": {2: [0.1], 3: [0.2]}, "c": {9: [0.3]}}
+    names, shared, left_out = common_strata(strata)
+    assert names == ["a", "b"] and shared == {2, 3} and left_out == ["c"]
+    # A recognizer run on more strata is aggregated over the shared ones only.
+    extra = [ResultRow("GRAIL/MiniGrid-Optimal-6Goals-v0", "bc", "mse", "hbc", seed, 0.1, "subset", 0.0, 0.0, 0.0,
+                       0.0, 6, 0, 1.5, 40.0, "{}", "{}") for seed in range(3)]
+    with_extra = build_page(board(rows() + extra), reps=100)
+    minigrid = next(s for s in with_extra["summaries"] if s["domain"] == "minigrid")
+    assert minigrid["all_strata"] == {"bc/mse": 10, "graql/kl": 9} and minigrid["strata"] == 9
+    plain = next(s for s in build_page(board(rows()), reps=100)["summaries"] if s["domain"] == "minigrid")
+    assert minigrid["iqm"]["bc/mse"].point == plain["iqm"]["bc/mse"].point  # the extra zeros do not count
 
 
 def test_paper_values_appear_on_the_default_protocol(page):
@@ -117,8 +137,8 @@ def test_paper_values_appear_on_the_default_protocol(page):
 
 
 def test_same_rows_same_page():
-    first = render(build_page(rows(), ceiling_samples=None, reps=200))
-    assert first == render(build_page(rows(), ceiling_samples=None, reps=200))
+    first = render(build_page(board(rows()), reps=200))
+    assert first == render(build_page(board(rows()), reps=200))
 
 
 def test_embedded_records_cannot_close_the_script(page):
@@ -133,8 +153,7 @@ def test_embedded_records_cannot_close_the_script(page):
 
 def test_online_and_open_set_runs_get_tables_of_their_own(page):
     assert page["studies"] == []  # none stored, none shown
-    with_studies = build_page(rows(seeds=2), ceiling_samples=None, reps=100, online=online_rows(),
-                              open_set=open_set_rows())
+    with_studies = build_page(board(rows(seeds=2), online=online_rows(), open_set=open_set_rows()), reps=100)
     online, open_set = with_studies["studies"]
     assert (online["id"], open_set["id"]) == ("online", "open-set")
     assert [r["recognizer"] for r in online["rows"]] == ["bc", "graql"]  # one row per recognizer over 3 seeds
@@ -186,8 +205,7 @@ def browser():
 @pytest.fixture(scope="module")
 def site(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("site")
-    write_site(rows(), out, read_reference(reference_path()), ceiling_samples=None, online=online_rows(),
-               open_set=open_set_rows())
+    write_site(board(rows(), read_reference(reference_path()), online_rows(), open_set_rows()), out)
     return out / "index.html"
 
 

@@ -8,7 +8,7 @@ import sqlite3
 
 import pytest
 
-from grail_bench.store import ResultRow, ResultsStore, StoreError, default_store_path
+from grail_bench.harness.store import ResultRow, ResultsStore, StoreError, default_store_path
 
 
 def row(seed: int = 0, observability: float = 0.1, f1: float = 0.5, recognizer: str = "bc") -> ResultRow:
@@ -98,7 +98,7 @@ def test_schema_2_store_gains_provenance_and_keeps_rows(tmp_path):
 
 
 def test_schema_4_store_gains_the_online_and_open_set_tables(tmp_path):
-    from grail_bench.store import OnlineRow, OpenSetRow
+    from grail_bench.harness.store import OnlineRow, OpenSetRow
 
     path = tmp_path / "v4.sqlite"
     with ResultsStore(path) as store:

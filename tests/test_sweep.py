@@ -9,16 +9,16 @@ import sqlite3
 import time
 
 import pytest
-
-from grail_bench.errors import UserError
-from grail_bench.evaluation.runner import RecognizerSpec
-from grail_bench.evaluation.sweep import Request, plan_request, run_sweep
-from grail_bench.executors import make_executor
-from grail_bench.reproduce import load_profile
-from grail_bench.store import OnlineRow, OpenSetRow, ResultsStore
-
 from conftest import install_plugin
 from test_cli import cli
+
+from grail_bench.core.errors import UserError
+from grail_bench.harness.executors import make_executor
+from grail_bench.harness.planning import RecognizerSpec
+from grail_bench.harness.store import OnlineRow, OpenSetRow, ResultsStore
+from grail_bench.harness.sweep import Request, plan_request, run_sweep
+from grail_bench.report.reproduce import load_profile
+from grail_bench.task.observation import ObservationSpec
 
 TASK_ID = "GRAIL/MiniGrid-Biased-v0"
 TIMING = {"fit_seconds_per_goal", "score_us_per_observation", "versions", "provenance"}
@@ -26,7 +26,7 @@ SPECS = (RecognizerSpec("bc", {"n_epochs": 3}, ("mse", "kl")), RecognizerSpec("g
 
 
 def request(seeds=(0, 1)) -> Request:
-    return Request(TASK_ID, SPECS, tuple(seeds), (0.2, 0.4), "prefix")
+    return Request(TASK_ID, SPECS, tuple(seeds), ObservationSpec("prefix", "ceil", (0.2, 0.4)))
 
 
 def comparable(store: ResultsStore) -> list[tuple]:
@@ -63,8 +63,8 @@ def test_models_shared_across_goal_sets_are_trained_once(tmp_path):
     """GRAQL ignores demonstrations: the 4-goal task reuses the 2-goal task's tables for their shared goals."""
     store = ResultsStore(tmp_path / "s.sqlite")
     spec = (RecognizerSpec("graql", {"episodes": 100}),)
-    small = Request("GRAIL/MiniGrid-Optimal-v0", spec, (0,), (0.3,), "subset")
-    large = Request("GRAIL/MiniGrid-Optimal-4Goals-v0", spec, (0,), (0.3,), "subset")
+    small = Request("GRAIL/MiniGrid-Optimal-v0", spec, (0,), ObservationSpec("subset", "ceil", (0.3,)))
+    large = Request("GRAIL/MiniGrid-Optimal-4Goals-v0", spec, (0,), ObservationSpec("subset", "ceil", (0.3,)))
     summary = run_sweep([small, large], store)
     assert (summary.trained, summary.reused, summary.naive) == (4, 2, 6)
 
@@ -93,7 +93,7 @@ def _train_slowly(root: str, log: str) -> list[float]:
 
     import torch
 
-    from grail_bench.cache import cached_state_dict
+    from grail_bench.core.cache import cached_state_dict
 
     def train():
         with open(log, "a") as fh:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from grail_bench.errors import UserError
+from grail_bench.core.errors import UserError
 
 COMPASS = "NESW"
 

@@ -23,11 +23,11 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from grail_bench.errors import UserError
-from grail_bench.recognizers._torch import scratch_logger, unchecked_distributions
+from grail_bench.core.errors import UserError
+from grail_bench.core.rl import empty_policy
+from grail_bench.core.torchutil import scratch_logger, unchecked_distributions
+from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
-from grail_bench.rl import empty_policy
-from grail_bench.trajectory import EnvFactory, Goal
 
 # Adam's fused kernel: the same update rule as the default per-tensor loop in one kernel per step
 # (the loop was a fifth of each PPO update on these small networks; fits are ~17 % faster).

@@ -12,10 +12,10 @@ from imitation.data.types import Trajectory
 from imitation.policies.base import FeedForward32Policy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
-from grail_bench.errors import UserError
-from grail_bench.recognizers._torch import silent_logger
+from grail_bench.core.errors import UserError
+from grail_bench.core.torchutil import silent_logger
+from grail_bench.core.trajectory import EnvFactory, Goal, until_success
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
-from grail_bench.trajectory import EnvFactory, Goal, until_success
 
 
 class BCRecognizer(PolicyRecognizer):

@@ -10,10 +10,10 @@ from stable_baselines3 import SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 
-from grail_bench.errors import UserError
+from grail_bench.core.errors import UserError
+from grail_bench.core.rl import empty_policy, learn, make_ppo, make_sac
+from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
-from grail_bench.rl import empty_policy, learn, make_ppo, make_sac
-from grail_bench.trajectory import EnvFactory, Goal
 
 
 class DRACORecognizer(PolicyRecognizer):

@@ -10,12 +10,13 @@ from gymnasium import spaces
 from imitation.data.types import Trajectory
 from scipy.special import softmax
 
-from grail_bench.errors import UserError
-from grail_bench.recognizers.base import FitReport, observed_arrays
+from grail_bench.core.cache import cached_arrays
+from grail_bench.core.errors import UserError
+from grail_bench.core.seeding import goal_seed
+from grail_bench.core.trajectory import EnvFactory, Goal
+from grail_bench.recognizers.contract import FitReport, observed_arrays
 from grail_bench.recognizers.scored import ScoredRecognizer
-from grail_bench.scoring import PolicyOutput
-from grail_bench.seeding import goal_seed
-from grail_bench.trajectory import EnvFactory, Goal
+from grail_bench.recognizers.scoring import PolicyOutput
 
 _CHUNK = 4096  # exploration draws made at a time
 
@@ -92,8 +93,6 @@ class GRAQLRecognizer(ScoredRecognizer):
         demonstrations, which GRAQL ignores), so every regime and goal set of
         a domain shares them.
         """
-        from grail_bench.cache import cached_arrays
-
         tables, visits, seconds, reused = [], [], 0.0, 0
         for goal in demos:
             env = env_factory(goal)

@@ -14,15 +14,15 @@ from gymnasium import spaces
 from imitation.data.types import Trajectory
 from stable_baselines3.common.policies import BasePolicy
 
-from grail_bench.cache import Busy, cached_state_dict
-from grail_bench.errors import UserError
-from grail_bench.recognizers._torch import single_thread
-from grail_bench.recognizers.base import FitReport, observed_arrays
+from grail_bench.core.cache import Busy, cached_state_dict
+from grail_bench.core.errors import UserError
+from grail_bench.core.seeding import goal_seed
+from grail_bench.core.torchutil import single_thread
+from grail_bench.core.trajectory import EnvFactory, Goal
+from grail_bench.recognizers.contract import FitReport, observed_arrays
 from grail_bench.recognizers.policy_bank import PolicyBank
 from grail_bench.recognizers.scored import ScoredRecognizer
-from grail_bench.scoring import PolicyOutput
-from grail_bench.seeding import goal_seed
-from grail_bench.trajectory import EnvFactory, Goal
+from grail_bench.recognizers.scoring import PolicyOutput
 
 
 class PolicyRecognizer(ScoredRecognizer):
@@ -85,7 +85,7 @@ class PolicyRecognizer(ScoredRecognizer):
         """``(policy, training seconds, reloaded from the cache)``.
 
         Raises:
-            grail_bench.cache.Busy: With ``wait=False``, when another process is training it.
+            grail_bench.core.cache.Busy: With ``wait=False``, when another process is training it.
         """
         if cache_key is None:
             start = time.perf_counter()

@@ -12,14 +12,13 @@ Nothing is imported until a recognizer is made.
 
 from __future__ import annotations
 
-import inspect
-from dataclasses import dataclass
 from importlib.metadata import entry_points
 from typing import Any, Callable
 
-from grail_bench.errors import UserError
-from grail_bench.plugins import load_target
-from grail_bench.recognizers.base import Recognizer
+from grail_bench.core.errors import UserError
+from grail_bench.core.params import check_kwargs
+from grail_bench.core.plugins import load_target
+from grail_bench.recognizers.contract import Capabilities, Info, capabilities, info
 
 GROUP = "grail_bench.recognizers"
 
@@ -28,21 +27,6 @@ _LOCAL: dict[str, str | Callable[..., Any]] = {}
 
 class UnknownRecognizerError(UserError):
     """No recognizer is registered under the requested name."""
-
-
-@dataclass(frozen=True)
-class RecognizerInfo:
-    """What a registered recognizer says of itself, read from its class without building one.
-
-    Attributes:
-        name: The registered name.
-        paper_name: The method's published name (the class's ``paper_name``, else ``name``).
-        default_scorer: The scorer it uses unless told otherwise (its published one).
-    """
-
-    name: str
-    paper_name: str
-    default_scorer: str
 
 
 def _entry_point_targets() -> dict[str, str]:
@@ -84,31 +68,31 @@ def unregister_recognizer(name: str) -> None:
     _LOCAL.pop(name, None)
 
 
-def make_recognizer(name: str, **config: Any) -> Recognizer:
-    """Return a fresh recognizer.
+def make_recognizer(name: str, **config: Any) -> Any:
+    """Return a fresh recognizer, its hyperparameters checked against the types its constructor declares.
 
     Args:
         name: A registered recognizer name.
-        **config: Hyperparameters passed to its constructor.
+        **config: Hyperparameters passed to its constructor (a value of the
+            wrong type is converted where it can be, e.g. ``1e3`` to an integer).
 
     Raises:
         UnknownRecognizerError: For unregistered names.
-        UserError: If the object made does not satisfy :class:`Recognizer`.
+        UserError: For an unknown hyperparameter or a value of the wrong type, or an object without
+            ``fit`` and ``score``.
     """
-    factory, target = _factory(name)
-    try:
-        inspect.signature(factory).bind(**config)
-    except TypeError as exc:
-        raise UserError(f"recognizer {name!r}: {exc}") from None
-    except ValueError:  # no signature to check (a builtin or C callable)
-        pass
-    recognizer = factory(**config)
-    if not isinstance(recognizer, Recognizer):
-        missing = [m for m in ("name", "config", "default_scorer", "exposes", "fit", "score")
-                   if not hasattr(recognizer, m)]
-        raise UserError(f"recognizer {name!r} ({target}) does not satisfy the Recognizer protocol: it lacks "
-                        f"{', '.join(missing)}")
-    return recognizer
+    return build(name, config).recognizer
+
+
+def build(name: str, config: dict[str, Any] | None = None) -> Capabilities:
+    """A fresh recognizer as the harness uses it: built from checked hyperparameters, its capabilities read.
+
+    Raises:
+        The errors of :func:`make_recognizer`.
+    """
+    factory, _ = _factory(name)
+    kwargs = check_kwargs(factory, dict(config or {}), f"recognizer {name!r}")
+    return capabilities(factory(**kwargs), name, kwargs)
 
 
 def _factory(name: str) -> tuple[Callable[..., Any], str]:
@@ -121,12 +105,11 @@ def _factory(name: str) -> tuple[Callable[..., Any], str]:
     return (load_target(target), target) if isinstance(target, str) else (target, repr(target))
 
 
-def recognizer_info(name: str) -> RecognizerInfo:
-    """The registered recognizer's metadata (imports its module, builds nothing).
+def recognizer_info(name: str) -> Info:
+    """The registered recognizer's name, published name and default scorer (imports its module, builds nothing).
 
     Raises:
         UnknownRecognizerError: For unregistered names.
     """
     factory, _ = _factory(name)
-    return RecognizerInfo(name=name, paper_name=getattr(factory, "paper_name", "") or name,
-                          default_scorer=getattr(factory, "default_scorer", "default"))
+    return info(factory, name)

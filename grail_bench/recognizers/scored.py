@@ -7,16 +7,18 @@ from typing import Any
 
 import numpy as np
 
-from grail_bench.scoring import PolicyOutput, check_scorer, get_scorer
-from grail_bench.trajectory import Goal
+from grail_bench.core.trajectory import Goal
+from grail_bench.recognizers.contract import RecognizerBase
+from grail_bench.recognizers.scoring import PolicyOutput, check_scorer, get_scorer
 
 
-class ScoredRecognizer(abc.ABC):
-    """Base of recognizers that expose :class:`~grail_bench.scoring.PolicyOutput`.
+class ScoredRecognizer(RecognizerBase, abc.ABC):
+    """Base of recognizers that expose :class:`~grail_bench.recognizers.scoring.PolicyOutput`.
 
     Subclasses say what they expose for an action space and compute the
     outputs on an observation; scoring is then any registered scorer that can
-    work from those outputs.
+    work from those outputs, and every prefix of an observation is scored
+    from one pass (:meth:`score_prefixes`).
 
     Args:
         scorer: What :meth:`score` uses when no scorer is named; defaults to
@@ -41,7 +43,7 @@ class ScoredRecognizer(abc.ABC):
         """Outputs of every goal's policy on the observed states, and the observed actions."""
 
     def score(self, observed: Any, scorer: str | None = None) -> dict[Goal, float]:
-        """Scores of every goal (see :class:`grail_bench.Recognizer`)."""
+        """Scores of every goal (see :class:`~grail_bench.recognizers.contract.Recognizer`)."""
         output, actions = self.policy_output(observed)
         chosen = check_scorer(scorer or self.default_scorer, output.exposes(), self.name)
         return dict(zip(self.goals, chosen.fn(output, actions).tolist()))

@@ -14,9 +14,9 @@ import pytest
 from imitation.data.types import Trajectory
 
 import grail_bench
-from grail_bench.evaluation.ceiling import bayes_ceiling
+from grail_bench.core.torchutil import single_thread
+from grail_bench.harness.ceiling import bayes_ceiling
 from grail_bench.recognizers import make_recognizer
-from grail_bench.recognizers._torch import single_thread
 
 TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
 TRAIN, TEST = TASK.split(TASK.generate_demos(seed=0))
@@ -111,7 +111,7 @@ def test_bc_score_by_scorer(benchmark, bc, scorer):
 @pytest.mark.parametrize("scorer", ["mse", "wasserstein"])
 def test_scorer_function_only(benchmark, bc, scorer):
     """The scoring arithmetic alone, on precomputed policy outputs."""
-    from grail_bench.scoring import get_scorer
+    from grail_bench.recognizers.scoring import get_scorer
 
     benchmark.group = "scorer arithmetic only"
     output, actions = bc.policy_output(thirty_steps())
@@ -147,7 +147,7 @@ def test_panda_env_step(benchmark):
 
 @pytest.mark.parametrize("name, config", [("bc", {"n_epochs": 5}), ("draco", {"sac_steps": 300})])
 def test_panda_score_2_percent_4_goals(benchmark, panda, name, config):
-    from grail_bench.evaluation.protocol import observe
+    from grail_bench.task.observation import observe
 
     task, train, test = panda
     rec = make_recognizer(name, **config)
@@ -158,9 +158,9 @@ def test_panda_score_2_percent_4_goals(benchmark, panda, name, config):
 
 
 def test_panda_sac_expert_training_one_goal(benchmark):
+    from grail_bench.core.rl import learn, make_sac
     from grail_bench.domains.panda_reach.demos import SAC_NET
     from grail_bench.domains.panda_reach.env import GRPandaReachEnv
-    from grail_bench.rl import learn, make_sac
 
     env = GRPandaReachEnv()
 

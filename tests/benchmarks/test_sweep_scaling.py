@@ -11,14 +11,15 @@ import itertools
 
 import pytest
 
-from grail_bench.evaluation.runner import RecognizerSpec
-from grail_bench.evaluation.sweep import Request, run_sweep
-from grail_bench.executors import make_executor
-from grail_bench.store import ResultsStore
+from grail_bench.harness.executors import make_executor
+from grail_bench.harness.planning import RecognizerSpec
+from grail_bench.harness.store import ResultsStore
+from grail_bench.harness.sweep import Request, run_sweep
+from grail_bench.task.observation import ObservationSpec
 
 # 8 units of about 6 s each (BC and GRAQL at their defaults on 6 goals).
 REQUEST = Request("GRAIL/MiniGrid-Optimal-6Goals-v0", (RecognizerSpec("bc"), RecognizerSpec("graql")),
-                  (0, 1, 2, 3), (0.1, 0.2, 0.3), "subset")
+                  (0, 1, 2, 3), ObservationSpec("subset", "ceil", (0.1, 0.2, 0.3)))
 _round = itertools.count()
 
 

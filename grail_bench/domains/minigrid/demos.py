@@ -25,18 +25,25 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from grail_bench.core.errors import UserError
+from grail_bench.core.trajectory import rollout
 from grail_bench.domains.minigrid.grid import (
-    FORWARD, HEADINGS, LEFT, RIGHT, STAY, TURN_PATTERNS, GridModel, State,
+    FORWARD,
+    HEADINGS,
+    LEFT,
+    RIGHT,
+    STAY,
+    TURN_PATTERNS,
+    GridModel,
+    State,
 )
 from grail_bench.domains.routes import ranking
-from grail_bench.errors import UserError
-from grail_bench.trajectory import rollout
 
 if TYPE_CHECKING:
     from imitation.data.types import Trajectory
 
-    from grail_bench.task import GRTask
-    from grail_bench.trajectory import Goal
+    from grail_bench.core.trajectory import Goal
+    from grail_bench.task.model import GRTask
 
 @lru_cache(maxsize=64)
 def shortest_path_graph(model: GridModel, goal: tuple[int, int]) -> tuple[dict[State, int], dict[State, int]]:

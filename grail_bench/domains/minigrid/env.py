@@ -23,8 +23,8 @@ from minigrid.core.mission import MissionSpace
 from minigrid.core.world_object import Goal, Wall
 from minigrid.minigrid_env import MiniGridEnv
 
+from grail_bench.core.errors import UserError
 from grail_bench.domains.minigrid.grid import ACTION_NAMES, GridModel, State
-from grail_bench.errors import UserError
 
 _TO_MINIGRID = (Actions.left, Actions.right, Actions.forward, Actions.done)
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping
 
+from grail_bench.core.errors import UserError
 from grail_bench.domains.routes import check_routes
-from grail_bench.errors import UserError
 
 LEFT, RIGHT, FORWARD, STAY = 0, 1, 2, 3
 ACTION_NAMES = ("left", "right", "forward", "stay")

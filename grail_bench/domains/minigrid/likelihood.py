@@ -25,11 +25,11 @@ import numpy as np
 
 from grail_bench.domains.minigrid.demos import all_shortest_paths, biased_path, insert_turns, sample_shortest_path
 from grail_bench.domains.minigrid.grid import STAY, TURN_PATTERNS, GridModel, State
-from grail_bench.evaluation.protocol import Selection, n_observed
+from grail_bench.task.observation import Selection, n_observed
 
 if TYPE_CHECKING:
-    from grail_bench.task import GRTask
-    from grail_bench.trajectory import Goal
+    from grail_bench.core.trajectory import Goal
+    from grail_bench.task.model import GRTask
 
 Pair = tuple[int, int, int, int]  # x, y, direction, action
 Observation = tuple[Pair, ...]

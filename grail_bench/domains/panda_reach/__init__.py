@@ -9,13 +9,13 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
-from grail_bench.errors import UserError
+from grail_bench.core.errors import UserError
 
 if TYPE_CHECKING:
     import numpy as np
 
-    from grail_bench.task import GRTask
-    from grail_bench.trajectory import Goal
+    from grail_bench.core.trajectory import Goal
+    from grail_bench.task.model import GRTask
 
 BASE = (-0.6, 0.0, 0.0)  # panda-gym's robot base
 REACH = 0.8  # metres from the base; the Franka arm's reach is 0.855 m

@@ -19,14 +19,14 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from grail_bench.seeding import EXPERT, goal_seed
-from grail_bench.trajectory import rollout
+from grail_bench.core.seeding import EXPERT, goal_seed
+from grail_bench.core.trajectory import rollout
 
 if TYPE_CHECKING:
     from imitation.data.types import Trajectory
 
-    from grail_bench.task import GRTask
-    from grail_bench.trajectory import Goal
+    from grail_bench.core.trajectory import Goal
+    from grail_bench.task.model import GRTask
 
 Policy = Callable[[np.ndarray], np.ndarray]
 SAC_NET = [64, 64]
@@ -42,7 +42,7 @@ def sac_expert(task: GRTask, goal: Goal, seed: int) -> Policy:
     """The goal's SAC expert, trained once per goal, expert seed, env and budget, then read from the cache."""
     from importlib.metadata import version
 
-    from grail_bench import rl
+    from grail_bench.core import rl
 
     env = task.make_env(goal)
     try:

@@ -26,8 +26,8 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 from gymnasium import Env, spaces
 
+from grail_bench.core.errors import UserError
 from grail_bench.domains.panda_reach import check_reach
-from grail_bench.errors import UserError
 
 GOALS = ((0.10, 0.10, 0.05), (0.10, -0.10, 0.05), (-0.05, 0.10, 0.25), (-0.05, -0.10, 0.25))
 # gr_libs' PandaReach goals, with (-0.5, 0.2, 0.1) moved to (-0.4, 0.2, 0.1): the arm gets no closer than

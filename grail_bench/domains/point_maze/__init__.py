@@ -9,14 +9,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from grail_bench.core.errors import UserError
 from grail_bench.domains.point_maze.maze import check_params
-from grail_bench.errors import UserError
 
 if TYPE_CHECKING:
     import numpy as np
 
-    from grail_bench.task import GRTask
-    from grail_bench.trajectory import Goal
+    from grail_bench.core.trajectory import Goal
+    from grail_bench.task.model import GRTask
 
 # Three lanes each way around four pillars: most goals have several equally short routes.
 PILLARS = ["#######", "#.....#", "#.#.#.#", "#.....#", "#.#.#.#", "#.....#", "#######"]

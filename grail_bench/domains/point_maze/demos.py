@@ -24,16 +24,16 @@ from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
+from grail_bench.core.errors import UserError
+from grail_bench.core.seeding import EXPERT, goal_seed
+from grail_bench.core.trajectory import rollout
 from grail_bench.domains.point_maze.maze import Cell, Maze, biased_route, shortest_routes
-from grail_bench.errors import UserError
-from grail_bench.seeding import EXPERT, goal_seed
-from grail_bench.trajectory import rollout
 
 if TYPE_CHECKING:
     from imitation.data.types import Trajectory
 
-    from grail_bench.task import GRTask
-    from grail_bench.trajectory import Goal
+    from grail_bench.core.trajectory import Goal
+    from grail_bench.task.model import GRTask
 
 Controller = Callable[[np.ndarray], np.ndarray]
 CRUISE, GAIN, CORNER = 3.0, 3.0, 0.15  # top speed (cells/s), gain, corner radius (cells)
@@ -71,7 +71,7 @@ def sac_controller(task: GRTask, goal: Goal) -> Controller:
     """The goal's SAC expert, trained once per goal, expert seed, env and budget, then read from the cache."""
     from importlib.metadata import version
 
-    from grail_bench import rl
+    from grail_bench.core import rl
 
     env = task.make_env(goal)
     try:

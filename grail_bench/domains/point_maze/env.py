@@ -20,8 +20,8 @@ import numpy as np
 from gymnasium import Env, spaces
 from gymnasium_robotics.envs.maze.point_maze import PointMazeEnv
 
+from grail_bench.core.errors import UserError
 from grail_bench.domains.point_maze.maze import SUCCESS_RADIUS, Maze
-from grail_bench.errors import UserError
 
 
 class GRPointMazeEnv(Env):

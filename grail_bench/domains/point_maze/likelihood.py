@@ -16,21 +16,21 @@ from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
+from grail_bench.core.errors import UserError
+from grail_bench.core.trajectory import goal_horizon, rollout
 from grail_bench.domains.point_maze.demos import route_controller
 from grail_bench.domains.point_maze.maze import Maze, biased_route, shortest_routes
-from grail_bench.errors import UserError
-from grail_bench.evaluation.protocol import Selection, n_observed
-from grail_bench.trajectory import goal_horizon, rollout
+from grail_bench.task.observation import Selection, n_observed
 
 if TYPE_CHECKING:
-    from grail_bench.task import GRTask
-    from grail_bench.trajectory import Goal
+    from grail_bench.core.trajectory import Goal
+    from grail_bench.task.model import GRTask
 
 Pair = tuple[float, ...]  # the state's 4 floats, then the action's 2
 
 
 class RouteDemonstrator:
-    """One goal's noise-free demonstrator (a :class:`~grail_bench.evaluation.ceiling.GoalModel`).
+    """One goal's noise-free demonstrator (a :class:`~grail_bench.domains.base.GoalModel`).
 
     Args:
         task: A PointMaze task with the ``optimal`` or ``biased`` regime and the scripted expert.

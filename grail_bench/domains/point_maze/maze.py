@@ -15,8 +15,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from grail_bench.core.errors import UserError
 from grail_bench.domains.routes import check_routes, ranking
-from grail_bench.errors import UserError
 
 Cell = tuple[int, int]
 SUCCESS_RADIUS = 0.45  # the library's: the goal is reached within this distance

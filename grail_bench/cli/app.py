@@ -1,0 +1,334 @@
+"""The ``grail-bench`` commands: each parses its options, calls the library and maps errors (:mod:`.inputs`)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from grail_bench.cli.inputs import console, err_console, errors, fail, one_line_warnings, open_store, outputs, say
+from grail_bench.cli.inputs import executor as make_executor
+from grail_bench.cli.inputs import params as parse_params
+from grail_bench.cli.inputs import settings as parse_settings
+from grail_bench.cli.inputs import write_text
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="grail-bench: goal-recognition benchmarks on gymnasium.")
+
+DEFAULT_TASK = "GRAIL/MiniGrid-Biased-v0"
+DEFAULT_RECOGNIZERS = ["bc", "graql"]
+WORKERS_HELP = "Run units in parallel on this many processes (local) or CPUs (a new local Ray instance)."
+EXECUTOR_HELP = "serial, local (a process pool) or ray (default: local with --workers > 1, ray with --address)."
+ADDRESS_HELP = "A Ray cluster to run on: auto or HOST:PORT (implies --executor ray)."
+STORE_HELP = "Results database (default: ~/.local/share/grail-bench/results.sqlite)."
+
+
+@app.callback()
+def _root() -> None:
+    """grail-bench: goal-recognition benchmarks on gymnasium."""
+
+
+def _all_tasks() -> list:
+    from grail_bench.task import make_task, task_ids
+
+    return [make_task(task_id) for task_id in task_ids()]
+
+
+@app.command()
+def tasks() -> None:
+    """List every registered GRAIL/ task with its domain, regime, goals and demo counts."""
+    from grail_bench.report.text import tasks_table
+
+    console.print(tasks_table(_all_tasks()))
+
+
+@app.command("list")
+def list_(what: str = typer.Argument("all", help="tasks, recognizers, scorers or all")) -> None:
+    """List tasks, recognizers and scorers (imports no recognizer code)."""
+    from grail_bench.recognizers.registry import available_recognizers
+    from grail_bench.recognizers.scoring import BUILTIN, available_scorers
+    from grail_bench.report.text import names_table, tasks_table
+
+    if what not in ("all", "tasks", "recognizers", "scorers"):
+        raise fail(f"cannot list {what!r}; choose tasks, recognizers, scorers or all")
+    with errors():
+        if what in ("all", "tasks"):
+            console.print(tasks_table(_all_tasks()))
+        if what in ("all", "recognizers"):
+            console.print(names_table("recognizers (entry-point group grail_bench.recognizers)",
+                                      list(available_recognizers().items()), "provided by"))
+        if what in ("all", "scorers"):
+            rows = [(n, BUILTIN[n].description if n in BUILTIN else t) for n, t in available_scorers().items()]
+            console.print(names_table("scorers (entry-point group grail_bench.scorers)", rows, "what it computes"))
+
+
+@app.command()
+def run(
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
+    recognizer: Optional[List[str]] = typer.Option(None, "--recognizer", "-r",
+                                                   help="Recognizer name; repeat for several (default: bc, graql)."),
+    seeds: int = typer.Option(3, "--seeds", "-s", min=1, help="Seeds 0..N-1 (the paper uses 10)."),
+    observability: Optional[str] = typer.Option(None, "--observability", "-o",
+                                                help="Comma-separated fractions, e.g. 0.1,0.2,0.3 (default: the task's)."),
+    protocol: Optional[str] = typer.Option(
+        None, "--protocol", "-p", help="Observation protocol (see `grail-bench protocols`; default: the task's)."),
+    rounding: str = typer.Option("ceil", help="Observed pairs k = ceil(p*T) (ceil) or gr_libs' int(p*T) (floor)."),
+    sampling: Optional[str] = typer.Option(None, "--sampling", hidden=True,
+                                           help="Deprecated alias of --protocol (random = subset)."),
+    scorer: Optional[List[str]] = typer.Option(None, "--scorer",
+                                               help="Scorer; repeat for several (default: each recognizer's own)."),
+    settings: Optional[List[str]] = typer.Option(None, "--set", help="Recognizer hyperparameter, e.g. bc.n_epochs=50."),
+    params: Optional[List[str]] = typer.Option(
+        None, "--param", help="Task parameter, as gym.make takes it, e.g. turn_prob=0.5, expert=scripted, n_demos=20."),
+    json_path: Optional[Path] = typer.Option(None, "--json", help="Also write the records to this JSON file."),
+    store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE", help=STORE_HELP),
+    progress: bool = typer.Option(True, help="Show progress bars."),
+    workers: Optional[int] = typer.Option(None, "--workers", "-w", help=WORKERS_HELP),
+    executor: Optional[str] = typer.Option(None, "--executor", "-x", help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, "--address", help=ADDRESS_HELP),
+    online: bool = typer.Option(False, "--online", help="Score every prefix k = 1..T: convergence point, step "
+                                "accuracy, F1 area (no --observability)."),
+    open_set: bool = typer.Option(False, "--open-set", help="Hold one goal out per seed (each in turn) and "
+                                  "measure answering 'none of these' (tasks with 3 or more goals)."),
+) -> None:
+    """Benchmark recognizers on one task; finished seeds in the store are reused."""
+    from grail_bench.harness.api import collect, request
+    from grail_bench.harness.modes import MODES
+    from grail_bench.harness.planning import RecognizerSpec
+    from grail_bench.harness.sweep import run_sweep
+    from grail_bench.task.observation import canonical_name
+
+    if online and open_set:
+        raise fail("choose one of --online and --open-set")
+    if online and observability is not None:
+        raise fail("--online scores every prefix k = 1..T; it takes no --observability")
+    if sampling is not None:
+        if protocol is not None:
+            raise fail("give --protocol only (--sampling is its deprecated alias)")
+        err_console.print("warning: --sampling is deprecated; use --protocol", highlight=False)
+    mode = "online" if online else "open-set" if open_set else "offline"
+    names = list(dict.fromkeys(recognizer or DEFAULT_RECOGNIZERS))
+    with errors():
+        outputs(files=[json_path])
+        config = parse_settings(settings or [], names)
+        scorers = tuple(dict.fromkeys(scorer or []))
+        req = request(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
+                      observability=observability, protocol=canonical_name(sampling) if sampling else protocol,
+                      rounding=rounding, task_params=parse_params(params or []), mode=mode)
+        with open_store(store_path) as store, make_executor(executor, workers, address) as chosen:
+            run_sweep([req], store, chosen, progress=progress, description=f"{req.task_id} ({mode})")
+            records, where = collect(req, store), store.path
+        _show(records, MODES[mode])
+        say(f"results stored in {where}")
+        if json_path is not None:
+            write_text(json_path, json.dumps([r.to_dict() for r in records], indent=2) + "\n", "records")
+
+
+def _show(records: list, mode) -> None:  # noqa: ANN001 - a Mode
+    """A run's tables: offline, the paper-style F1 tables (with Bayes ceilings) and the timings."""
+    from grail_bench.report import leaderboard
+    from grail_bench.report.text import mode_table, rich_tables, timing_table
+
+    if mode.name != "offline":
+        console.print(mode_table(records, mode))
+        return
+    with console.status("Bayes ceilings (computed once, then cached)"):
+        board = leaderboard.build([], records=records)
+    for table in rich_tables(board.boards):
+        console.print(table)
+    console.print(timing_table(records))
+
+
+@app.command("leaderboard")
+def leaderboard_(
+    store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE", help="Results database."),
+    markdown_path: Optional[Path] = typer.Option(None, "--markdown", help="Also write the leaderboard as Markdown here."),
+    reference: Optional[Path] = typer.Option(None, "--reference",
+                                             help="CSV of reported values (task,recognizer,observability,f1) to show beside ours."),
+    task: Optional[List[str]] = typer.Option(None, "--task", "-t", help="Only these tasks."),
+    scorer: Optional[List[str]] = typer.Option(
+        None, "--scorer", help="Only these scorers (NAME), or recognizer/scorer pairs (e.g. bc/mse)."),
+    protocol: Optional[List[str]] = typer.Option(
+        None, "--protocol", "-p", help="Only these observation protocols (as stored, e.g. subset, prefix+floor)."),
+    ceiling_samples: int = typer.Option(2000, min=2, help="Monte Carlo samples of the Bayes ceilings (cached)."),
+    no_ceiling: bool = typer.Option(False, "--no-ceiling", help="Do not compute or show Bayes ceilings."),
+    ablation: bool = typer.Option(False, "--ablation", help="Compare scorers: F1 and scoring time per scorer."),
+    online: bool = typer.Option(False, "--online", help="The online runs (`run --online`) instead."),
+    open_set: bool = typer.Option(False, "--open-set", help="The open-set runs (`run --open-set`) instead."),
+    plot: Optional[Path] = typer.Option(
+        None, "--plot", help="With --ablation or --online: also write a PNG plot here."),
+    html: Optional[Path] = typer.Option(
+        None, "--html", help="Also write the leaderboard as a static web page into this folder (index.html)."),
+) -> None:
+    """Paper-style F1 tables from the results store."""
+    from grail_bench.harness.modes import MODES
+    from grail_bench.report import leaderboard, plots
+    from grail_bench.report.boards import ablation_rows
+    from grail_bench.report.html import write_site
+    from grail_bench.report.reference import read_reference
+    from grail_bench.report.text import (
+        ablation_markdown,
+        ablation_table,
+        markdown,
+        mode_markdown,
+        mode_table,
+        rich_tables,
+    )
+
+    if sum((ablation, online, open_set)) > 1:
+        raise fail("choose one of --ablation, --online and --open-set")
+    if plot is not None and not (ablation or online):
+        raise fail("--plot needs --ablation or --online")
+    if html is not None and (online or open_set):
+        raise fail("--html shows every mode on one page; drop --online / --open-set")
+    mode = MODES["online" if online else "open-set" if open_set else "offline"]
+    samples = None if no_ceiling else ceiling_samples
+    with errors():
+        outputs(files=[markdown_path, plot], folders=[html])
+        ref = read_reference(reference) if reference else None
+        with open_store(store_path, must_exist=True) as store:
+            selected = {name: _select(store, m, task, scorer, protocol) for name, m in MODES.items()
+                        if name == mode.name or (html is not None)}
+            where = store.path
+        if not selected[mode.name]:
+            hint = "" if mode.name == "offline" else f" --{mode.name}"
+            raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} yet; run "
+                       f"`grail-bench run{hint}` first")
+        if ablation:
+            rows = ablation_rows(MODES["offline"].aggregate(selected["offline"]))
+            if not rows:
+                raise fail("no recognizer was run with several scorers; use `grail-bench run --scorer A --scorer B`")
+            console.print(ablation_table(rows))
+            if markdown_path is not None:
+                write_text(markdown_path, ablation_markdown(rows), "Markdown")
+            if plot is not None:
+                say(f"plot written to {plots.save_png(plots.ablation(rows), plot)}")
+            return
+        offline = selected.pop("offline", [])
+        if mode.name != "offline" and plot is None:
+            samples = None  # the tables show no ceiling; only the online plot draws one
+        board = leaderboard.build(offline, ref, samples, studies=selected, progress=True)
+        if mode.name != "offline":
+            study = board.studies[mode.name]
+            console.print(mode_table(study.records, mode))
+            if markdown_path is not None:
+                write_text(markdown_path, mode_markdown(study.records, mode), "Markdown")
+            if plot is not None:
+                say(f"plot written to {plots.save_png(plots.online(study.records, study.curves), plot)}")
+            return
+        for table in rich_tables(board.boards):
+            console.print(table)
+        if markdown_path is not None:
+            write_text(markdown_path, markdown(board.boards, board.records), "Markdown")
+        if html is not None:
+            with console.status("web page (bootstrap intervals)"):
+                index = write_site(board, html)[0]
+            say(f"web page written to {index}")
+
+
+def _select(store, mode, task: Optional[List[str]], scorer: Optional[List[str]],  # noqa: ANN001
+            protocol: Optional[List[str]]) -> list:
+    """Stored rows of one mode, narrowed by the leaderboard's --task, --scorer and --protocol."""
+    where = ({"protocol": protocol} if protocol else {}) | ({"task": task} if task else {})
+    return [r for r in store.select(mode, **where)
+            if not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer]
+
+
+@app.command()
+def reproduce(
+    profile: str = typer.Option("quick", "--profile", help="quick (2 seeds, small budgets), paper, or a TOML file."),
+    only: Optional[List[str]] = typer.Option(None, "--only",
+                                             help="Only this section (minigrid, panda, online, open-set); repeatable."),
+    out: Path = typer.Option(..., "--out", help="Folder for the tables, figures and manifest.json."),
+    store_path: Optional[Path] = typer.Option(None, "--store", help="Results database (default: OUT/results.sqlite)."),
+    workers: Optional[int] = typer.Option(None, "--workers", "-w", help=WORKERS_HELP),
+    executor: Optional[str] = typer.Option(None, "--executor", "-x", help=EXECUTOR_HELP),
+    address: Optional[str] = typer.Option(None, "--address", help=ADDRESS_HELP),
+    site: bool = typer.Option(True, help="Also write the web page into OUT/site (--no-site: tables and figures only)."),
+    progress: bool = typer.Option(True, help="Show a progress bar."),
+) -> None:
+    """Run a profile's grid (resuming from the store), then write the paper's tables and figures."""
+    from datetime import datetime, timezone
+
+    from grail_bench.core.provenance import git_commit
+    from grail_bench.harness.modes import MODES
+    from grail_bench.harness.sweep import run_sweep
+    from grail_bench.report.reproduce import load_profile, manifest, write_outputs
+
+    started, commit = datetime.now(timezone.utc), git_commit()
+    with errors():
+        outputs(folders=[out])
+        chosen_profile = load_profile(profile)
+        requests = chosen_profile.requests(only or ())
+        with open_store(store_path or out / "results.sqlite") as store, \
+                make_executor(executor, workers, address) as chosen:
+            summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
+            meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary, commit)
+            tasks = sorted({r.task_id for r in requests})
+            rows = [row for mode in MODES.values() for row in store.select(mode, task=tasks)]
+        with console.status("tables, figures and web page"):
+            written = write_outputs(rows, chosen_profile, requests, out, meta, site=site)
+    say(f"{summary.units} units ({summary.skipped} already stored) in {summary.seconds:.0f} s on {chosen.name} x "
+        f"{chosen.workers}; models trained {summary.trained}, reused from the cache {summary.reused}, a run "
+        f"without reuse would train {summary.naive}")
+    for path in written:
+        say(f"wrote {path}")
+
+
+@app.command()
+def protocols() -> None:
+    """List the observation protocols (built in and from the entry-point group grail_bench.protocols)."""
+    from grail_bench.report.text import protocols_table
+    from grail_bench.task.observation import BUILTIN, available_protocols, get_protocol
+
+    with errors():
+        rows = []
+        for name, target in available_protocols().items():
+            chosen = BUILTIN.get(name) or get_protocol(name)
+            rows.append((name, chosen.leaks_goal, chosen.description + ("" if name in BUILTIN else f" ({target})")))
+    console.print(protocols_table(rows))
+    say("k = max(1, ceil(p * T)) pairs, or floor with --rounding floor (gr_libs' int(p * T)).")
+
+
+@app.command()
+def ceiling(
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID (MiniGrid)."),
+    protocol: Optional[str] = typer.Option(None, "--protocol", "-p", help="Observation protocol (default: the task's)."),
+    observability: Optional[str] = typer.Option(None, "--observability", "-o",
+                                                help="Comma-separated fractions (default: the task's)."),
+    rounding: str = typer.Option("ceil", help="ceil or floor, as for `run`."),
+    method: str = typer.Option("auto", help="auto (exact where it can enumerate), exact or monte-carlo."),
+    samples: int = typer.Option(2000, min=2, help="Monte Carlo observations."),
+    seed: int = typer.Option(0, min=0, help="Monte Carlo seed."),
+    params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, e.g. turn_pattern=around-and-back."),
+    json_path: Optional[Path] = typer.Option(None, "--json", help="Also write the ceilings to this JSON file."),
+) -> None:
+    """The Bayes ceiling: the best accuracy any recognizer can reach under a protocol and level."""
+    from grail_bench.harness.ceiling import bayes_ceiling
+    from grail_bench.report.text import ceiling_table
+    from grail_bench.task import make_task
+    from grail_bench.task.observation import ObservationSpec
+
+    with errors():
+        outputs(files=[json_path])
+        gr_task = make_task(task, **parse_params(params or []))
+        spec = ObservationSpec.resolve(protocol or gr_task.protocol, rounding, observability or gr_task.observability)
+        with console.status("computing the Bayes ceiling"):
+            results = [bayes_ceiling(gr_task, spec.protocol, level, rounding=spec.rounding, method=method,
+                                     samples=samples, seed=seed) for level in spec.levels]
+        console.print(ceiling_table(task, results))
+        if json_path is not None:
+            write_text(json_path, json.dumps([c.as_dict() for c in results], indent=2) + "\n", "ceilings")
+
+
+def main() -> None:
+    """Console-script entry point."""
+    one_line_warnings()
+    app()
+
+
+if __name__ == "__main__":
+    main()

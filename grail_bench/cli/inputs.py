@@ -1,0 +1,162 @@
+"""What the command line does around every command: parsing values, checking outputs, mapping errors.
+
+Bad input (every :class:`~grail_bench.core.errors.UserError`, and gymnasium's
+own errors for unknown IDs) is one ``error:`` line and exit status 2; a dead
+worker is one line and exit status 1; Ctrl-C during a sweep says how many
+units were kept and exits with 130. Anything else is a bug and shows its
+traceback.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+from pathlib import Path
+from typing import Any, Iterator, Optional, Sequence
+
+import typer
+from rich.console import Console
+
+from grail_bench.core.errors import UserError
+from grail_bench.core.paths import check_writable
+
+console = Console()
+err_console = Console(stderr=True)
+
+EXIT_USAGE = 2
+EXIT_WORKER = 1
+EXIT_INTERRUPTED = 130
+
+
+def fail(message: str, code: int = EXIT_USAGE) -> typer.Exit:
+    """Print one error line to stderr and return the exit to raise."""
+    err_console.print(f"error: {message}", highlight=False, markup=False, soft_wrap=True)
+    return typer.Exit(code)
+
+
+def say(message: str) -> None:
+    """One plain line on stdout."""
+    console.print(message, highlight=False, markup=False, soft_wrap=True)
+
+
+@contextlib.contextmanager
+def errors() -> Iterator[None]:
+    """Map bad input, lost workers, unwritable outputs and Ctrl-C in a sweep to one line and an exit code."""
+    from gymnasium.error import Error as GymError
+
+    from grail_bench.harness.executors import WorkerLost
+    from grail_bench.harness.sweep import Interrupted
+
+    try:
+        yield
+    except (GymError, UserError) as exc:
+        raise fail(str(exc)) from None
+    except WorkerLost as exc:
+        raise fail(f"{exc}; the units that finished are stored: run the same command again to resume",
+                   EXIT_WORKER) from None
+    except Interrupted as exc:
+        err_console.print(f"interrupted: {exc.summary.done} unit(s) of this run were kept in the store "
+                          f"({exc.summary.skipped} were there already); run the same command again to resume",
+                          highlight=False, markup=False, soft_wrap=True)
+        raise typer.Exit(EXIT_INTERRUPTED) from None
+    except OSError as exc:
+        if exc.filename is None:
+            raise
+        raise fail(f"cannot write {exc.filename}: {exc.strerror}") from None
+
+
+def outputs(files: Sequence[Optional[Path]] = (), folders: Sequence[Optional[Path]] = ()) -> None:
+    """Check every output path the command was given, before any work starts.
+
+    Raises:
+        UserError: For a path that cannot be written.
+    """
+    for path in files:
+        if path is not None:
+            check_writable(path)
+    for path in folders:
+        if path is not None:
+            check_writable(path, folder=True)
+
+
+def write_text(path: Path, text: str, what: str) -> None:
+    """Write an output file (its folders created) and say so."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    say(f"{what} written to {path}")
+
+
+def value(raw: str) -> Any:
+    """A command-line value: JSON when it parses (numbers, lists, booleans), else the string."""
+    try:
+        return json.loads(raw)
+    except json.JSONDecodeError:
+        return raw
+
+
+def settings(items: Sequence[str], names: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """``["bc.n_epochs=10"]`` -> ``{"bc": {"n_epochs": 10}}`` (types are checked when the run is planned)."""
+    out: dict[str, dict[str, Any]] = {name: {} for name in names}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        name, dot, param = key.partition(".")
+        if not sep or not dot or not param:
+            raise UserError(f"--set expects RECOGNIZER.PARAM=VALUE, got {item!r}")
+        if name not in out:
+            raise UserError(f"--set {item!r} names recognizer {name!r}, which is not being run")
+        out[name][param] = value(raw)
+    return out
+
+
+def params(items: Sequence[str]) -> dict[str, Any]:
+    """``["turn_prob=0.5"]`` -> ``{"turn_prob": 0.5}``."""
+    out = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise UserError(f"--param expects NAME=VALUE, got {item!r}")
+        out[key] = value(raw)
+    return out
+
+
+@contextlib.contextmanager
+def executor(name: Optional[str], workers: Optional[int], address: Optional[str]) -> Iterator[Any]:
+    """The chosen executor, shut down (its unfinished units cancelled) however the block ends."""
+    from grail_bench.harness.executors import make_executor
+
+    chosen = make_executor(name, workers, address)
+    try:
+        yield chosen
+    finally:
+        chosen.close()
+
+
+def open_store(path: Optional[Path], must_exist: bool = False) -> Any:
+    """The results store at ``path`` (default: ``$GRAIL_BENCH_STORE`` or the user's data folder).
+
+    Raises:
+        UserError: With ``must_exist``, when there is no store there yet.
+    """
+    from grail_bench.harness.store import ResultsStore, default_store_path
+
+    path = path or default_store_path()
+    if must_exist and not Path(path).exists():
+        raise UserError(f"no results store at {path}; run `grail-bench run` first")
+    return ResultsStore(path)
+
+
+def one_line_warnings() -> None:
+    """Show grail-bench's own warnings (e.g. a cached model being retrained) as one line on stderr."""
+    import warnings
+
+    from grail_bench.core.cache import CacheWarning
+
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001
+        if issubclass(category, CacheWarning):
+            err_console.print(f"warning: {message}", highlight=False, markup=False, soft_wrap=True)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show

@@ -1,0 +1,153 @@
+"""On-disk cache of trained models, written and read by grail-bench only.
+
+A model is a torch ``state_dict`` (saved with ``torch.save``, loaded with
+``weights_only=True``) or a set of numpy arrays (``.npz``, loaded with
+``allow_pickle=False``): nothing is ever unpickled. Beside it, a JSON sidecar
+holds the key it was trained for and a SHA-256 of the model file. A missing,
+corrupt or mismatched entry is reported in one line and the caller retrains;
+nothing is ever silently reused.
+
+Concurrent processes (a parallel sweep) share the cache safely: each key has a
+lock file, held while an entry is read or trained and written, so a second
+process asking for a model being trained waits and then reuses it; the model
+and its sidecar are each written to a temporary name and moved into place.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import pickle
+import time
+import warnings
+import zipfile
+from pathlib import Path
+from typing import Any, Callable
+
+from grail_bench.core.paths import cache_dir
+
+
+class CacheWarning(UserWarning):
+    """A cached model was unusable and is being retrained."""
+
+
+def key_digest(key: dict[str, Any]) -> str:
+    """Stable short hash of a JSON-able cache key."""
+    return hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:20]
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _save_torch(state: dict[str, Any], path: Path) -> None:
+    import torch
+
+    torch.save(state, path)
+
+
+def _load_torch(path: Path) -> dict[str, Any]:
+    import torch
+
+    return torch.load(path, map_location="cpu", weights_only=True)
+
+
+def _save_arrays(arrays: dict[str, Any], path: Path) -> None:
+    import numpy as np
+
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+def _load_arrays(path: Path) -> dict[str, Any]:
+    import numpy as np
+
+    with np.load(path, allow_pickle=False) as data:
+        return {name: data[name] for name in data.files}
+
+
+def _write_atomic(path: Path, write: Callable[[Path], None]) -> None:
+    """Write through a temporary name, then move into place (never a half-written file under ``path``)."""
+    tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+class Busy(Exception):
+    """Another process holds the entry's lock (it is training that model now)."""
+
+
+def _cached(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]], suffix: str,
+            save: Callable[[dict[str, Any], Path], None], load: Callable[[Path], dict[str, Any]],
+            root: Path | None, wait: bool = True) -> tuple[dict[str, Any], float, bool]:
+    from filelock import FileLock, Timeout
+
+    folder = (root or cache_dir()) / kind
+    folder.mkdir(parents=True, exist_ok=True)
+    digest = key_digest(key)
+    model, meta = folder / f"{digest}{suffix}", folder / f"{digest}.json"
+    lock = FileLock(str(folder / f"{digest}.lock"))
+    try:
+        lock.acquire(timeout=-1 if wait else 0)
+    except Timeout:
+        raise Busy(str(model)) from None
+    try:
+        if model.exists() or meta.exists():
+            problem = None
+            try:
+                info = json.loads(meta.read_text(encoding="utf-8"))
+                if info.get("key") != json.loads(json.dumps(key, sort_keys=True, default=str)):
+                    problem = "it was trained for another configuration"
+                elif info.get("sha256") != _sha256(model):
+                    problem = "its weights do not match their checksum"
+                else:
+                    return load(model), float(info.get("train_seconds", 0.0)), True
+            except (OSError, ValueError, RuntimeError, EOFError, KeyError, pickle.UnpicklingError,
+                    zipfile.BadZipFile) as exc:
+                problem = f"it cannot be read ({type(exc).__name__})"
+            warnings.warn(f"cached model {model} is unusable: {problem}; retraining", CacheWarning, stacklevel=3)
+        start = time.perf_counter()
+        state = train()
+        seconds = time.perf_counter() - start
+        _write_atomic(model, lambda tmp: save(state, tmp))
+        sidecar = json.dumps({"key": key, "sha256": _sha256(model), "train_seconds": seconds}, sort_keys=True,
+                             default=str)
+        _write_atomic(meta, lambda tmp: tmp.write_text(sidecar, encoding="utf-8"))
+    finally:
+        lock.release()
+    return state, seconds, False
+
+
+def cached_state_dict(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]],
+                      root: Path | None = None, wait: bool = True) -> tuple[dict[str, Any], float]:
+    """Load a cached ``state_dict`` for ``key`` or train, save and return a new one.
+
+    Args:
+        kind: Folder under the cache (e.g. ``"panda-sac-expert"``).
+        key: Everything the model depends on (JSON-able).
+        train: Produces the ``state_dict`` when the cache cannot serve it.
+        root: Cache root (default :func:`grail_bench.core.paths.cache_dir`).
+        wait: When another process is training this model, wait for it
+            (default) or raise :class:`Busy` at once, so the caller can do
+            other work first.
+
+    Returns:
+        ``(state_dict, seconds)``: ``seconds`` is what training took, when it
+        happened now or when the cached model was trained.
+    """
+    state, seconds, _ = _cached(kind, key, train, ".pt", _save_torch, _load_torch, root, wait)
+    return state, seconds
+
+
+def cached_arrays(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]],
+                  root: Path | None = None) -> tuple[dict[str, Any], float, bool]:
+    """Like :func:`cached_state_dict` for named numpy arrays (``.npz``).
+
+    Returns:
+        ``(arrays, seconds, reused)``.
+    """
+    return _cached(kind, key, train, ".npz", _save_arrays, _load_arrays, root)

@@ -1,0 +1,115 @@
+"""Keyword arguments checked against the types a callable declares, before anything is built.
+
+A value typed on the command line (``--set bc.n_epochs=abc``) reaches a
+constructor as whatever JSON made of it; :func:`check_kwargs` converts it to
+the parameter's declared type (``int``, ``float``, ``bool``, ``str``, a
+sequence of those, or ``X | None``) or says, in one line, which parameter
+expects what. Parameters without an annotation it understands pass unchanged.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import types
+import typing
+from collections.abc import Sequence as AbcSequence
+from typing import Any, Callable, Mapping
+
+from grail_bench.core.errors import UserError
+
+_NAMES = {int: "an integer", float: "a number", bool: "true or false", str: "a string"}
+
+
+class _Mismatch(Exception):
+    """A value does not fit an annotation."""
+
+
+def _convert(value: Any, annotation: Any) -> Any:
+    """``value`` as ``annotation`` declares it, or :class:`_Mismatch`."""
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin in (typing.Union, types.UnionType):
+        for option in args:
+            try:
+                return _convert(value, option)
+            except _Mismatch:
+                continue
+        raise _Mismatch
+    if annotation is type(None):
+        if value is None:
+            return None
+        raise _Mismatch
+    if annotation is bool:
+        if isinstance(value, bool):
+            return value
+        raise _Mismatch
+    if annotation is int:
+        if isinstance(value, bool):
+            raise _Mismatch
+        if isinstance(value, int):
+            return value
+        if isinstance(value, float) and math.isfinite(value) and value.is_integer():
+            return int(value)  # 1e5 on a command line is JSON's 100000.0
+        raise _Mismatch
+    if annotation is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+        raise _Mismatch
+    if annotation is str:
+        if isinstance(value, str):
+            return value
+        raise _Mismatch
+    if origin in (list, tuple, AbcSequence) and args:
+        if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
+            raise _Mismatch
+        return [_convert(v, args[0]) for v in value]
+    return value  # an annotation this check does not read: the callable checks it itself
+
+
+def _describe(annotation: Any) -> str:
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin in (typing.Union, types.UnionType):
+        return " or ".join("null" if a is type(None) else _describe(a) for a in args)
+    if origin in (list, tuple, AbcSequence) and args:
+        return f"a list of {_describe(args[0]).removeprefix('an ').removeprefix('a ')}s"
+    return _NAMES.get(annotation, getattr(annotation, "__name__", str(annotation)))
+
+
+def check_kwargs(factory: Callable[..., Any], kwargs: Mapping[str, Any], owner: str) -> dict[str, Any]:
+    """``kwargs`` bound to ``factory``'s signature and converted to its declared types.
+
+    Args:
+        factory: A class or function taking the keyword arguments.
+        kwargs: The values given (e.g. parsed from the command line).
+        owner: Names the callable in messages (e.g. ``"recognizer 'bc'"``).
+
+    Returns:
+        The converted keyword arguments.
+
+    Raises:
+        UserError: For an unknown parameter or a value of the wrong type, naming both.
+    """
+    try:
+        signature = inspect.signature(factory)
+    except (TypeError, ValueError):  # no signature to read (a builtin or C callable)
+        return dict(kwargs)
+    try:
+        signature.bind(**kwargs)
+    except TypeError as exc:
+        raise UserError(f"{owner}: {exc}") from None
+    target = factory.__init__ if inspect.isclass(factory) else factory
+    try:
+        hints = typing.get_type_hints(target)
+    except Exception:  # noqa: BLE001 - annotations that do not evaluate: leave the values to the callable
+        hints = {}
+    out = {}
+    for name, value in kwargs.items():
+        annotation = hints.get(name, inspect.Parameter.empty)
+        if annotation is inspect.Parameter.empty or annotation is Any:
+            out[name] = value
+            continue
+        try:
+            out[name] = _convert(value, annotation)
+        except _Mismatch:
+            raise UserError(f"{owner}: {name} expects {_describe(annotation)}, got {value!r}") from None
+    return out

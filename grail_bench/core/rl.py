@@ -1,0 +1,80 @@
+"""Reinforcement learning on a goal env's true reward (domain experts, DRACO)."""
+
+from __future__ import annotations
+
+import sys
+from importlib.metadata import version
+from typing import Any, Callable, Sequence
+
+import gymnasium as gym
+import numpy as np
+from stable_baselines3 import PPO, SAC
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
+from stable_baselines3.common.vec_env import DummyVecEnv
+from stable_baselines3.sac.policies import SACPolicy
+
+from grail_bench.core.cache import cached_state_dict
+from grail_bench.core.torchutil import single_thread
+
+SAC_DEFAULTS = {"learning_starts": 500, "batch_size": 128}
+
+
+def make_sac(env: gym.Env, net_arch: Sequence[int], seed: int = 0) -> SAC:
+    """SB3 SAC with a small MLP, as the suite trains it."""
+    return SAC("MlpPolicy", env, policy_kwargs={"net_arch": list(net_arch)}, seed=seed, verbose=0, device="cpu",
+               **SAC_DEFAULTS)
+
+
+def make_ppo(env_fn: Callable[[], gym.Env], net_arch: Sequence[int], seed: int = 0, n_envs: int = 8) -> PPO:
+    """SB3 PPO on ``n_envs`` copies of an env."""
+    venv = DummyVecEnv([env_fn for _ in range(n_envs)])
+    venv.seed(seed)
+    return PPO("MlpPolicy", venv, policy_kwargs={"net_arch": list(net_arch)}, n_steps=128, batch_size=64,
+               seed=seed, verbose=0, device="cpu")
+
+
+def empty_policy(algorithm: str, observation_space: gym.Space, action_space: gym.Space,
+                 net_arch: Sequence[int] | None = None) -> BasePolicy:
+    """An untrained policy of the architecture ``make_sac``/``make_ppo`` train, to load cached weights into.
+
+    Args:
+        algorithm: ``"sac"`` or ``"ppo"``.
+        net_arch: Hidden layers; ``None`` for SB3's default.
+    """
+    kwargs = {} if net_arch is None else {"net_arch": list(net_arch)}
+    cls = {"sac": SACPolicy, "ppo": ActorCriticPolicy}[algorithm]
+    return cls(observation_space, action_space, lambda _: 0.0, **kwargs)
+
+
+def learn(model: BaseAlgorithm, steps: int) -> dict[str, Any]:
+    """Train (with a progress bar on a terminal) and return the policy's ``state_dict``.
+
+    SB3's logger is replaced by one writing nowhere, so no log folder appears in ``$TMPDIR``.
+    """
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    model.learn(steps, progress_bar=sys.stderr.isatty())
+    return model.policy.state_dict()
+
+
+def sac_expert(kind: str, env: gym.Env, key: dict[str, Any], steps: int, seed: int,
+               net_arch: Sequence[int]) -> Callable[[np.ndarray], np.ndarray]:
+    """A SAC expert on ``env``'s reward, trained once per ``key`` and cached; its deterministic policy.
+
+    Args:
+        kind: Cache folder (e.g. ``"panda-sac-expert"``).
+        env: The goal's env (not closed here).
+        key: Everything the expert depends on besides ``steps``, ``seed`` and ``net_arch``.
+        steps: SAC training steps.
+        seed: Training seed.
+        net_arch: Hidden layers.
+    """
+    full_key = {**key, "seed": seed, "steps": steps, "net": list(net_arch),
+                "versions": [version("stable-baselines3"), version("torch")]}
+    with single_thread():
+        state, _ = cached_state_dict(kind, full_key, lambda: learn(make_sac(env, net_arch, seed), steps))
+        policy = empty_policy("sac", env.observation_space, env.action_space, net_arch)
+    policy.load_state_dict(state)
+    policy.set_training_mode(False)
+    return lambda obs: policy.predict(obs, deterministic=True)[0]

@@ -1,0 +1,101 @@
+"""``evaluate``: benchmark recognizers on one task from Python (what ``grail-bench run`` calls)."""
+
+from __future__ import annotations
+
+from typing import Any, Iterable, Mapping, Sequence
+
+from grail_bench.core.errors import UserError
+from grail_bench.core.seeding import seed_list
+from grail_bench.harness.executors import Executor
+from grail_bench.harness.modes import Record, get_mode
+from grail_bench.harness.planning import RecognizerSpec
+from grail_bench.harness.store import ResultsStore
+from grail_bench.harness.sweep import Request, plan_request, run_sweep
+from grail_bench.task import make_task
+from grail_bench.task.observation import ObservationSpec
+
+
+def request(task_id: str, recognizers: Sequence[str | RecognizerSpec | tuple[str, Mapping[str, Any]]], *,
+            seeds: int | Sequence[int] = 3, observability: Iterable[float] | str | None = None,
+            protocol: str | None = None, rounding: str = "ceil", task_params: Mapping[str, Any] | None = None,
+            mode: str = "offline") -> Request:
+    """A checked :class:`~grail_bench.harness.sweep.Request` (see :func:`evaluate` for the arguments).
+
+    Raises:
+        UserError: For anything :func:`evaluate` would refuse, before any work.
+    """
+    chosen = get_mode(mode)
+    task = make_task(task_id, **dict(task_params or {}))
+    if observability is not None:
+        levels = observability
+    else:
+        levels = task.observability if chosen.takes_levels else ()
+    specs = tuple(RecognizerSpec.of(r) for r in recognizers)
+    if not specs:
+        raise UserError("name at least one recognizer")
+    observation = ObservationSpec.resolve(protocol or task.protocol, rounding, levels)
+    return Request(task.id, specs, tuple(seed_list(seeds)), observation, dict(task_params or {}), chosen.name)
+
+
+def evaluate(
+    task_id: str,
+    recognizers: Sequence[str | RecognizerSpec | tuple[str, Mapping[str, Any]]],
+    *,
+    seeds: int | Sequence[int] = 3,
+    observability: Iterable[float] | str | None = None,
+    protocol: str | None = None,
+    rounding: str = "ceil",
+    store: ResultsStore | None = None,
+    progress: bool = False,
+    task_params: Mapping[str, Any] | None = None,
+    executor: Executor | None = None,
+    mode: str = "offline",
+) -> list[Record]:
+    """Benchmark recognizers on one task.
+
+    Seeds whose rows are already in ``store`` are skipped, so an interrupted
+    run resumes where it stopped.
+
+    Args:
+        task_id: A ``GRAIL/`` ID.
+        recognizers: Names, ``(name, config)`` pairs or :class:`RecognizerSpec`
+            (which also selects scorers).
+        seeds: ``n`` for seeds ``0..n-1``, or explicit seeds.
+        observability: Fractions observed; defaults to the task's.
+        protocol: Observation protocol; defaults to the task's (``subset`` for
+            the paper's optimal and suboptimal MiniGrid tasks).
+        rounding: ``"ceil"`` (default) or ``"floor"`` (gr_libs' ``int(p * T)``)
+            for the number of observed pairs.
+        store: Where rows go; an in-memory store if ``None``.
+        progress: Show a progress bar.
+        task_params: Task overrides, as ``gym.make`` accepts them (e.g.
+            ``{"turn_prob": 0.5}`` or ``{"n_demos": 20, "n_train": 14}``).
+        executor: Where the (recognizer, seed) units run
+            (:mod:`grail_bench.harness.executors`); in this process if ``None``.
+        mode: ``offline`` (the protocol at each level), ``online`` (every
+            prefix; no ``observability``) or ``open-set`` (one goal held out
+            per seed; at least 3 goals).
+
+    Returns:
+        The across-seed records of the mode (``record.to_dict()`` is the
+        ``--json`` format): offline and open set one per recognizer, scorer
+        and level; online one per recognizer and scorer.
+    """
+    req = request(task_id, recognizers, seeds=seeds, observability=observability, protocol=protocol,
+                  rounding=rounding, task_params=task_params, mode=mode)
+    store = store if store is not None else ResultsStore(":memory:")
+    run_sweep([req], store, executor, progress=progress, description=f"{req.task_id} ({mode})")
+    return collect(req, store)
+
+
+def collect(req: Request, store: ResultsStore) -> list[Record]:
+    """The records of a request's rows in ``store`` (and no other rows)."""
+    mode = get_mode(req.mode)
+    planned, _, _ = plan_request(req, store)
+    levels = req.observation.levels or (None,)
+    rows = []
+    for p in planned:
+        rows += [r for r in store.select(mode, task=req.task_id, recognizer=p.name, scorer=list(p.scorers),
+                                         config_hash=p.config_hash, protocol=req.label, seed=list(req.seeds))
+                 if getattr(r, "observability", None) in levels]
+    return mode.aggregate(rows)

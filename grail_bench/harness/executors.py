@@ -1,0 +1,197 @@
+"""Where a sweep's units run: in this process, a local process pool, or a Ray cluster.
+
+An executor maps a function over work items and yields ``(item, result)`` as
+each finishes, in completion order. Only the caller (the sweep's driver)
+touches the results store; workers return their rows. Every worker process
+runs torch on one thread, so ``n`` workers use ``n`` cores without
+oversubscribing them.
+
+* ``serial``: in this process, in order (the reference every other executor
+  must match row for row).
+* ``local``: :class:`concurrent.futures.ProcessPoolExecutor` with ``spawn``
+  workers (fresh interpreters: no forked torch or OpenMP state).
+* ``ray``: Ray tasks of one CPU each, on the cluster at ``address`` or on a
+  local instance started for the sweep (``pip install grail-bench[ray]``).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Callable, Iterator, Protocol, Sequence
+
+from grail_bench.core.errors import UserError
+
+EXECUTORS = ("serial", "local", "ray")
+_THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+
+
+class WorkerLost(RuntimeError):
+    """A worker process died; the units it was running produced no rows."""
+
+
+class Executor(Protocol):
+    """Runs a function over work items (see module docstring)."""
+
+    name: str
+    workers: int
+
+    def map_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[Any, Any]]:
+        """Yield ``(item, fn(item))`` as each finishes; raise :class:`WorkerLost` if a worker dies."""
+
+    def close(self) -> None:
+        """Stop the workers (cancelling units not yet started)."""
+
+
+def one_thread() -> None:
+    """Pin this process's numeric libraries to one thread (worker initializer)."""
+    for var in _THREAD_VARS:
+        os.environ[var] = "1"
+    import torch
+
+    torch.set_num_threads(1)
+
+
+class SerialExecutor:
+    """Runs every item in this process, in order."""
+
+    name = "serial"
+    workers = 1
+
+    def map_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[Any, Any]]:
+        for item in items:
+            yield item, fn(item)
+
+    def close(self) -> None:
+        pass
+
+
+class LocalExecutor:
+    """A pool of ``workers`` spawned processes on this machine."""
+
+    name = "local"
+
+    def __init__(self, workers: int) -> None:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.workers = workers
+        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                         initializer=one_thread)
+
+    def map_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[Any, Any]]:
+        from concurrent.futures import FIRST_COMPLETED, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        pending = {self._pool.submit(fn, item): item for item in items}
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                item = pending.pop(future)
+                try:
+                    result = future.result()
+                except BrokenProcessPool:
+                    raise WorkerLost(f"a worker process died; {len(pending) + 1} unit(s) did not finish") from None
+                yield item, result
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+class RayExecutor:
+    """Ray tasks of one CPU each, on an existing cluster or a local instance."""
+
+    name = "ray"
+
+    def __init__(self, workers: int | None, address: str | None) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise UserError("--executor ray needs Ray: pip install 'grail-bench[ray]'") from None
+        if address not in (None, "auto"):
+            _check_reachable(address)
+        self._ray = ray
+        self._started = not ray.is_initialized()
+        if self._started:
+            env = {"env_vars": {var: "1" for var in _THREAD_VARS}}
+            try:
+                if address is None:
+                    ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                             runtime_env=env, logging_level="ERROR")
+                else:
+                    ray.init(address=address, log_to_driver=False, runtime_env=env, logging_level="ERROR")
+            except (ConnectionError, RuntimeError, ValueError) as exc:
+                raise UserError(f"cannot connect to Ray at {address!r}: {str(exc).splitlines()[0]}") from None
+        self.workers = int(ray.cluster_resources().get("CPU", 1))
+
+    def map_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[Any, Any]]:
+        ray = self._ray
+        remote = ray.remote(num_cpus=1)(_in_one_thread)
+        pending = {remote.remote(fn, item): item for item in items}
+        try:
+            while pending:
+                done, _ = ray.wait(list(pending), num_returns=1)
+                item = pending.pop(done[0])
+                try:
+                    yield item, ray.get(done[0])
+                except ray.exceptions.WorkerCrashedError:
+                    raise WorkerLost(f"a Ray worker died; {len(pending) + 1} unit(s) did not finish") from None
+                except ray.exceptions.RayTaskError as exc:
+                    raise exc.as_instanceof_cause() from None
+        finally:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+
+    def close(self) -> None:
+        if self._started:
+            self._ray.shutdown()
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """Fail fast on a cluster address nothing listens at (Ray itself retries for minutes)."""
+    import socket
+
+    host, sep, port = address.split("://")[-1].rpartition(":")
+    if not sep or not port.isdigit():
+        raise UserError(f"--address must be auto or HOST:PORT, got {address!r}")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise UserError(f"cannot reach a Ray cluster at {address}: {exc.strerror or exc}") from None
+
+
+def _in_one_thread(fn: Callable[[Any], Any], item: Any) -> Any:
+    one_thread()
+    return fn(item)
+
+
+def make_executor(name: str | None = None, workers: int | None = None, address: str | None = None) -> Executor:
+    """The executor the command line asked for.
+
+    Args:
+        name: ``serial``, ``local`` or ``ray``; by default ``ray`` when an
+            ``address`` is given, ``local`` when ``workers`` > 1, else ``serial``.
+        workers: Processes of ``local`` (default: every core) or CPUs of a new
+            local Ray instance (default: every core).
+        address: A Ray cluster (``auto`` or ``host:port``); only with ``ray``.
+
+    Raises:
+        UserError: For an unknown executor, ``workers`` < 1, an address
+            without Ray, or a cluster that cannot be reached.
+    """
+    if workers is not None and workers < 1:
+        raise UserError(f"--workers must be at least 1, got {workers}")
+    if name is None:
+        name = "ray" if address is not None else "local" if (workers or 1) > 1 else "serial"
+    if name not in EXECUTORS:
+        raise UserError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
+    if address is not None and name != "ray":
+        raise UserError("--address names a Ray cluster; use it with --executor ray")
+    if name == "serial":
+        if (workers or 1) > 1:
+            raise UserError("the serial executor runs one unit at a time; drop --workers or choose local or ray")
+        return SerialExecutor()
+    if name == "local":
+        return LocalExecutor(workers or os.cpu_count() or 1)
+    if address is not None and workers is not None:
+        raise UserError("--workers sizes a new local Ray instance; a cluster at --address brings its own CPUs")
+    return RayExecutor(workers, address)

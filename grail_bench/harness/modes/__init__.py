@@ -1,0 +1,43 @@
+"""The modes a sweep can run, in one table the sweep, the store, the reports and the page read.
+
+* ``offline`` (:mod:`.offline`): the paper's protocol, each test demonstration observed once per level;
+* ``online`` (:mod:`.online`): every prefix of every test observation scored;
+* ``open-set`` (:mod:`.open_set`): one goal held out of the fit per seed, to be answered "none of these".
+
+A new mode is one module defining a :class:`~.base.Mode` and one entry here.
+"""
+
+from __future__ import annotations
+
+from grail_bench.core.errors import UserError
+from grail_bench.harness.modes import offline, online, open_set
+from grail_bench.harness.modes.base import Column, Mode, Record, Run, SeedRun
+
+MODES: dict[str, Mode] = {m.name: m for m in (offline.MODE, online.MODE, open_set.MODE)}
+
+ResultRow, OnlineRow, OpenSetRow = offline.ResultRow, online.OnlineRow, open_set.OpenSetRow
+Row = ResultRow | OnlineRow | OpenSetRow
+
+
+def get_mode(name: str) -> Mode:
+    """The mode called ``name``.
+
+    Raises:
+        UserError: For an unknown name, listing the known ones.
+    """
+    try:
+        return MODES[name]
+    except (KeyError, TypeError):
+        raise UserError(f"unknown mode {name!r}; choose one of {', '.join(MODES)}") from None
+
+
+def mode_of(row_type: type) -> Mode:
+    """The mode whose rows are of ``row_type``."""
+    for mode in MODES.values():
+        if mode.row is row_type:
+            return mode
+    raise TypeError(f"{row_type.__name__} is not the row type of any mode")
+
+
+__all__ = ["MODES", "Column", "Mode", "OnlineRow", "OpenSetRow", "Record", "ResultRow", "Row", "Run", "SeedRun",
+           "get_mode", "mode_of"]

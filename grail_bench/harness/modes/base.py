@@ -1,0 +1,163 @@
+"""What every mode is made of: a stored row type, a per-seed run, an aggregation into records, and columns.
+
+A mode (:class:`Mode`) says what one unit of a sweep measures. The sweep runs
+its :attr:`Mode.run` per (task, recognizer, seed); the store keeps its rows in
+a table of its own; its :attr:`Mode.aggregate` turns rows into across-seed
+records; reports show those records with its :attr:`Mode.columns`. A new mode
+is one module defining these and one line in :data:`grail_bench.harness.modes.MODES`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
+
+from grail_bench.core.errors import UserError
+from grail_bench.core.trajectory import Demos
+
+if TYPE_CHECKING:
+    from grail_bench.harness.planning import Planned
+    from grail_bench.recognizers.contract import FitReport
+    from grail_bench.task import GRTask
+    from grail_bench.task.observation import ObservationSpec
+
+
+@dataclass(frozen=True)
+class Run:
+    """What every stored row is about: one recognizer (its scorer and configuration) on one task and seed."""
+
+    task: str
+    recognizer: str
+    scorer: str
+    config_hash: str
+    seed: int
+
+
+@dataclass(frozen=True, kw_only=True)
+class Record:
+    """What every across-seed record shares: the run it aggregates and how many seeds.
+
+    Attributes:
+        task, recognizer, scorer, protocol, config_hash: What was run.
+        n_seeds: Seeds aggregated; ``seeds`` lists them.
+        fit_seconds_per_goal: Mean training seconds per goal.
+        task_params: The regime and env parameters the runs used.
+        recognizer_config: The recognizer's configuration.
+    """
+
+    task: str
+    recognizer: str
+    scorer: str
+    protocol: str
+    config_hash: str
+    n_seeds: int
+    seeds: list[int]
+    fit_seconds_per_goal: float
+    task_params: dict[str, Any] = field(default_factory=dict)
+    recognizer_config: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The record as JSON-able plain data (the ``--json`` format)."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of a mode's table: its header, a cell's text and the value it sorts by."""
+
+    header: str
+    text: Callable[[Any], str]
+    value: Callable[[Any], Any]
+
+
+def label(r: Record) -> str:
+    """``recognizer/scorer``."""
+    return f"{r.recognizer}/{r.scorer}"
+
+
+def interval(key: str, percent: bool = False) -> Callable[[Any], str]:
+    """A column text: ``mean [low, high]`` of a record's metric, the interval clipped to [0, 1]."""
+    fmt = "{:.0%}" if percent else "{:.2f}"
+
+    def text(record: Any) -> str:
+        mean, low, high = (getattr(record, f"{key}_{part}") for part in ("mean", "ci95_low", "ci95_high"))
+        return f"{fmt.format(mean)} [{fmt.format(max(low, 0.0))}, {fmt.format(min(high, 1.0))}]"
+
+    return text
+
+
+LEAD = (Column("task", lambda r: r.task.removeprefix("GRAIL/"), lambda r: r.task),
+        Column("protocol", lambda r: r.protocol, lambda r: r.protocol))
+WHO = (Column("recognizer/scorer", label, label), Column("seeds", lambda r: str(r.n_seeds), lambda r: r.n_seeds))
+
+
+@dataclass(frozen=True)
+class SeedRun:
+    """Everything one unit's run needs.
+
+    Attributes:
+        task: The task (with the run's parameters).
+        planned: The recognizer, as planning checked it.
+        seed: The seed.
+        observation: How test demonstrations are observed (protocol, rounding, levels).
+        versions: JSON of the package versions, stored with each row.
+        demos: The seed's demonstrations.
+    """
+
+    task: GRTask
+    planned: Planned
+    seed: int
+    observation: ObservationSpec
+    versions: str
+    demos: Demos
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One kind of run (see the module docstring).
+
+    Attributes:
+        name: As the CLI and profiles name it (``offline``, ``online``, ``open-set``).
+        row: The stored row type (a :class:`Run` subclass).
+        table: The store's table of these rows.
+        key: The row fields that identify a row (the table's primary key).
+        run: ``run(SeedRun) -> (rows, fit report)``.
+        aggregate: ``aggregate(rows) -> records`` across seeds.
+        columns: How a table of its records is shown.
+        title: A table's title.
+        intro: One paragraph saying what the table shows.
+        takes_levels: Whether units are scored at observability levels (online: every prefix instead).
+        min_goals: Fewest candidate goals a task needs.
+        held_out_goals: Goals a unit leaves out of the fit (open set: one).
+    """
+
+    name: str
+    row: type
+    table: str
+    key: tuple[str, ...]
+    run: Callable[[SeedRun], tuple[list[Any], FitReport | None]]
+    aggregate: Callable[[Iterable[Any]], list[Any]]
+    columns: Sequence[Column]
+    title: str
+    intro: str
+    takes_levels: bool = True
+    min_goals: int = 2
+    held_out_goals: int = 0
+
+    def check(self, task: GRTask, observation: ObservationSpec) -> None:
+        """Refuse a task or observation this mode cannot run.
+
+        Raises:
+            UserError: In one line, saying why.
+        """
+        if self.takes_levels and not observation.levels:
+            raise UserError(f"{self.name} runs score at observability levels; give at least one")
+        if not self.takes_levels and observation.levels:
+            raise UserError(f"{self.name} mode scores every prefix; it takes no observability levels")
+        if len(task.goals) < self.min_goals:
+            raise UserError(f"{self.name} mode holds {self.held_out_goals} goal(s) out and needs at least "
+                            f"{self.min_goals} candidate goals; {task.id} has {len(task.goals)}")
+
+    def goals_fitted(self, task: GRTask) -> int:
+        """Goal models one unit of this mode fits on ``task``."""
+        return len(task.goals) - self.held_out_goals

@@ -1,0 +1,170 @@
+"""Offline mode, the paper's protocol: each test demonstration observed once per level, its goal predicted.
+
+Per seed: fit on the training demonstrations, observe every test
+demonstration at each level (protocol and rounding of the run's
+:class:`~grail_bench.task.observation.ObservationSpec`), score with each
+scorer, and store accuracy, macro precision, recall and F1, ties, ranking
+metrics and timings (:class:`ResultRow`). Across seeds: mean, std, a 95 %
+t-interval and the IQM (:class:`OfflineRecord`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Iterable
+
+import numpy as np
+
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun
+from grail_bench.harness.planning import check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.recognizers.contract import FitReport
+from grail_bench.stats import metrics, robust
+
+
+@dataclass(frozen=True)
+class ResultRow(Run):
+    """Metrics of one recognizer on one task, seed and observability level."""
+
+    observability: float
+    protocol: str
+    accuracy: float
+    precision: float
+    recall: float
+    f1: float
+    n_observations: int
+    n_ties: int
+    fit_seconds_per_goal: float
+    score_us_per_observation: float
+    config: str
+    versions: str
+    brier: float | None = None
+    nll: float | None = None
+    provenance: str | None = None  # JSON of grail_bench.core.provenance.stamp(); None for rows stored before it
+    top2: float | None = None  # share of observations whose true goal ranks in the top 2 (None: stored before)
+    mean_rank: float | None = None  # mean rank of the true goal, 1 = best (None: stored before)
+
+
+@dataclass(frozen=True, kw_only=True)
+class OfflineRecord(Record):
+    """One configuration at one level across seeds (the ``--json`` format of offline runs)."""
+
+    observability: float
+    f1_mean: float
+    f1_std: float
+    f1_ci95_low: float
+    f1_ci95_high: float
+    f1_iqm: float
+    f1_values: tuple[float, ...]
+    accuracy_mean: float
+    precision_mean: float
+    recall_mean: float
+    score_us_per_observation: float
+    tie_rate: float
+    brier_mean: float | None = None
+    nll_mean: float | None = None
+    top2_mean: float | None = None
+    mean_rank_mean: float | None = None
+
+
+def run(job: SeedRun) -> tuple[list[ResultRow], FitReport | None]:
+    """Fit one recognizer on one seed's training demos, then score every level with every scorer.
+
+    The recognizer never sees the true goal: it gets the training demos per
+    goal, an env factory, and observations stripped of infos, scored in a
+    seeded random order across goals. Each (seed, level, protocol) cell draws
+    its observations from its own random stream, so the rows do not depend on
+    which other levels run in the same call. With a scorer that yields a
+    posterior (``loglik``), its Brier score and NLL are recorded too.
+
+    Returns:
+        The rows (one per level and scorer) and the recognizer's fit report.
+    """
+    task, planned, spec = job.task, job.planned, job.observation
+    train, test = task.split(job.demos)
+    fitted = fit_recognizer(task, planned, job.seed, train)
+    labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
+    rows = []
+    for level in spec.levels:
+        rng = spec.rng(job.seed, level)
+        order = rng.permutation(len(labelled))
+        observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
+        for scorer, score_arg, posterior in zip(planned.scorers, planned.score_args, planned.posterior):
+            y_true, y_pred, ties, elapsed_ns, brier, nll, ranks, top2 = [], [], 0, 0, [], [], [], []
+            for label, observed in observations:
+                t0 = time.perf_counter_ns()
+                scores = fitted.recognizer.score(observed, score_arg)
+                elapsed_ns += time.perf_counter_ns() - t0
+                values = check_scores(planned.name, scores, task.goals)
+                pred, tied = metrics.predict(values)
+                y_true.append(label)
+                y_pred.append(pred)
+                ties += tied
+                rank, in_top2 = metrics.ranking(values, label)
+                ranks.append(rank)
+                top2.append(in_top2)
+                if posterior:
+                    b, n = metrics.calibration(values, len(observed.acts), label)
+                    brier.append(b)
+                    nll.append(n)
+            m = metrics.classification(y_true, y_pred, len(task.goals))
+            rows.append(ResultRow(
+                task=task.id, recognizer=planned.name, scorer=scorer, config_hash=planned.config_hash,
+                seed=job.seed, observability=level, protocol=spec.label, n_observations=len(y_true), n_ties=ties,
+                fit_seconds_per_goal=fitted.seconds_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
+                config=planned.config, versions=job.versions,
+                brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None,
+                top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)), **m,
+            ))
+    return rows, fitted.report
+
+
+def _mean_or_none(values: list[float | None]) -> float | None:
+    present = [v for v in values if v is not None]
+    return float(np.mean(present)) if present else None
+
+
+def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
+    """Across-seed records, one per configuration and level, sorted by task, recognizer, scorer, protocol, level."""
+    groups: dict[tuple, list[ResultRow]] = {}
+    for r in rows:
+        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability), []).append(r)
+    records = []
+    for (task, rec, scorer, chash, protocol, level), group in groups.items():
+        group.sort(key=lambda r: r.seed)
+        f1 = metrics.summarize([r.f1 for r in group])
+        n_obs = sum(r.n_observations for r in group)
+        records.append(OfflineRecord(
+            task=task, recognizer=rec, scorer=scorer, protocol=protocol, config_hash=chash, n_seeds=len(group),
+            seeds=[r.seed for r in group],
+            fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
+            task_params=task_params(group[0].config), recognizer_config=recognizer_config(group[0].config),
+            observability=level, f1_mean=f1["mean"], f1_std=f1["std"], f1_ci95_low=f1["ci_low"],
+            f1_ci95_high=f1["ci_high"], f1_iqm=robust.iqm([r.f1 for r in group]),
+            f1_values=tuple(r.f1 for r in group),
+            accuracy_mean=float(np.mean([r.accuracy for r in group])),
+            precision_mean=float(np.mean([r.precision for r in group])),
+            recall_mean=float(np.mean([r.recall for r in group])),
+            score_us_per_observation=float(np.mean([r.score_us_per_observation for r in group])),
+            tie_rate=sum(r.n_ties for r in group) / n_obs if n_obs else 0.0,
+            brier_mean=_mean_or_none([r.brier for r in group]), nll_mean=_mean_or_none([r.nll for r in group]),
+            top2_mean=_mean_or_none([r.top2 for r in group]),
+            mean_rank_mean=_mean_or_none([r.mean_rank for r in group]),
+        ))
+    return sorted(records, key=lambda r: (r.task, r.recognizer, r.scorer, r.protocol, r.observability))
+
+
+COLUMNS = LEAD + (Column("obs", lambda r: f"{r.observability:.0%}", lambda r: r.observability),) + WHO + (
+    Column("F1", lambda r: f"{r.f1_mean:.2f} ± {r.f1_std:.2f}", lambda r: r.f1_mean),
+    Column("accuracy", lambda r: f"{r.accuracy_mean:.2f}", lambda r: r.accuracy_mean),
+    Column("fit s/goal", lambda r: f"{r.fit_seconds_per_goal:.2f}", lambda r: r.fit_seconds_per_goal),
+    Column("µs / observation", lambda r: f"{r.score_us_per_observation:.0f}", lambda r: r.score_us_per_observation),
+)
+
+MODE = Mode(
+    name="offline", row=ResultRow, table="results",
+    key=("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol"),
+    run=run, aggregate=aggregate, columns=COLUMNS,
+    title="goal recognition (the paper's protocol)",
+    intro="Mean ± std over seeds of macro F1; each test demonstration observed once per level.",
+)

@@ -1,0 +1,272 @@
+"""Online recognition: every prefix of a test observation scored, and when the prediction settles.
+
+An online observer sees the steps of the protocol's full observation (the path
+up to the goal for ``subset`` and ``prefix``, the padded episode for the
+``horizon-*`` protocols) one at a time. After each step ``k = 1..T`` the
+recognizer's prediction is recorded; per trajectory that gives
+
+* the **convergence point**: the observed fraction ``k* / T`` from which every
+  later prediction is correct (1.0, flagged as *never*, when the last one is
+  wrong);
+* the **step accuracy**: the share of the ``T`` predictions that are correct;
+
+and over the test set, the **F1 curve**: macro F1 when every trajectory is
+observed up to ``k = n_observed(p, T)`` steps, as the offline ``prefix``
+protocol observes it at level ``p``. Its area over ``p`` in (0, 1] is exact:
+the curve is a step function with a breakpoint at every ``j / T``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from grail_bench.core.trajectory import Goal
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, interval
+from grail_bench.harness.planning import check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.recognizers.contract import Capabilities, FitReport, RecognizerError
+from grail_bench.stats import metrics
+
+if TYPE_CHECKING:
+    from imitation.data.types import Trajectory
+
+#: Observed fractions the stored curves are sampled at.
+GRID = tuple(round(0.05 * i, 2) for i in range(1, 21))
+
+
+@dataclass(frozen=True)
+class OnlineRow(Run):
+    """Online recognition of one recognizer on one task and seed: every prefix of every test observation scored.
+
+    Per test trajectory the harness records the convergence point (the
+    observed fraction from which the prediction stays correct; 1.0 when it is
+    not correct at the end) and the share of prefixes predicted correctly;
+    the row holds their means over trajectories.
+    """
+
+    protocol: str
+    n_trajectories: int
+    convergence: float  # mean convergence point, a fraction of the observation (1.0 for never)
+    never: float  # share of trajectories whose prediction is wrong after the last step
+    step_accuracy: float  # mean share of prefixes predicted correctly
+    f1_auc: float  # area under macro F1 against the observed fraction, over all prefixes
+    curve: str  # JSON: {"fractions": [...], "accuracy": [...], "f1": [...]} on a fixed grid
+    fit_seconds_per_goal: float
+    score_us_per_prefix: float
+    config: str
+    versions: str
+    provenance: str | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class OnlineRecord(Record):
+    """One configuration's online runs across seeds: means and 95 % intervals, and the mean curves with bands."""
+
+    convergence_mean: float
+    convergence_ci95_low: float
+    convergence_ci95_high: float
+    step_accuracy_mean: float
+    step_accuracy_ci95_low: float
+    step_accuracy_ci95_high: float
+    f1_auc_mean: float
+    f1_auc_ci95_low: float
+    f1_auc_ci95_high: float
+    never_mean: float
+    fractions: list[float]
+    accuracy_curve: list[float]
+    accuracy_curve_low: list[float]
+    accuracy_curve_high: list[float]
+    f1_curve: list[float]
+    f1_curve_low: list[float]
+    f1_curve_high: list[float]
+    score_us_per_prefix: float
+
+
+def head(observed: Trajectory, k: int) -> Trajectory:
+    """The first ``k`` pairs of an observation (and the state after the ``k``-th)."""
+    from imitation.data.types import Trajectory
+
+    return Trajectory(obs=observed.obs[: k + 1], acts=observed.acts[:k], infos=None, terminal=False)
+
+
+def prefix_scores(recognizer: Capabilities, observed: Trajectory, scorer: str | None,
+                  goals: Sequence[Goal]) -> np.ndarray:
+    """Scores of every prefix of ``observed``, ``(T, K)``, row ``k - 1`` for the first ``k`` pairs.
+
+    Recognizers with ``score_prefixes`` (the built-in ones) score all prefixes
+    from one pass; any other recognizer is asked to ``score`` each prefix.
+
+    Raises:
+        RecognizerError: Unless every prefix gets one finite score per goal.
+    """
+    n, name = len(observed.acts), recognizer.name
+    scores = recognizer.score_prefixes(observed, scorer)
+    if scores is None:
+        return np.stack([check_scores(name, recognizer.score(head(observed, k), scorer), goals)
+                         for k in range(1, n + 1)])
+    if not isinstance(scores, Mapping) or {tuple(g) for g in scores} != set(goals):
+        raise RecognizerError(f"recognizer {name!r} must return prefix scores for every candidate goal {list(goals)}")
+    out = np.stack([np.asarray(scores[g], dtype=float) for g in goals], axis=1)
+    if out.shape != (n, len(goals)) or not np.all(np.isfinite(out)):
+        raise RecognizerError(f"recognizer {name!r} returned prefix scores of shape {out.shape} or non-finite "
+                              f"values; expected {(n, len(goals))} finite scores")
+    return out
+
+
+def convergence(correct: Sequence[bool]) -> tuple[float, bool]:
+    """When a sequence of per-prefix predictions settles on the truth.
+
+    Args:
+        correct: Whether the prediction after each of ``T`` steps was right.
+
+    Returns:
+        ``(k* / T, converged)``: ``k*`` is the first step from which every
+        prediction is right; ``(1.0, False)`` if the last one is wrong.
+    """
+    ok = np.asarray(correct, dtype=bool)
+    if len(ok) == 0:
+        raise ValueError("convergence needs at least one prediction")
+    if not ok[-1]:
+        return 1.0, False
+    wrong = np.flatnonzero(~ok)
+    first = int(wrong[-1]) + 2 if len(wrong) else 1
+    return first / len(ok), True
+
+
+def observed_steps(fractions: np.ndarray, lengths: np.ndarray, rounding: str = "ceil") -> np.ndarray:
+    """``(F, N)`` steps observed at each fraction for trajectories of each length (vectorised ``n_observed``)."""
+    raw = np.round(fractions[:, None] * lengths[None, :], 9)
+    k = np.ceil(raw) if rounding == "ceil" else np.floor(raw)
+    return np.clip(k, 1, lengths[None, :]).astype(np.int64)
+
+
+def curves(predictions: Sequence[np.ndarray], labels: Sequence[int], n_classes: int, fractions: Iterable[float],
+           rounding: str = "ceil") -> tuple[np.ndarray, np.ndarray]:
+    """Accuracy and macro F1 at each observed fraction, over trajectories with per-prefix ``predictions``."""
+    fractions = np.asarray(list(fractions), dtype=float)
+    lengths = np.array([len(p) for p in predictions])
+    steps = observed_steps(fractions, lengths, rounding)
+    y_true = np.asarray(labels)
+    accuracy, f1 = [], []
+    for row in steps:
+        y_pred = np.array([p[k - 1] for p, k in zip(predictions, row)])
+        accuracy.append(float(np.mean(y_pred == y_true)))
+        f1.append(metrics.macro_f1(y_true, y_pred, n_classes))
+    return np.array(accuracy), np.array(f1)
+
+
+def f1_auc(predictions: Sequence[np.ndarray], labels: Sequence[int], n_classes: int, rounding: str = "ceil") -> float:
+    """Exact area under macro F1 against the observed fraction in (0, 1].
+
+    With ``ceil`` rounding the prediction of a ``T``-step trajectory is
+    constant on each ``((j - 1) / T, j / T]``, so F1 is constant between
+    consecutive breakpoints ``j / T`` and its value at the right end holds on
+    the whole interval (``floor``: at the left end).
+    """
+    ends = np.unique(np.concatenate([np.arange(1, len(p) + 1) / len(p) for p in predictions] + [[0.0, 1.0]]))
+    widths = np.diff(ends)
+    where = ends[1:] if rounding == "ceil" else ends[:-1]
+    _, f1 = curves(predictions, labels, n_classes, np.maximum(where, 1e-12), rounding)
+    return float(np.sum(widths * f1))
+
+
+def online_metrics(predictions: Sequence[np.ndarray], labels: Sequence[int], n_classes: int,
+                   rounding: str = "ceil") -> dict[str, Any]:
+    """Every online metric of a test set: means of the per-trajectory ones, the F1 area and the curves."""
+    settled = [convergence(p == y) for p, y in zip(predictions, labels)]
+    accuracy, f1 = curves(predictions, labels, n_classes, GRID, rounding)
+    return {
+        "convergence": float(np.mean([c for c, _ in settled])),
+        "never": float(np.mean([not ok for _, ok in settled])),
+        "step_accuracy": float(np.mean([np.mean(p == y) for p, y in zip(predictions, labels)])),
+        "f1_auc": f1_auc(predictions, labels, n_classes, rounding),
+        "curve": json.dumps({"fractions": list(GRID), "accuracy": accuracy.round(6).tolist(),
+                             "f1": f1.round(6).tolist()}),
+    }
+
+
+def run(job: SeedRun) -> tuple[list[OnlineRow], FitReport | None]:
+    """Fit one recognizer on one seed's training demos, then score every prefix of every test observation.
+
+    The observation of a test demonstration is the protocol's at level 1.0
+    (drawn from its own random stream), revealed one step at a time.
+
+    Returns:
+        One row per scorer, and the recognizer's fit report.
+    """
+    task, planned, spec = job.task, job.planned, job.observation
+    train, test = task.split(job.demos)
+    fitted = fit_recognizer(task, planned, job.seed, train)
+    rng = spec.rng(job.seed, 1.0, "online")
+    labelled = [(i, spec.observe(traj, 1.0, rng)) for i, goal in enumerate(task.goals) for traj in test[goal]]
+    labels = [i for i, _ in labelled]
+    rows = []
+    for scorer, score_arg in zip(planned.scorers, planned.score_args):
+        start = time.perf_counter_ns()
+        predictions = [np.argmax(prefix_scores(fitted.recognizer, observed, score_arg, task.goals), axis=1)
+                       for _, observed in labelled]
+        elapsed_us = (time.perf_counter_ns() - start) / 1e3
+        n_prefixes = sum(len(p) for p in predictions)
+        rows.append(OnlineRow(
+            task=task.id, recognizer=planned.name, scorer=scorer, config_hash=planned.config_hash, seed=job.seed,
+            protocol=spec.label, n_trajectories=len(labelled), fit_seconds_per_goal=fitted.seconds_per_goal,
+            score_us_per_prefix=elapsed_us / n_prefixes, config=planned.config, versions=job.versions,
+            **online_metrics(predictions, labels, len(task.goals), spec.rounding),
+        ))
+    return rows, fitted.report
+
+
+def aggregate(rows: Iterable[OnlineRow]) -> list[OnlineRecord]:
+    """Across-seed online records, one per (task, recognizer, scorer, configuration, protocol).
+
+    Each has the mean and 95 % interval of the convergence point, step
+    accuracy and F1 area, the share never converging, and the mean accuracy
+    and F1 curves with their per-fraction 95 % intervals (the plot's bands).
+    """
+    groups: dict[tuple, list[OnlineRow]] = {}
+    for r in rows:
+        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol), []).append(r)
+    records = []
+    for (task, rec, scorer, chash, protocol), group in sorted(groups.items()):
+        group.sort(key=lambda r: r.seed)
+        fields: dict[str, Any] = {}
+        for key in ("convergence", "step_accuracy", "f1_auc"):
+            fields |= metrics.summary_fields(key, [getattr(r, key) for r in group])
+        parsed = [json.loads(r.curve) for r in group]
+        for key in ("accuracy", "f1"):
+            per_fraction = [metrics.summarize(v) for v in zip(*(c[key] for c in parsed))]
+            fields[f"{key}_curve"] = [s["mean"] for s in per_fraction]
+            fields[f"{key}_curve_low"] = [s["ci_low"] for s in per_fraction]
+            fields[f"{key}_curve_high"] = [s["ci_high"] for s in per_fraction]
+        records.append(OnlineRecord(
+            task=task, recognizer=rec, scorer=scorer, protocol=protocol, config_hash=chash, n_seeds=len(group),
+            seeds=[r.seed for r in group], fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
+            task_params=task_params(group[0].config), recognizer_config=recognizer_config(group[0].config),
+            never_mean=float(np.mean([r.never for r in group])), fractions=parsed[0]["fractions"],
+            score_us_per_prefix=float(np.mean([r.score_us_per_prefix for r in group])), **fields,
+        ))
+    return records
+
+
+COLUMNS = LEAD + WHO + (
+    Column("convergence (of T)", interval("convergence", percent=True), lambda r: r.convergence_mean),
+    Column("never", lambda r: f"{r.never_mean:.0%}", lambda r: r.never_mean),
+    Column("step accuracy", interval("step_accuracy"), lambda r: r.step_accuracy_mean),
+    Column("F1 AUC", interval("f1_auc"), lambda r: r.f1_auc_mean),
+    Column("µs / prefix", lambda r: f"{r.score_us_per_prefix:.1f}", lambda r: r.score_us_per_prefix),
+)
+
+MODE = Mode(
+    name="online", row=OnlineRow, table="online",
+    key=("task", "recognizer", "scorer", "config_hash", "seed", "protocol"),
+    run=run, aggregate=aggregate, columns=COLUMNS,
+    title="online recognition (every prefix scored)",
+    intro=("Mean over seeds [95 % interval]. Convergence: the observed fraction from which the prediction "
+           "stays correct (100 % when it is wrong at the end, counted in 'never'). Step accuracy: the share "
+           "of prefixes predicted correctly. F1 AUC: area under macro F1 against the observed fraction."),
+    takes_levels=False,
+)

@@ -1,0 +1,212 @@
+"""Open-set recognition: one goal held out of the fit, its observations to be answered "none of these".
+
+Per seed ``s`` the held-out goal is ``goals[s % K]``, so a run over ``K``
+seeds holds out each goal in turn. The recognizer is fitted on the training
+demonstrations of the other ``K - 1`` goals and scores test observations of
+all ``K``. The harness, not the recognizer, decides "none of these", with one
+rule for every recognizer:
+
+    answer "none of these" when the best score is below the ``alpha``-quantile
+    of the best scores of the training demonstrations' observations (drawn
+    under the same protocol and level).
+
+The threshold is therefore calibrated on training demonstrations only (with
+``alpha = 0.05``, 5 % of them would be rejected); test observations are never
+seen when calibrating. Training demonstrations fit their own goal's policy
+better than unseen ones do, so the rule errs towards false alarms; the AUROC
+of known versus unknown (observations ranked by their best score) does not
+depend on the threshold at all.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+from grail_bench.core.errors import UserError
+from grail_bench.core.trajectory import Demos, Goal
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, interval
+from grail_bench.harness.planning import check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.recognizers.contract import Capabilities, FitReport
+from grail_bench.stats import metrics
+from grail_bench.task.observation import ObservationSpec
+
+#: Share of training observations the calibrated rule would answer "none of these".
+ALPHA = 0.05
+
+
+@dataclass(frozen=True)
+class OpenSetRow(Run):
+    """Open-set recognition of one recognizer on one task, seed and level: one goal held out of the fit.
+
+    Observations of the held-out goal should be answered "none of these";
+    the decision rule was calibrated on the training demonstrations only.
+    """
+
+    observability: float
+    protocol: str
+    held_out: str  # JSON list: the goal the recognizer was not fitted on
+    auroc: float  # known versus unknown, ranking observations by their best score
+    f1: float  # macro F1 over the known goals and the extra class "none of these"
+    accuracy: float
+    unknown_recall: float  # share of the held-out goal's observations answered "none of these"
+    false_alarm: float  # share of known goals' observations answered "none of these"
+    threshold: float  # the calibrated rule's threshold on the best score
+    n_observations: int
+    fit_seconds_per_goal: float
+    config: str
+    versions: str
+    provenance: str | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class OpenSetRecord(Record):
+    """One configuration's open-set runs at one level across seeds."""
+
+    observability: float
+    held_out: list[list[float]]
+    auroc_mean: float
+    auroc_ci95_low: float
+    auroc_ci95_high: float
+    f1_mean: float
+    f1_ci95_low: float
+    f1_ci95_high: float
+    accuracy_mean: float
+    unknown_recall_mean: float
+    false_alarm_mean: float
+
+
+def held_out_goal(goals: Sequence[Goal], seed: int) -> Goal:
+    """The goal seed ``seed`` holds out: each goal in turn across seeds.
+
+    Raises:
+        UserError: With fewer than 3 goals (one must stay out, two must remain to recognise).
+    """
+    if len(goals) < 3:
+        raise UserError(f"open set holds one goal out and needs at least 3 candidate goals; this task has "
+                        f"{len(goals)}")
+    return tuple(goals[seed % len(goals)])
+
+
+def best_scores(recognizer: Capabilities, observations: Sequence[Any], scorer: str | None,
+                goals: Sequence[Goal]) -> tuple[np.ndarray, np.ndarray]:
+    """``(best score, index of the best goal)`` of each observation, ties to the lowest index."""
+    scores = np.stack([check_scores(recognizer.name, recognizer.score(o, scorer), goals) for o in observations])
+    return scores.max(axis=1), scores.argmax(axis=1)
+
+
+def calibrate(recognizer: Capabilities, train: Demos, level: float, observation: ObservationSpec,
+              rng: np.random.Generator, scorer: str | None, alpha: float = ALPHA) -> float:
+    """The rule's threshold: the ``alpha``-quantile of the best scores of training observations.
+
+    Args:
+        recognizer: Fitted on ``train``.
+        train: The training demonstrations of the known goals, the only data
+            the rule sees.
+        level: Observability level; each training demonstration is observed
+            as a test one would be, under the run's protocol and rounding.
+        rng: The calibration's own random stream.
+    """
+    observations = [observation.observe(traj, level, rng) for trajs in train.values() for traj in trajs]
+    best, _ = best_scores(recognizer, observations, scorer, list(train))
+    return float(np.quantile(best, alpha))
+
+
+def open_set_metrics(best: np.ndarray, argmax: np.ndarray, labels: np.ndarray, threshold: float,
+                     n_known: int) -> dict[str, float]:
+    """Metrics with the extra class ``n_known`` ("none of these") that the held-out goal's observations carry.
+
+    Args:
+        best: Best score of each observation.
+        argmax: Index (among the known goals) of its best score.
+        labels: True class: a known goal's index, or ``n_known``.
+        threshold: Below it, the answer is "none of these".
+    """
+    from sklearn.metrics import roc_auc_score  # imported here: scikit-learn brings torch with it
+
+    unknown = labels == n_known
+    predicted = np.where(best < threshold, n_known, argmax)
+    m = metrics.classification(labels.tolist(), predicted.tolist(), n_known + 1)
+    return {
+        "auroc": float(roc_auc_score(unknown, -best)),
+        "f1": m["f1"], "accuracy": m["accuracy"],
+        "unknown_recall": float(np.mean(predicted[unknown] == n_known)),
+        "false_alarm": float(np.mean(predicted[~unknown] == n_known)),
+    }
+
+
+def run(job: SeedRun) -> tuple[list[OpenSetRow], FitReport | None]:
+    """Hold out seed ``seed``'s goal, fit on the others, calibrate, and score test observations of all goals.
+
+    Returns:
+        One row per level and scorer, and the recognizer's fit report.
+    """
+    task, planned, spec, seed = job.task, job.planned, job.observation, job.seed
+    hidden = held_out_goal(task.goals, seed)
+    known = [g for g in task.goals if g != hidden]
+    train, test = task.split(job.demos)
+    known_train = {g: train[g] for g in known}
+    fitted = fit_recognizer(task, planned, seed, known_train)
+    labelled = [(known.index(g) if g != hidden else len(known), traj) for g in task.goals for traj in test[g]]
+    labels = np.array([y for y, _ in labelled])
+    rows = []
+    for level in spec.levels:
+        rng = spec.rng(seed, level, "open-set")
+        observations = [spec.observe(traj, level, rng) for _, traj in labelled]
+        for scorer, score_arg in zip(planned.scorers, planned.score_args):
+            calibration_rng = spec.rng(seed, level, "open-set-calibration")  # the same draws per scorer
+            threshold = calibrate(fitted.recognizer, known_train, level, spec, calibration_rng, score_arg)
+            best, argmax = best_scores(fitted.recognizer, observations, score_arg, known)
+            rows.append(OpenSetRow(
+                task=task.id, recognizer=planned.name, scorer=scorer, config_hash=planned.config_hash, seed=seed,
+                observability=level, protocol=spec.label, held_out=json.dumps(list(hidden)), threshold=threshold,
+                n_observations=len(observations), fit_seconds_per_goal=fitted.seconds_per_goal,
+                config=planned.config, versions=job.versions,
+                **open_set_metrics(best, argmax, labels, threshold, len(known)),
+            ))
+    return rows, fitted.report
+
+
+def aggregate(rows: Iterable[OpenSetRow]) -> list[OpenSetRecord]:
+    """Across-seed open-set records, one per (task, recognizer, scorer, configuration, protocol, level)."""
+    groups: dict[tuple, list[OpenSetRow]] = {}
+    for r in rows:
+        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability), []).append(r)
+    records = []
+    for (task, rec, scorer, chash, protocol, level), group in sorted(groups.items()):
+        group.sort(key=lambda r: r.seed)
+        fields: dict[str, Any] = {}
+        for key in ("auroc", "f1"):
+            fields |= metrics.summary_fields(key, [getattr(r, key) for r in group])
+        for key in ("accuracy", "unknown_recall", "false_alarm"):
+            fields[f"{key}_mean"] = float(np.mean([getattr(r, key) for r in group]))
+        records.append(OpenSetRecord(
+            task=task, recognizer=rec, scorer=scorer, protocol=protocol, config_hash=chash, n_seeds=len(group),
+            seeds=[r.seed for r in group], fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
+            task_params=task_params(group[0].config), recognizer_config=recognizer_config(group[0].config),
+            observability=level, held_out=[json.loads(r.held_out) for r in group], **fields,
+        ))
+    return records
+
+
+COLUMNS = LEAD + (Column("obs", lambda r: f"{r.observability:.0%}", lambda r: r.observability),) + WHO + (
+    Column("AUROC", interval("auroc"), lambda r: r.auroc_mean),
+    Column("F1 (+ none)", interval("f1"), lambda r: r.f1_mean),
+    Column("accuracy", lambda r: f"{r.accuracy_mean:.2f}", lambda r: r.accuracy_mean),
+    Column("unknown found", lambda r: f"{r.unknown_recall_mean:.0%}", lambda r: r.unknown_recall_mean),
+    Column("false alarms", lambda r: f"{r.false_alarm_mean:.0%}", lambda r: r.false_alarm_mean),
+)
+
+MODE = Mode(
+    name="open-set", row=OpenSetRow, table="open_set",
+    key=("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol"),
+    run=run, aggregate=aggregate, columns=COLUMNS,
+    title="open set (one goal held out per seed)",
+    intro=("Mean over seeds [95 % interval]. AUROC: known against held-out goal, observations ranked by "
+           "their best score. F1 over the known goals plus 'none of these', answered when the best score "
+           "is below the 5 % quantile of the training demonstrations' best scores."),
+    min_goals=3, held_out_goals=1,
+)

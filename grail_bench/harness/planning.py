@@ -1,0 +1,162 @@
+"""Planning a run: recognizers checked, identified and hashed once; fitting them; checking what they return.
+
+Everything a user can get wrong about a recognizer (an unknown name or
+hyperparameter, a value of the wrong type, a scorer it cannot serve) is
+refused here, before any unit runs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from grail_bench.core.trajectory import Demos, Goal
+from grail_bench.recognizers.contract import Capabilities, FitReport, RecognizerError
+from grail_bench.recognizers.registry import build
+from grail_bench.recognizers.scoring import available_scorers, check_scorer, get_scorer
+from grail_bench.task import GRTask
+
+
+@dataclass(frozen=True)
+class RecognizerSpec:
+    """A recognizer name, its constructor config and the scorers to judge it with.
+
+    An empty ``scorers`` means the recognizer's own default scorer.
+    """
+
+    name: str
+    config: Mapping[str, Any] = field(default_factory=dict)
+    scorers: tuple[str, ...] = ()
+
+    @classmethod
+    def of(cls, item: str | RecognizerSpec | tuple[str, Mapping[str, Any]]) -> RecognizerSpec:
+        """A spec from a name, a ``(name, config)`` pair or a spec."""
+        if isinstance(item, RecognizerSpec):
+            return item
+        if isinstance(item, str):
+            return cls(item)
+        name, config = item
+        return cls(name, dict(config))
+
+
+@dataclass(frozen=True)
+class Planned:
+    """A recognizer as the run loop uses it: checked, identified and hashed once.
+
+    Attributes:
+        spec: What was asked for, its hyperparameters converted to their declared types.
+        scorers: Scorer labels the rows are stored under.
+        score_args: Per scorer, what ``score`` gets (``None`` for the recognizer's own scoring).
+        posterior: Per scorer, whether its scores give a posterior over goals.
+        config: JSON of the fitted configuration (recognizer and task parameters).
+        config_hash: Its hash, the store's key.
+    """
+
+    spec: RecognizerSpec
+    scorers: tuple[str, ...]
+    score_args: tuple[str | None, ...]
+    posterior: tuple[bool, ...]
+    config: str
+    config_hash: str
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+
+def config_hash(payload: dict[str, Any]) -> str:
+    """Short, stable hash of a JSON-able configuration (no git state involved)."""
+    text = json.dumps(payload, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
+    """Check a recognizer and its scorers against a task, and compute its identity.
+
+    The hash covers the fitted configuration (recognizer hyperparameters and
+    task parameters), not the scorer, which has its own column.
+
+    Raises:
+        grail_bench.core.errors.UserError: For unknown names, bad hyperparameters or
+            a scorer the recognizer cannot serve on this task.
+    """
+    caps = build(spec.name, dict(spec.config))
+    own = caps.default_scorer
+    scorers = tuple(spec.scorers) or (own,)
+    exposes = caps.exposes(action_space)
+    for name in scorers:
+        if name != own:
+            check_scorer(name, exposes, spec.name)
+            if not caps.takes_scorer:
+                raise RecognizerError(f"recognizer {spec.name!r} exposes policy outputs but its score() takes no "
+                                      "scorer argument")
+    registered = available_scorers()
+    config = {"recognizer": spec.name, "config": dict(caps.config),
+              "task": {"params": dict(task.params), "env": dict(task.env_params),
+                       "n_demos": task.n_demos, "n_train": task.n_train}}
+    return Planned(
+        spec=RecognizerSpec(spec.name, dict(caps.kwargs), scorers),
+        scorers=scorers, score_args=tuple(None if s == own else s for s in scorers),
+        posterior=tuple(s in registered and get_scorer(s).posterior for s in scorers),
+        config=json.dumps(config, sort_keys=True, default=str), config_hash=config_hash(config),
+    )
+
+
+def check_scores(name: str, scores: Any, goals: Sequence[Goal]) -> np.ndarray:
+    """A recognizer's ``{goal: score}`` as a ``(K,)`` array in the order of ``goals``.
+
+    Raises:
+        RecognizerError: Unless there is one finite score per goal.
+    """
+    if not isinstance(scores, Mapping) or {tuple(g) for g in scores} != set(goals):
+        raise RecognizerError(f"recognizer {name!r} must return one score per candidate goal {list(goals)}")
+    out = np.array([float(scores[g]) for g in goals])
+    if not np.all(np.isfinite(out)):
+        raise RecognizerError(f"recognizer {name!r} returned a non-finite score: {out.tolist()}")
+    return out
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """A recognizer fitted on one seed's training demonstrations.
+
+    Attributes:
+        recognizer: Its capabilities (what the harness scores through).
+        report: What the fit reported (None: it reported nothing).
+        seconds_per_goal: Training seconds per goal fitted (the report's, else the timed call's).
+    """
+
+    recognizer: Capabilities
+    report: FitReport | None
+    seconds_per_goal: float
+
+
+def fit_recognizer(task: GRTask, planned: Planned, seed: int, train: Demos) -> Fitted:
+    """A new recognizer of ``planned``, fitted on ``train`` (the goals it is to recognise)."""
+    caps = build(planned.spec.name, dict(planned.spec.config))
+    start = time.perf_counter()
+    report = caps.fit(train, task.env_factory(), seed, task.env_key)
+    seconds = report.train_seconds if report is not None else time.perf_counter() - start
+    return Fitted(caps, report, seconds / len(train))
+
+
+def task_params(config_json: str) -> dict[str, Any]:
+    """The regime and env parameters a row was run with (``{}`` for rows without them)."""
+    try:
+        task = json.loads(config_json).get("task", {})
+    except (ValueError, AttributeError):
+        return {}
+    return {**task.get("params", {}), **task.get("env", {})}
+
+
+def recognizer_config(config_json: str) -> dict[str, Any]:
+    """The recognizer configuration a row was run with (``{}`` for rows without it)."""
+    try:
+        return dict(json.loads(config_json).get("config", {}))
+    except (ValueError, AttributeError, TypeError):
+        return {}

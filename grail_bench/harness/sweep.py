@@ -1,0 +1,240 @@
+"""Sweeps: many (task, recognizer, seed) units, run by an executor, stored by the driver.
+
+A :class:`Unit` is one recognizer fitted on one seed of one task and scored at
+every level: the finest piece of work that shares a fit, so long GAIL fits
+balance across workers. Units are planned in this process (names, scorers,
+hyperparameter types, configuration hashes and output paths are checked
+before anything runs), shipped to the executor, and their rows come back here,
+where the driver alone writes them to the store as each unit finishes. A unit
+whose rows are all stored is not run again, so an interrupted sweep resumes
+where it stopped; rows are keyed, so nothing is stored twice.
+
+A request's mode (:data:`grail_bench.harness.modes.MODES`) says what a unit
+measures and which rows it stores.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from typing import Any, Mapping, Sequence
+
+from grail_bench.core.provenance import package_versions, stamp
+from grail_bench.harness.executors import Executor, SerialExecutor
+from grail_bench.harness.modes import Row, SeedRun, get_mode
+from grail_bench.harness.planning import Planned, RecognizerSpec, plan
+from grail_bench.harness.store import ResultsStore
+from grail_bench.task import GRTask, make_task
+from grail_bench.task.observation import ObservationSpec
+
+
+@dataclass(frozen=True)
+class Request:
+    """One task's share of a sweep: recognizers x seeds under one observation spec and mode.
+
+    Attributes:
+        task_id: A ``GRAIL/`` ID.
+        specs: The recognizers (with configs and scorers).
+        seeds: Seeds to run.
+        observation: Protocol, rounding and levels (online: no levels), resolved.
+        task_params: Task overrides, as ``gym.make`` takes them.
+        mode: ``offline``, ``online`` or ``open-set``.
+    """
+
+    task_id: str
+    specs: tuple[RecognizerSpec, ...]
+    seeds: tuple[int, ...]
+    observation: ObservationSpec
+    task_params: Mapping[str, Any] = field(default_factory=dict)
+    mode: str = "offline"
+
+    @property
+    def label(self) -> str:
+        """The protocol as stored (e.g. ``prefix+floor``)."""
+        return self.observation.label
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One recognizer, fitted on one seed of one task and scored at every level."""
+
+    task_id: str
+    task_params: str  # JSON, so units hash and pickle plainly
+    planned: Planned
+    seed: int
+    observation: ObservationSpec
+    goals: int  # goal models the unit fits
+    mode: str = "offline"
+
+    def describe(self) -> str:
+        return f"{self.task_id.removeprefix('GRAIL/')} {self.planned.name} seed {self.seed}"
+
+
+@dataclass(frozen=True)
+class UnitResult:
+    """What a worker sends back: the unit's rows and how its models were obtained."""
+
+    rows: list[Row]
+    trained: int  # models trained by this unit
+    reused: int  # models loaded from the cache
+
+
+@dataclass
+class SweepSummary:
+    """Counts of a sweep (models: one per goal, recognizer and seed).
+
+    Attributes:
+        units: Units in the sweep.
+        skipped: Units already in the store.
+        done: Units run and stored by this sweep.
+        rows: Rows stored by this sweep.
+        trained: Models trained.
+        reused: Models loaded from the model cache.
+        naive: Models a sweep without the cache would train for the units run.
+        seconds: Wall-clock time.
+    """
+
+    units: int = 0
+    skipped: int = 0
+    done: int = 0
+    rows: int = 0
+    trained: int = 0
+    reused: int = 0
+    naive: int = 0
+    seconds: float = 0.0
+
+
+class Interrupted(KeyboardInterrupt):
+    """A sweep stopped by Ctrl-C; the units that finished are stored.
+
+    Attributes:
+        summary: The sweep's counts when it stopped (``summary.done`` units kept).
+    """
+
+    def __init__(self, summary: SweepSummary) -> None:
+        super().__init__(f"interrupted; {summary.done} unit(s) of this run were kept in the store")
+        self.summary = summary
+
+
+@lru_cache(maxsize=4)
+def _task(task_id: str, task_params: str) -> GRTask:
+    return make_task(task_id, **json.loads(task_params))
+
+
+@lru_cache(maxsize=4)
+def _demos(task_id: str, task_params: str, seed: int):
+    """A seed's demonstrations, generated once per process for every recognizer run on them."""
+    return _task(task_id, task_params).generate_demos(seed)
+
+
+@lru_cache(maxsize=1)
+def _versions() -> str:
+    return package_versions()
+
+
+def run_unit(unit: Unit) -> UnitResult:
+    """Run one unit (in a worker or in this process); deterministic given the unit."""
+    from grail_bench.core.torchutil import single_thread  # here: planning and storing need no torch
+
+    job = SeedRun(task=_task(unit.task_id, unit.task_params), planned=unit.planned, seed=unit.seed,
+                  observation=unit.observation, versions=_versions(),
+                  demos=_demos(unit.task_id, unit.task_params, unit.seed))
+    with single_thread():  # as every worker does: the same arithmetic wherever a unit runs
+        rows, report = get_mode(unit.mode).run(job)
+    if report is None:  # a recognizer that reports nothing trained every goal
+        return UnitResult(rows, trained=unit.goals, reused=0)
+    return UnitResult(rows, trained=report.trained, reused=report.reused)
+
+
+def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], list[Unit], int]:
+    """Check a request and list its units not yet in ``store``.
+
+    Returns:
+        ``(planned recognizers, units to run, units already stored)``.
+
+    Raises:
+        grail_bench.core.errors.UserError: For unknown names, bad parameters or scorers, or a task or
+            observation the mode cannot run.
+    """
+    task = make_task(request.task_id, **dict(request.task_params))
+    mode = get_mode(request.mode)
+    mode.check(task, request.observation)
+    env = task.make_env()
+    action_space = env.action_space
+    env.close()
+    planned = [plan(task, spec, action_space) for spec in request.specs]
+    params = json.dumps(dict(request.task_params), sort_keys=True)
+    levels = request.observation.levels or (None,)  # an online row has no level
+    units, skipped = [], 0
+    for p in planned:
+        done = [store.completed(task.id, p.name, scorer, p.config_hash, request.label, mode) for scorer in p.scorers]
+        for seed in request.seeds:
+            if all((seed, lv) in d for lv in levels for d in done):
+                skipped += 1
+                continue
+            units.append(Unit(task.id, params, p, seed, request.observation, mode.goals_fitted(task), mode.name))
+    return planned, units, skipped
+
+
+def order_units(units: Sequence[Unit]) -> list[Unit]:
+    """Seed by seed, each task's recognizers together (a worker reuses the demonstrations it generated)."""
+    return sorted(units, key=lambda u: (u.seed, u.task_id, u.planned.name, u.mode))
+
+
+def plan_sweep(requests: Sequence[Request], store: ResultsStore) -> tuple[list[Unit], SweepSummary]:
+    """Plan every request (all are checked before any unit runs): the units to run, in order, and the counts."""
+    summary = SweepSummary()
+    units: list[Unit] = []
+    for request in requests:
+        _, todo, skipped = plan_request(request, store)
+        units += todo
+        summary.skipped += skipped
+    summary.units = len(units) + summary.skipped
+    summary.naive = sum(u.goals for u in units)
+    return order_units(units), summary
+
+
+def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Executor | None = None,
+              progress: bool = False, description: str = "sweep") -> SweepSummary:
+    """Plan every request, run the missing units on ``executor`` and store their rows.
+
+    Every request is checked before any unit runs. Rows are stored as each
+    unit finishes, so a crash, a lost worker or Ctrl-C loses only the units in
+    flight; each carries the sweep's provenance (command, commit, machine, date).
+
+    Raises:
+        grail_bench.core.errors.UserError: For a bad request (nothing runs).
+        grail_bench.harness.executors.WorkerLost: When a worker process dies.
+        Interrupted: On Ctrl-C, with the count of units kept.
+    """
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    executor = executor or SerialExecutor()
+    units, summary = plan_sweep(requests, store)
+    origin = stamp()
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+               TextColumn("eta"), TimeRemainingColumn())
+    start = time.perf_counter()
+    try:
+        with Progress(*columns, disable=not progress, transient=False) as bar:
+            job = bar.add_task(f"{description} ({executor.name}, {executor.workers} worker(s))", total=len(units))
+            for _, result in executor.map_unordered(run_unit, units):
+                summary.rows += store.add(replace(r, provenance=origin) for r in result.rows)
+                summary.done += 1
+                summary.trained += result.trained
+                summary.reused += result.reused
+                bar.advance(job)
+    except KeyboardInterrupt:
+        summary.seconds = time.perf_counter() - start
+        raise Interrupted(summary) from None
+    summary.seconds = time.perf_counter() - start
+    return summary

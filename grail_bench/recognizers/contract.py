@@ -1,0 +1,315 @@
+"""The recognizer contract: two required methods, and capabilities a recognizer may declare.
+
+Required, and all a plugin needs::
+
+    class Mine:
+        def fit(self, demos, env_factory=None, *, seed=0): ...   # demos: {goal: [Trajectory, ...]}
+        def score(self, observed): ...                           # -> {goal: float}, higher = more likely
+
+Optional, each an attribute or method with a documented default
+(:class:`RecognizerBase` provides them all):
+
+=====================  ============================================================  =============================
+capability             what it is                                                    default
+=====================  ============================================================  =============================
+``name``               the name it is registered under                               the registered name
+``paper_name``         the method's published name, shown by the leaderboard         ``name``
+``config``             hyperparameters; they key stored results and cached models   the constructor's keywords
+``default_scorer``     what ``score`` computes unless told otherwise                 ``"default"`` (its own)
+``exposes(space)``     policy outputs registered scorers may use                     nothing (own scoring only)
+``score(obs, scorer)`` a second argument: the registered scorer to use              only its own scoring
+``fit(..., cache_key)`` the domain env's key, to cache models across fits            not passed
+``score_prefixes``     ``(observed, scorer=None) -> {goal: (T,) array}``, every      each prefix scored alone
+                       prefix from one pass (online mode)
+``diagnose``           ``(train, held_out, env_factory) -> FitDiagnostics``,         no diagnostics
+                       evidence about each goal's fitted model
+=====================  ============================================================  =============================
+
+The harness never reads a recognizer directly: :func:`capabilities` reads
+every optional member once, in this module, and returns a typed
+:class:`Capabilities` through which the harness fits, scores and asks.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
+
+import numpy as np
+
+from grail_bench.core.errors import UserError
+from grail_bench.core.spaces import check_within
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal
+
+if TYPE_CHECKING:
+    from imitation.data.types import Trajectory
+
+#: The label of a recognizer's own scoring, when it serves no registered scorer.
+OWN_SCORING = "default"
+
+
+class RecognizerError(UserError):
+    """A recognizer broke the contract (e.g. returned scores for the wrong goals)."""
+
+
+@dataclass(frozen=True)
+class FitReport:
+    """What a fit cost.
+
+    Attributes:
+        train_seconds: Training time of the fitted models, including that of
+            models reloaded from a cache (what they cost when trained), so
+            cache hits do not report near-zero training.
+        trained: Models trained in this fit.
+        reused: Models reloaded from the cache.
+    """
+
+    train_seconds: float
+    trained: int = 0
+    reused: int = 0
+
+
+@runtime_checkable
+class Recognizer(Protocol):
+    """A goal recognizer: the two required methods (see the module docstring for the optional ones)."""
+
+    def fit(self, demos: Demos, env_factory: EnvFactory | None = None, *, seed: int = 0) -> FitReport | None:
+        """Prepare to recognise the goals of ``demos``.
+
+        Args:
+            demos: The training demonstrations of every candidate goal.
+            env_factory: ``env_factory(goal)`` builds the domain env pursuing
+                ``goal`` (for methods that learn from interaction).
+            seed: Seed for everything random in fitting.
+
+        Returns:
+            What fitting cost; ``None`` lets the harness time the call.
+        """
+        ...
+
+    def score(self, observed: Trajectory) -> Mapping[Goal, float]:
+        """Score every goal given to :meth:`fit`; higher means more likely.
+
+        Args:
+            observed: ``k`` observed actions and the ``k + 1`` states around
+                them; ``observed.acts[t]`` was taken in ``observed.obs[t]``.
+                It never carries the true goal.
+        """
+        ...
+
+
+class RecognizerBase:
+    """An optional base class giving every optional capability its default.
+
+    Subclasses implement :meth:`fit` and :meth:`score` and override what they offer.
+    """
+
+    name: str = ""
+    paper_name: str = ""
+    default_scorer: str = OWN_SCORING
+
+    def exposes(self, action_space: Any) -> frozenset[str]:
+        """Policy outputs registered scorers may use (none: own scoring only)."""
+        return frozenset()
+
+    def fit(self, demos: Demos, env_factory: EnvFactory | None = None, *, seed: int = 0) -> FitReport | None:
+        raise NotImplementedError
+
+    def score(self, observed: Trajectory) -> Mapping[Goal, float]:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class FitDiagnostics:
+    """Evidence about each goal's fitted model, in the order of the goals fitted (read-only: nothing selects on it).
+
+    Attributes:
+        goals: The goals, as fitted.
+        agreement_train: Per goal, the share of its training demonstrations' actions the model's greedy
+            action matches (continuous actions: the share within the demonstrations' noise of the mean).
+        agreement_held_out: The same on its held-out demonstrations (None where there are none).
+        imitation: ``(K, K)``: entry ``[i, j]`` is the mean probability (discrete) or likelihood per step
+            (continuous) of goal ``i``'s demonstrated actions under goal ``j``'s model.
+        reached: Per goal, whether the model's greedy rollout from the task's start reaches the goal.
+        rollout_length: Per goal, the greedy rollout's steps up to the goal (its whole length if it never does).
+        demo_length: Per goal, the mean steps its demonstrations take to the goal.
+        curves: Training curves the libraries log, per goal (``{goal index: {name: [values]}}``), kept short.
+    """
+
+    goals: tuple[Goal, ...]
+    agreement_train: tuple[float, ...]
+    agreement_held_out: tuple[float | None, ...]
+    imitation: tuple[tuple[float, ...], ...]
+    reached: tuple[bool | None, ...]
+    rollout_length: tuple[int | None, ...]
+    demo_length: tuple[float, ...]
+    curves: Mapping[int, Mapping[str, Sequence[float]]] = field(default_factory=dict)
+
+
+def _accepts(method: Callable[..., Any], name: str, positional: int = 0) -> bool:
+    """Whether ``method`` takes keyword ``name`` (or ``positional`` positional arguments besides the first)."""
+    try:
+        params = inspect.signature(method).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    if any(p.kind is p.VAR_KEYWORD for p in params) and positional == 0:
+        return True
+    if positional:
+        count = sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in params)
+        return count > positional or any(p.kind is p.VAR_POSITIONAL for p in params)
+    return any(p.name == name and p.kind is not p.POSITIONAL_ONLY for p in params)
+
+
+@dataclass(frozen=True)
+class Info:
+    """What a recognizer class says of itself, read without building one.
+
+    Attributes:
+        name: The registered name.
+        paper_name: The method's published name (``name`` when it declares none).
+        default_scorer: What it scores with unless told otherwise.
+    """
+
+    name: str
+    paper_name: str
+    default_scorer: str
+
+
+def info(obj: Any, name: str) -> Info:
+    """The :class:`Info` of a recognizer class or instance registered as ``name``."""
+    paper = getattr(obj, "paper_name", "")
+    scorer = getattr(obj, "default_scorer", OWN_SCORING)
+    return Info(name=name, paper_name=paper if isinstance(paper, str) and paper else name,
+                default_scorer=scorer if isinstance(scorer, str) and scorer else OWN_SCORING)
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """A recognizer as the harness sees it: its declared capabilities, read once, and calls that use them.
+
+    Build it with :func:`capabilities`. ``kwargs`` are the keyword arguments it was built with.
+    """
+
+    recognizer: Any
+    info: Info
+    config: Mapping[str, Any]
+    kwargs: Mapping[str, Any]
+    takes_scorer: bool
+    takes_cache_key: bool
+    has_prefix_scores: bool
+    has_diagnostics: bool
+
+    @property
+    def name(self) -> str:
+        return self.info.name
+
+    @property
+    def default_scorer(self) -> str:
+        return self.info.default_scorer
+
+    def exposes(self, action_space: Any) -> frozenset[str]:
+        """Policy outputs registered scorers may use on ``action_space`` (none without ``exposes``)."""
+        method = getattr(self.recognizer, "exposes", None)
+        if method is None:
+            return frozenset()
+        out = method(action_space)
+        if not isinstance(out, (set, frozenset)) or not all(isinstance(x, str) for x in out):
+            raise RecognizerError(f"recognizer {self.name!r}: exposes() must return a set of output names")
+        return frozenset(out)
+
+    def fit(self, demos: Demos, env_factory: EnvFactory, seed: int, cache_key: str | None) -> FitReport | None:
+        """``fit`` with the cache key when the recognizer takes one."""
+        extra = {"cache_key": cache_key} if self.takes_cache_key else {}
+        report = self.recognizer.fit(demos, env_factory, seed=seed, **extra)
+        if report is not None and not isinstance(report, FitReport):
+            raise RecognizerError(f"recognizer {self.name!r}: fit() must return a FitReport or None, "
+                                  f"got {type(report).__name__}")
+        return report
+
+    def score(self, observed: Trajectory, scorer: str | None = None) -> Mapping[Goal, float]:
+        """``score`` with a registered scorer, or the recognizer's own scoring when ``scorer`` is None."""
+        if scorer is None:
+            return self.recognizer.score(observed)
+        if not self.takes_scorer:
+            raise RecognizerError(f"recognizer {self.name!r} scores with its own scoring only")
+        return self.recognizer.score(observed, scorer)
+
+    def score_prefixes(self, observed: Trajectory, scorer: str | None = None) -> Mapping[Goal, np.ndarray] | None:
+        """Scores of every prefix from one pass, or None when the recognizer cannot give them."""
+        if not self.has_prefix_scores:
+            return None
+        return self.recognizer.score_prefixes(observed, scorer)
+
+    def diagnose(self, train: Demos, held_out: Demos, env_factory: EnvFactory) -> FitDiagnostics | None:
+        """The recognizer's fit diagnostics, or None when it offers none."""
+        if not self.has_diagnostics:
+            return None
+        out = self.recognizer.diagnose(train, held_out, env_factory)
+        if out is not None and not isinstance(out, FitDiagnostics):
+            raise RecognizerError(f"recognizer {self.name!r}: diagnose() must return FitDiagnostics or None")
+        return out
+
+
+def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = None) -> Capabilities:
+    """Read a recognizer's capabilities, once (see the module docstring for each default).
+
+    Args:
+        recognizer: An object with ``fit`` and ``score``.
+        name: The name it is registered under.
+        kwargs: The keyword arguments it was built with (its config when it declares none).
+
+    Raises:
+        RecognizerError: If ``fit`` or ``score`` is missing, or ``config`` is not a mapping.
+    """
+    missing = [m for m in ("fit", "score") if not callable(getattr(recognizer, m, None))]
+    if missing:
+        raise RecognizerError(f"recognizer {name!r} ({type(recognizer).__name__}) does not satisfy the recognizer "
+                              f"contract: it lacks {' and '.join(missing)} (see grail_bench.Recognizer)")
+    config = getattr(recognizer, "config", None)
+    if config is None:
+        config = dict(kwargs or {})
+    if not isinstance(config, Mapping):
+        raise RecognizerError(f"recognizer {name!r}: config must be a mapping, got {type(config).__name__}")
+    return Capabilities(
+        recognizer=recognizer, info=info(recognizer, name), config=dict(config), kwargs=dict(kwargs or {}),
+        takes_scorer=_accepts(recognizer.score, "scorer", positional=1),
+        takes_cache_key=_accepts(recognizer.fit, "cache_key"),
+        has_prefix_scores=callable(getattr(recognizer, "score_prefixes", None)),
+        has_diagnostics=callable(getattr(recognizer, "diagnose", None)),
+    )
+
+
+def observed_arrays(observed: Any, observation_space: Any, action_space: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Validate an observed trajectory against the env's spaces and return its ``(states, actions)`` pairs.
+
+    Args:
+        observed: An ``imitation`` ``Trajectory`` (or anything with ``obs`` and ``acts``).
+        observation_space: The space each state must belong to.
+        action_space: The space each action must belong to.
+
+    Returns:
+        ``(obs[:k], acts)``: the ``k`` states in which the ``k`` actions were taken.
+
+    Raises:
+        UserError: For an empty prefix, mismatched lengths, wrong shapes, or values outside a space (NaN
+            included), naming the space.
+    """
+    try:
+        obs, acts = np.asarray(observed.obs), np.asarray(observed.acts)
+    except AttributeError:
+        raise UserError(f"expected a Trajectory with obs and acts, got {type(observed).__name__}") from None
+    if len(acts) == 0:
+        raise UserError("the observed trajectory is empty: at least one action is needed")
+    if len(obs) != len(acts) + 1:
+        raise UserError(f"malformed trajectory: {len(obs)} states for {len(acts)} actions (need actions + 1)")
+    if obs.shape[1:] != observation_space.shape:
+        raise UserError(f"observed states have shape {obs.shape[1:]}, the env's are {observation_space.shape} "
+                        f"({observation_space})")
+    if acts.shape[1:] != action_space.shape:
+        raise UserError(f"observed actions have shape {acts.shape[1:]}, the env's are {action_space.shape} "
+                        f"({action_space})")
+    states = obs[: len(acts)]
+    check_within(states, observation_space, "observed states")
+    check_within(acts, action_space, "observed actions")
+    return states, acts

@@ -1,0 +1,296 @@
+"""Goal-agnostic scorers: pure functions from policy outputs to one score per goal.
+
+A recognizer that supports pluggable scoring exposes its goal policies' outputs
+on the observed states as a :class:`PolicyOutput` (action probabilities, mean
+and std, or Q-values, stacked over goals); a :class:`Scorer` turns them and the
+observed actions into one score per goal, higher meaning a better fit.
+
+Built-in scorers: ``mse`` (GRAIL's default), ``wasserstein`` (DRACO's), ``kl``
+(GRAQL's) and ``loglik``. More come from the entry-point group
+``grail_bench.scorers``, each pointing at a :class:`Scorer`.
+
+Shapes: ``K`` goals, ``T`` observed steps, ``A`` discrete actions or ``D``
+action dimensions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from scipy.special import erf, softmax
+
+from grail_bench.core import plugins
+from grail_bench.core.errors import UserError
+
+EPS = 1e-8
+GROUP = "grail_bench.scorers"
+OUTPUT_NAMES = {"probs": "action probabilities", "mean": "mean actions", "std": "action std", "q": "Q-values"}
+
+
+@dataclass(frozen=True)
+class PolicyOutput:
+    """Goal policies evaluated on the observed states; fields a recognizer lacks stay ``None``.
+
+    Attributes:
+        probs: ``(K, T, A)`` action probabilities (discrete actions).
+        mean: ``(K, T, D)`` mean actions (continuous actions).
+        std: ``(K, T, D)`` or ``(K, 1, D)`` action standard deviations.
+        q: ``(K, T, A)`` action values.
+    """
+
+    probs: np.ndarray | None = None
+    mean: np.ndarray | None = None
+    std: np.ndarray | None = None
+    q: np.ndarray | None = None
+
+    def exposes(self) -> frozenset[str]:
+        return frozenset(k for k in OUTPUT_NAMES if getattr(self, k) is not None)
+
+    def head(self, k: int) -> PolicyOutput:
+        """The outputs on the first ``k`` steps (a ``(K, 1, D)`` std is shared by every step and kept)."""
+        def cut(name: str) -> np.ndarray | None:
+            a = getattr(self, name)
+            return a if a is None or (name == "std" and a.shape[1] == 1) else a[:, :k]
+
+        return PolicyOutput(**{name: cut(name) for name in OUTPUT_NAMES})
+
+
+@dataclass(frozen=True)
+class Scorer:
+    """A named scoring function and the outputs it can work from.
+
+    Attributes:
+        name: Registry name (``--scorer NAME``).
+        fn: ``fn(output, actions) -> (K,)`` scores.
+        needs: Alternative sets of :class:`PolicyOutput` fields; any one suffices.
+        description: One line for ``grail-bench list scorers``.
+        posterior: Whether the scores are mean log-likelihoods, so that
+            :func:`posterior` turns them into a posterior over goals (the
+            harness then records its Brier score and NLL).
+        steps: Optional ``steps(output, actions) -> (K, T)`` per-step scores
+            whose mean over steps is ``fn``; with it, every prefix of an
+            observation is scored from one pass (online mode). Without it the
+            harness slices the outputs per prefix.
+    """
+
+    name: str
+    fn: Callable[[PolicyOutput, np.ndarray], np.ndarray]
+    needs: tuple[frozenset[str], ...]
+    description: str
+    posterior: bool = False
+    steps: Callable[[PolicyOutput, np.ndarray], np.ndarray] | None = None
+
+    def prefix_scores(self, output: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+        """Scores of every prefix ``k = 1..T`` of an observation, ``(K, T)``, from outputs on all ``T`` steps."""
+        if self.steps is not None:
+            return prefix_means(self.steps(output, actions))
+        columns = [self.fn(output.head(k), actions[:k]) for k in range(1, len(actions) + 1)]
+        return np.stack(columns, axis=1)
+
+    def can_serve(self, exposes: frozenset[str]) -> bool:
+        return any(need <= exposes for need in self.needs)
+
+    def needs_text(self) -> str:
+        return " or ".join(" and ".join(OUTPUT_NAMES[n] for n in sorted(need)) for need in self.needs)
+
+
+# ----------------------------------------------------------------------------- pure functions
+
+
+def one_hot(actions: np.ndarray, n: int) -> np.ndarray:
+    """``(T,)`` integer actions -> ``(T, n)`` one-hot rows."""
+    out = np.zeros((len(actions), n), dtype=np.float32)
+    out[np.arange(len(actions)), actions] = 1.0
+    return out
+
+
+def mse_steps(predicted: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """Per-step negative squared error between predicted and observed actions.
+
+    Args:
+        predicted: ``(K, T, A)`` policy outputs (action probabilities for
+            discrete actions, mean actions for continuous ones).
+        observed: ``(T, A)`` observed actions (one-hot for discrete actions).
+
+    Returns:
+        ``(K, T)``: ``-mean_a (predicted - observed)^2`` at every step.
+    """
+    diff = predicted - observed[None]
+    return -np.mean(diff * diff, axis=2)
+
+
+def neg_mse(predicted: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """Negative mean squared error over steps and action components, ``(K,)`` (see :func:`mse_steps`)."""
+    return mse_steps(predicted, observed).mean(axis=1)
+
+
+def kl_steps(probs: np.ndarray, actions: np.ndarray, *, eps: float = 0.01) -> np.ndarray:
+    """GRAQL's per-step score: minus KL(observed pseudo-policy || policy), ``(K, T)``.
+
+    The pseudo-policy of each observed step puts ``1 - eps`` on the observed
+    action and spreads ``eps`` over the others.
+    """
+    n = probs.shape[-1]
+    pseudo = np.full((len(actions), n), eps / (n - 1))
+    pseudo[np.arange(len(actions)), actions] = 1.0 - eps
+    log_ratio = np.log(pseudo)[None] - np.log(np.clip(probs, EPS, None))
+    return -np.sum(pseudo[None] * log_ratio, axis=-1)
+
+
+def neg_kl(probs: np.ndarray, actions: np.ndarray, *, eps: float = 0.01) -> np.ndarray:
+    """GRAQL's score: minus the mean KL over steps, ``(K,)`` (see :func:`kl_steps`)."""
+    return kl_steps(probs, actions, eps=eps).mean(axis=1)
+
+
+def wasserstein_discrete_steps(probs: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Minus the 1-Wasserstein distance between each step's categorical policy
+    and the point mass on the observed action, actions placed at their
+    indices on the real line (as ``scipy.stats.wasserstein_distance`` would):
+    ``W1 = sum_i p_i |i - a|``; ``(K, T)``."""
+    distance = np.abs(np.arange(probs.shape[-1])[None, :] - actions[:, None])  # (T, A)
+    return -np.sum(probs * distance[None], axis=-1)
+
+
+def neg_wasserstein_discrete(probs: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Mean over steps of :func:`wasserstein_discrete_steps`, ``(K,)``."""
+    return wasserstein_discrete_steps(probs, actions).mean(axis=1)
+
+
+def wasserstein_gaussian_steps(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Minus the 1-Wasserstein distance between ``N(mean, std^2)`` and the
+    point mass on the observed action, averaged over action dimensions, in
+    closed form: ``E|X - a| = s*sqrt(2/pi)*exp(-z^2/2) + (a - m)*erf(z/sqrt(2))``
+    with ``z = (a - m) / s``; ``(K, T)``."""
+    diff = actions[None] - mean
+    std = np.broadcast_to(std, diff.shape)
+    z = diff / std
+    w1 = std * np.sqrt(2 / np.pi) * np.exp(-0.5 * z * z) + diff * erf(z / np.sqrt(2))
+    return -np.mean(w1, axis=2)
+
+
+def neg_wasserstein_gaussian(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Mean over steps of :func:`wasserstein_gaussian_steps`, ``(K,)``."""
+    return wasserstein_gaussian_steps(mean, std, actions).mean(axis=1)
+
+
+def loglik_discrete_steps(probs: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Log-probability of each observed action, ``(K, T)``."""
+    picked = probs[:, np.arange(len(actions)), actions]
+    return np.log(np.clip(picked, EPS, None))
+
+
+def loglik_discrete(probs: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Mean log-probability of the observed actions, ``(K,)``."""
+    return loglik_discrete_steps(probs, actions).mean(axis=1)
+
+
+def loglik_gaussian_steps(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Gaussian log-density of each observed action, summed over dimensions, ``(K, T)``."""
+    std = np.broadcast_to(std, mean.shape)
+    z = (actions[None] - mean) / std
+    logpdf = -0.5 * z * z - np.log(std) - 0.5 * np.log(2 * np.pi)
+    return np.sum(logpdf, axis=-1)
+
+
+def loglik_gaussian(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Mean over steps of :func:`loglik_gaussian_steps`, ``(K,)``."""
+    return loglik_gaussian_steps(mean, std, actions).mean(axis=1)
+
+
+def posterior(scores: np.ndarray, n_steps: int) -> np.ndarray:
+    """Posterior over goals from mean log-likelihoods: softmax of their sums (uniform prior)."""
+    return softmax(scores * n_steps)
+
+
+def prefix_means(steps: np.ndarray) -> np.ndarray:
+    """Scores of every prefix from per-step scores: ``(K, T) -> (K, T)``, column ``k - 1`` the mean of the first ``k``."""
+    return np.cumsum(steps, axis=1) / np.arange(1, steps.shape[1] + 1)
+
+
+# ----------------------------------------------------------------------------- adapters and registry
+
+
+def _mse(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+    if out.probs is not None:
+        return mse_steps(out.probs, one_hot(actions.astype(np.int64), out.probs.shape[-1]))
+    return mse_steps(out.mean, actions.reshape(len(actions), -1).astype(out.mean.dtype))
+
+
+def _wasserstein(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+    if out.probs is not None:
+        return wasserstein_discrete_steps(out.probs, actions.astype(np.int64))
+    return wasserstein_gaussian_steps(out.mean, out.std, actions.reshape(len(actions), -1))
+
+
+def _kl(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+    return kl_steps(out.probs, actions.astype(np.int64))
+
+
+def _loglik(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+    if out.probs is not None:
+        return loglik_discrete_steps(out.probs, actions.astype(np.int64))
+    return loglik_gaussian_steps(out.mean, out.std, actions.reshape(len(actions), -1))
+
+
+def _builtin(name: str, steps: Callable[[PolicyOutput, np.ndarray], np.ndarray], needs: tuple[frozenset[str], ...],
+             description: str, posterior: bool = False) -> Scorer:
+    """A built-in scorer: the mean over steps of its per-step scores."""
+    return Scorer(name, lambda out, actions: steps(out, actions).mean(axis=1), needs, description, posterior, steps)
+
+
+_PROBS, _GAUSS = frozenset({"probs"}), frozenset({"mean", "std"})
+BUILTIN: dict[str, Scorer] = {
+    s.name: s for s in (
+        _builtin("mse", _mse, (_PROBS, frozenset({"mean"})),
+               "negative MSE between the policy's action (probabilities vs one-hot, or mean) and the observed one (GRAIL)"),
+        _builtin("wasserstein", _wasserstein, (_PROBS, _GAUSS),
+               "negative 1-Wasserstein distance between the action distribution and the observed action (DRACO)"),
+        _builtin("kl", _kl, (_PROBS,),
+               "negative KL between the observed pseudo-policy and the policy's action probabilities (GRAQL)"),
+        _builtin("loglik", _loglik, (_PROBS, _GAUSS),
+               "mean log-likelihood of the observed actions; also yields a posterior, its Brier score and NLL",
+               posterior=True),
+    )
+}
+
+
+class UnknownScorerError(UserError):
+    """No scorer is registered under the requested name."""
+
+
+def available_scorers() -> dict[str, str]:
+    """Scorer names and what provides them (plugins are not imported)."""
+    return plugins.available(GROUP, BUILTIN, "scorer")
+
+
+def get_scorer(name: str) -> Scorer:
+    """The scorer registered under ``name``."""
+    if name in BUILTIN:
+        return BUILTIN[name]
+    found = plugins.load(GROUP, name)
+    if found is None:
+        raise UnknownScorerError(f"unknown scorer {name!r}; available: {', '.join(available_scorers())}")
+    scorer, target = found
+    if not isinstance(scorer, Scorer):
+        raise UserError(f"scorer entry point {target} is not a grail_bench.Scorer")
+    return scorer
+
+
+def check_scorer(name: str, exposes: frozenset[str], recognizer: str) -> Scorer:
+    """The scorer ``name``, if a recognizer exposing ``exposes`` can serve it.
+
+    The one compatibility check: the harness runs it when planning, and
+    recognizers when scoring.
+
+    Raises:
+        UnknownScorerError: For an unregistered name.
+        UserError: If the recognizer does not expose what the scorer needs.
+    """
+    scorer = get_scorer(name)
+    if not scorer.can_serve(exposes):
+        offered = ", ".join(sorted(exposes)) or "nothing"
+        raise UserError(f"scorer {name!r} needs {scorer.needs_text()}; recognizer {recognizer!r} exposes {offered}"
+                        + ("" if exposes else " (it scores with its own default scorer only)"))
+    return scorer

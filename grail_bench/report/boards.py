@@ -1,0 +1,238 @@
+"""The paper-style table model: offline records grouped into boards, computed once and drawn by every renderer.
+
+One board per domain, regime and observation protocol, like the paper's
+Table 2: a row per goal count and observability level, a column per
+recognizer (``name/scorer`` when a recognizer was run with several scorers),
+each cell an :class:`~grail_bench.harness.modes.offline.OfflineRecord`. Values
+a publication reports are attached on the rows of each task's default protocol
+only; Bayes ceilings come in already computed
+(:func:`grail_bench.harness.ceiling.ceilings_for`), so no renderer computes one.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any, Iterable, Sequence
+
+from grail_bench.harness.ceiling import Ceiling
+from grail_bench.harness.modes.offline import OfflineRecord
+from grail_bench.recognizers.registry import UnknownRecognizerError, recognizer_info
+from grail_bench.report.reference import Reported
+from grail_bench.task import find_task
+
+Row = tuple[int, str, str, float]  # (goals, task, protocol, observability)
+CellKey = tuple[int, str, str, float, str]  # a row and a column label
+
+
+@dataclass
+class Board:
+    """One table: a domain, regime and protocol; its rows, columns, cells, reported values and ceilings."""
+
+    title: str
+    columns: list[str]
+    rows: list[Row] = field(default_factory=list)
+    cells: dict[CellKey, OfflineRecord] = field(default_factory=dict)
+    reported: dict[CellKey, Reported] = field(default_factory=dict)
+    ceilings: dict[Row, Ceiling] = field(default_factory=dict)
+
+    def best(self, row: Row) -> float | None:
+        """The best mean F1 of a row."""
+        means = [self.cells[(*row, c)].f1_mean for c in self.columns if (*row, c) in self.cells]
+        return max(means) if means else None
+
+    def has_reported(self, column: str) -> bool:
+        return any(key[-1] == column for key in self.reported)
+
+
+@lru_cache(maxsize=None)
+def paper_method(recognizer: str) -> tuple[str, str | None]:
+    """``(published name, published scorer)`` from the recognizer's metadata (its own name and no scorer if
+    it is not registered here)."""
+    try:
+        info = recognizer_info(recognizer)
+    except UnknownRecognizerError:
+        return recognizer, None
+    return info.paper_name, info.default_scorer
+
+
+def own_scorer_records(records: Sequence[OfflineRecord]) -> list[OfflineRecord]:
+    """Each recognizer's records under its own (the paper's) scorer (a plugin no longer installed: all of them)."""
+    own = {name: paper_method(name)[1] for name in {r.recognizer for r in records}}
+    return [r for r in records if own[r.recognizer] in (None, r.scorer)]
+
+
+def short_name(task_id: str) -> str:
+    """``GRAIL/MiniGrid-Optimal-4Goals-v0`` -> ``MiniGrid-Optimal-4Goals``."""
+    name = task_id.removeprefix("GRAIL/")
+    return name.rsplit("-v", 1)[0] if "-v" in name else name
+
+
+def domain_of(task_id: str) -> str:
+    """``GRAIL/PandaReach-Gaussian-0.1-v0`` -> ``PandaReach``."""
+    return task_id.removeprefix("GRAIL/").split("-", 1)[0]
+
+
+def column_label(record: Any, variants: dict[tuple[str, str], list[str] | None]) -> str:
+    """``recognizer/scorer`` (just the recognizer for plugins with their own scoring).
+
+    A recognizer run with several configurations gets one column per
+    configuration, named by the settings that tell them apart (``sac_steps=60000``)
+    or, when only the task's parameters differ, by the configuration hash.
+    """
+    label = record.recognizer
+    if record.scorer != "default":
+        label += f"/{record.scorer}"
+    key = (record.recognizer, record.scorer)
+    if key in variants:
+        keys = variants[key]
+        if keys:
+            label += " " + " ".join(f"{k}={json.dumps(record.recognizer_config.get(k))}" for k in keys)
+        else:
+            label += f" [{record.config_hash[:6]}]"
+    return label
+
+
+def config_variants(records: Iterable[Any]) -> dict[tuple[str, str], list[str] | None]:
+    """The recognizer settings that tell apart the configurations of each ``(recognizer, scorer)``.
+
+    Only pairs run with more than one configuration on some task appear; their
+    value is the sorted list of differing settings, or None when those settings
+    do not separate the runs (they differ in task parameters) and only the hash can.
+    """
+    groups: dict[tuple[str, str, str], dict[str, dict[str, str]]] = defaultdict(dict)
+    for r in records:
+        config = {k: json.dumps(v, sort_keys=True) for k, v in r.recognizer_config.items()}
+        groups[(r.task, r.recognizer, r.scorer)][r.config_hash] = config
+    keys: dict[tuple[str, str], set[str] | None] = {}
+    for (_, rec, scorer), by_hash in groups.items():
+        if len(by_hash) < 2 or keys.get((rec, scorer), set()) is None:
+            continue
+        names = {k for c in by_hash.values() for k in c}
+        differing = {k for k in names if len({c.get(k) for c in by_hash.values()}) > 1}
+        separated = len({tuple(c.get(k) for k in sorted(differing)) for c in by_hash.values()}) == len(by_hash)
+        keys[(rec, scorer)] = (keys.get((rec, scorer)) or set()) | differing if separated else None
+    return {pair: sorted(k) if k else None for pair, k in keys.items()}
+
+
+def ceiling_cells(records: Iterable[OfflineRecord]) -> list[tuple[str, dict[str, Any], str, float]]:
+    """The ``(task, task parameters, protocol, level)`` cells whose Bayes ceiling a set of records shows.
+
+    A row whose runs used different task parameters has no single ceiling and is left out.
+    """
+    used: dict[tuple[str, str, float], list[dict[str, Any]]] = defaultdict(list)
+    for r in records:
+        used[(r.task, r.protocol, r.observability)].append(r.task_params)
+    return [(task, params[0], protocol, level) for (task, protocol, level), params in sorted(used.items())
+            if all(p == params[0] for p in params)]
+
+
+def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, str, float], Reported] | None = None,
+                 ceilings: dict[tuple[str, str, float], Ceiling] | None = None) -> list[Board]:
+    """Group records into boards (see the module docstring).
+
+    Args:
+        records: Offline records (:func:`grail_bench.harness.modes.offline.aggregate`).
+        reference: Reported values to show beside ours.
+        ceilings: Bayes ceilings by ``(task, protocol, level)``, computed beforehand.
+    """
+    records = list(records)
+    tasks = {t: find_task(t) for t in {r.task for r in records}}
+    variants = config_variants(records)
+    ceilings = ceilings or {}
+    boards: dict[str, Board] = {}
+    for r in records:
+        task = tasks[r.task]
+        title = (f"{task.domain} / {task.regime}" if task else r.task) + f" ({r.protocol})"
+        board = boards.setdefault(title, Board(title=title, columns=[]))
+        label = column_label(r, variants)
+        if label not in board.columns:
+            board.columns.append(label)
+        row = (len(task.goals) if task else 0, r.task, r.protocol, r.observability)
+        if row not in board.rows:
+            board.rows.append(row)
+            if (r.task, r.protocol, r.observability) in ceilings:
+                board.ceilings[row] = ceilings[(r.task, r.protocol, r.observability)]
+        board.cells[(*row, label)] = r
+        paper_protocol = task is not None and r.protocol == task.protocol
+        if reference and paper_protocol and paper_method(r.recognizer)[1] in (r.scorer, None):
+            reported = reference.get((r.task, r.recognizer, round(r.observability, 6)))
+            if reported:
+                board.reported[(*row, label)] = reported
+    for board in boards.values():
+        board.rows.sort()
+        board.columns.sort()
+    return [boards[k] for k in sorted(boards)]
+
+
+def placement_counts(boards: Iterable[Board]) -> dict[str, int]:
+    """How many of our cells fall inside, above and below the reported 95 % intervals."""
+    counts = {"inside": 0, "above": 0, "below": 0}
+    for board in boards:
+        for key, reported in board.reported.items():
+            place = reported.place(board.cells[key].f1_mean)
+            if place:
+                counts[place] += 1
+    return counts
+
+
+def verdict_counts(boards: Iterable[Board]) -> dict[str, int]:
+    """How many of our cells a two-sided Welch test finds consistent with, higher or lower than the reported."""
+    counts = {"consistent": 0, "higher": 0, "lower": 0}
+    for board in boards:
+        for key, reported in board.reported.items():
+            verdict = reported.verdict(list(board.cells[key].f1_values))
+            if verdict is not None:
+                counts[verdict.verdict] += 1
+    return counts
+
+
+def timing_rows(records: Sequence[OfflineRecord]) -> list[dict[str, Any]]:
+    """Per task and column: seeds, training seconds per goal, and the means over levels of the scoring µs per
+    observation, tie rate, top-2 accuracy and mean rank (``None`` when a level lacks them)."""
+    variants = config_variants(records)
+    groups: dict[tuple, list[OfflineRecord]] = defaultdict(list)
+    for r in records:
+        groups[(r.task, r.recognizer, r.scorer, r.config_hash)].append(r)
+    out = []
+    for same in groups.values():
+        first = same[0]
+        out.append({"task": first.task, "column": column_label(first, variants), "recognizer": first.recognizer,
+                    "seeds": first.n_seeds, "fit_seconds_per_goal": first.fit_seconds_per_goal,
+                    "score_us_per_observation": sum(x.score_us_per_observation for x in same) / len(same),
+                    "tie_rate": sum(x.tie_rate for x in same) / len(same),
+                    "top2": _level_mean([x.top2_mean for x in same]),
+                    "mean_rank": _level_mean([x.mean_rank_mean for x in same])})
+    return out
+
+
+def _level_mean(values: list[float | None]) -> float | None:
+    return None if any(v is None for v in values) else sum(values) / len(values)
+
+
+def ablation_rows(records: Sequence[OfflineRecord]) -> list[dict[str, Any]]:
+    """Per task and protocol, recognizer and scorer: F1 at each level and mean scoring time.
+
+    Only recognizers run with more than one scorer on a task are included
+    (the paper's Figures 4 and 5).
+    """
+    scorers = defaultdict(set)
+    for r in records:
+        scorers[(r.task, r.protocol, r.recognizer)].add(r.scorer)
+    out: dict[tuple, dict[str, Any]] = {}
+    for r in records:
+        if len(scorers[(r.task, r.protocol, r.recognizer)]) < 2:
+            continue
+        task = f"{r.task} ({r.protocol})"  # protocols are compared apart
+        row = out.setdefault((task, r.recognizer, r.scorer), {
+            "task": task, "recognizer": r.recognizer, "scorer": r.scorer, "f1": {}, "score_us": []})
+        row["f1"][r.observability] = (r.f1_mean, r.f1_std)
+        row["score_us"].append(r.score_us_per_observation)
+        if r.brier_mean is not None:
+            row.setdefault("calibration", []).append((r.brier_mean, r.nll_mean))
+    for row in out.values():
+        row["score_us"] = sum(row["score_us"]) / len(row["score_us"])
+        row["f1_overall"] = sum(m for m, _ in row["f1"].values()) / len(row["f1"])
+    return [out[k] for k in sorted(out)]

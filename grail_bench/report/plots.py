@@ -1,0 +1,301 @@
+"""Every figure grail-bench draws, from records, with one matplotlib set-up (Agg, headless).
+
+* ``f1_vs_observability``: F1 against the observed fraction, one panel per
+  task with several levels, one line per recognizer (its own scorer) and the
+  95 % interval over seeds as a band (the paper's Figure 3 family).
+* ``panda_regimes``: PandaReach F1 per regime and method (Figure 4).
+* ``scoring_time``: scoring microseconds per observation, per method and
+  scorer (Figure 5).
+* ``training_time``: training seconds per goal, per method (the efficiency section).
+* ``model_size``: kilobytes of one goal's stored model, per method (the storage table).
+* ``ablation``: F1 and scoring time per scorer; ``online``: accuracy against the observed fraction.
+
+Figures are returned as matplotlib figures and written by :func:`save` (PNG
+and SVG) or embedded in the web page by :func:`svg` (text as text, stable IDs).
+"""
+
+from __future__ import annotations
+
+import io
+from collections import defaultdict
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from grail_bench.report.boards import domain_of, own_scorer_records, short_name
+
+Records = Sequence[Any]
+#: Settings of every SVG the page embeds: text as text (smaller, selectable) and stable element IDs.
+SVG_STYLE = {"svg.fonttype": "none", "svg.hashsalt": "grail-bench"}
+
+
+def pyplot() -> Any:
+    """matplotlib's pyplot on the Agg backend (the only place that chooses it)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save(fig: Any, out: Path, stem: str) -> list[Path]:
+    """Write ``fig`` as ``out/stem.png`` and ``out/stem.svg``, close it, return the paths."""
+    plt = pyplot()
+    paths = [out / f"{stem}.png", out / f"{stem}.svg"]
+    fig.tight_layout()
+    fig.savefig(paths[0], dpi=110)
+    fig.savefig(paths[1])
+    plt.close(fig)
+    return paths
+
+
+def save_png(fig: Any, path: Path) -> Path:
+    """Write ``fig`` as one PNG (its folder created), close it, return the path."""
+    plt = pyplot()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def svg(draw: Callable[[], Any]) -> str:
+    """The SVG text of the figure ``draw()`` makes under :data:`SVG_STYLE` (for inline use), closed after."""
+    plt = pyplot()
+    with plt.rc_context(SVG_STYLE):
+        fig = draw()
+        buf = io.StringIO()
+        fig.tight_layout()
+        fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": None, "Format": None, "Type": None})
+    plt.close(fig)
+    text = buf.getvalue()
+    return text[text.index("<svg"):]
+
+
+def f1_vs_observability(records: Records, out: Path) -> list[Path]:
+    """Figure 3 family (see module docstring); nothing when no task has several levels."""
+    mine = own_scorer_records(records)
+    levels = defaultdict(set)
+    for r in mine:
+        levels[r.task].add(r.observability)
+    tasks = sorted(t for t, lv in levels.items() if len(lv) > 1)
+    if not tasks:
+        return []
+    plt = pyplot()
+    cols = min(3, len(tasks))
+    rows = -(-len(tasks) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), squeeze=False)
+    recognizers = sorted({r.recognizer for r in mine})
+    colours = {name: f"C{i}" for i, name in enumerate(recognizers)}
+    for ax, task in zip(axes.flat, tasks):
+        for name in recognizers:
+            line = sorted((r for r in mine if r.task == task and r.recognizer == name), key=lambda r: r.observability)
+            if not line:
+                continue
+            x = [r.observability * 100 for r in line]
+            ax.plot(x, [r.f1_mean for r in line], marker="o", color=colours[name], label=name)
+            ax.fill_between(x, np.clip([r.f1_ci95_low for r in line], 0, 1), np.clip([r.f1_ci95_high for r in line], 0, 1),
+                            color=colours[name], alpha=0.2)
+        ax.set_title(short_name(task), fontsize=9)
+        ax.set_xlabel("observed (%)")
+        ax.set_ylabel("F1")
+        ax.set_ylim(0, 1.05)
+    for ax in list(axes.flat)[len(tasks):]:
+        ax.set_visible(False)
+    axes.flat[0].legend(fontsize=8)
+    return save(fig, out, "f1_vs_observability")
+
+
+def _bars(ax: Any, groups: list[str], series: dict[str, dict[str, float]], errors: dict[str, dict[str, float]] | None,
+          ylabel: str, log: bool = False) -> None:
+    """Grouped bars: ``series[name][group]`` -> height."""
+    names = sorted(series)
+    width = 0.8 / max(1, len(names))
+    for i, name in enumerate(names):
+        xs = [j + i * width for j, g in enumerate(groups) if g in series[name]]
+        heights = [series[name][g] for g in groups if g in series[name]]
+        err = [errors[name][g] for g in groups if g in series[name]] if errors else None
+        ax.bar(xs, heights, width, yerr=err, label=name, color=f"C{i}", capsize=2)
+    ax.set_xticks(np.arange(len(groups)) + 0.4 - width / 2, groups, rotation=30, ha="right", fontsize=8)
+    ax.set_ylabel(ylabel)
+    if log:
+        ax.set_yscale("log")
+    ax.legend(fontsize=8)
+
+
+def panda_regimes(records: Records, out: Path) -> list[Path]:
+    """Figure 4: PandaReach F1 per regime (task) and method; nothing without PandaReach rows."""
+    mine = [r for r in own_scorer_records(records) if domain_of(r.task) == "PandaReach"]
+    if not mine:
+        return []
+    plt = pyplot()
+    tasks = sorted({r.task for r in mine})
+    groups = [short_name(t).removeprefix("PandaReach-") for t in tasks]
+    f1, std = defaultdict(dict), defaultdict(dict)
+    for r in mine:
+        group = short_name(r.task).removeprefix("PandaReach-")
+        f1[r.recognizer][group] = r.f1_mean
+        std[r.recognizer][group] = r.f1_std
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.9 * len(groups) + 2), 3.8))
+    _bars(ax, groups, f1, std, "F1")
+    ax.set_ylim(0, 1.1)
+    ax.set_title(f"PandaReach, {min(r.observability for r in mine):.0%} observed", fontsize=9)
+    return save(fig, out, "panda_regimes")
+
+
+def _per_domain(records: Records, value: Callable[[Any], float | None], label: Callable[[Any], str],
+                ylabel: str, stem: str, out: Path, log: bool = False) -> list[Path]:
+    """One bar panel per domain: the mean of ``value`` per method label."""
+    means: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for r in records:
+        v = value(r)
+        if v is not None:
+            means[domain_of(r.task)][label(r)].append(v)
+    if not means:
+        return []
+    plt = pyplot()
+    domains = sorted(means)
+    fig, axes = plt.subplots(1, len(domains), figsize=(4.5 * len(domains), 3.6), squeeze=False)
+    for ax, domain in zip(axes.flat, domains):
+        labels = sorted(means[domain])
+        heights = [float(np.mean(means[domain][k])) for k in labels]
+        ax.bar(range(len(labels)), heights, color=[f"C{i}" for i in range(len(labels))])
+        ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=8)
+        ax.set_ylabel(ylabel)
+        ax.set_title(domain, fontsize=9)
+        if log:
+            ax.set_yscale("log")
+    return save(fig, out, stem)
+
+
+def scoring_time(records: Records, out: Path) -> list[Path]:
+    """Figure 5: scoring µs per observation per method and scorer (mean over tasks and levels)."""
+    return _per_domain(records, lambda r: r.score_us_per_observation, lambda r: f"{r.recognizer}/{r.scorer}",
+                       "scoring µs / observation", "scoring_time", out)
+
+
+def training_time(records: Records, out: Path) -> list[Path]:
+    """Training seconds per goal per method (mean over tasks and seeds)."""
+    return _per_domain(own_scorer_records(records), lambda r: r.fit_seconds_per_goal, lambda r: r.recognizer,
+                       "training s / goal", "training_time", out, log=True)
+
+
+def model_size(sizes: dict[tuple[str, str], float], out: Path) -> list[Path]:
+    """Kilobytes of one goal's stored model per method and domain (from :func:`grail_bench.report.reproduce.model_sizes`)."""
+    if not sizes:
+        return []
+    plt = pyplot()
+    domains = sorted({d for d, _ in sizes})
+    fig, axes = plt.subplots(1, len(domains), figsize=(4.0 * len(domains), 3.4), squeeze=False)
+    for ax, domain in zip(axes.flat, domains):
+        names = sorted(n for d, n in sizes if d == domain)
+        ax.bar(range(len(names)), [sizes[(domain, n)] / 1024 for n in names],
+               color=[f"C{i}" for i in range(len(names))])
+        ax.set_xticks(range(len(names)), names, fontsize=8)
+        ax.set_ylabel("KB per goal model")
+        ax.set_title(domain, fontsize=9)
+    return save(fig, out, "model_size")
+
+
+def write_all(records: Records, out: Path, models: dict[tuple[str, str], float]) -> list[Path]:
+    """Every figure this module draws, into ``out``; returns the files written."""
+    return (f1_vs_observability(records, out) + panda_regimes(records, out) + scoring_time(records, out)
+            + training_time(records, out) + model_size(models, out))
+
+
+def ablation(rows: list[dict[str, Any]]) -> Any:
+    """Grouped bars per task: F1 (mean over levels) and scoring time, by recognizer and scorer (a figure).
+
+    ``rows`` are :func:`grail_bench.report.boards.ablation_rows`.
+    """
+    plt = pyplot()
+    tasks = sorted({r["task"] for r in rows})
+    colours = {name: f"C{i}" for i, name in enumerate(sorted({r["scorer"] for r in rows}))}  # one per scorer
+    fig, axes = plt.subplots(len(tasks), 2, figsize=(11, 3.2 * len(tasks)), squeeze=False)
+    for ax_f1, ax_time, task in zip(axes[:, 0], axes[:, 1], tasks):
+        mine = [r for r in rows if r["task"] == task]
+        recs = sorted({r["recognizer"] for r in mine})
+        scorers = sorted({r["scorer"] for r in mine})
+        width = 0.8 / len(scorers)
+        for i, scorer in enumerate(scorers):
+            xs, f1s, times = [], [], []
+            for j, rec in enumerate(recs):
+                hit = [r for r in mine if r["recognizer"] == rec and r["scorer"] == scorer]
+                if hit:
+                    xs.append(j + i * width)
+                    f1s.append(hit[0]["f1_overall"])
+                    times.append(hit[0]["score_us"])
+            ax_f1.bar(xs, f1s, width, label=scorer, color=colours[scorer])
+            ax_time.bar(xs, times, width, label=scorer, color=colours[scorer])
+        for ax, ylabel in ((ax_f1, "F1 (mean over observability)"), (ax_time, "scoring µs / observation")):
+            ax.set_xticks(np.arange(len(recs)) + 0.4 - width / 2, recs)
+            ax.set_ylabel(ylabel)
+            ax.set_title(task, fontsize=9)
+        ax_f1.set_ylim(0, 1.05)
+        ax_time.legend(fontsize=8, loc="lower right", framealpha=0.9)
+    return fig
+
+
+def online(records: Records, ceilings: dict[tuple[str, str], list[float] | None] | None = None) -> Any:
+    """Accuracy against the observed fraction, one panel per task and protocol, one line per
+    recognizer/scorer with its 95 % interval over seeds as a band (a figure).
+
+    Args:
+        records: Online records (:func:`grail_bench.harness.modes.online.aggregate`).
+        ceilings: Per (task, protocol), the Bayes ceiling at the records' fractions, drawn dashed where known.
+    """
+    plt = pyplot()
+    label = lambda r: f"{r.recognizer}/{r.scorer}"  # noqa: E731
+    panels = sorted({(r.task, r.protocol) for r in records})
+    colours = {name: f"C{i % 10}" for i, name in enumerate(sorted({label(r) for r in records}))}
+    cols = min(3, len(panels))
+    rows = -(-len(panels) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.4 * cols, 3.3 * rows), squeeze=False)
+    for ax, (task, protocol) in zip(axes.flat, panels):
+        mine = [r for r in records if (r.task, r.protocol) == (task, protocol)]
+        for r in mine:
+            x = np.asarray(r.fractions) * 100
+            colour = colours[label(r)]
+            ax.plot(x, r.accuracy_curve, color=colour, label=f"{label(r)} ({r.n_seeds} seeds)")
+            ax.fill_between(x, np.clip(r.accuracy_curve_low, 0, 1), np.clip(r.accuracy_curve_high, 0, 1),
+                            color=colour, alpha=0.2)
+        ceiling = (ceilings or {}).get((task, protocol))
+        if ceiling is not None:
+            x = [100 * f for f in mine[0].fractions]
+            ax.plot(x, ceiling, color="black", linestyle="--", linewidth=1, label="Bayes ceiling (bound)")
+        ax.set_title(f"{task.removeprefix('GRAIL/')} ({protocol})", fontsize=9)
+        ax.set_xlabel("observed (% of the trajectory)")
+        ax.set_ylabel("accuracy")
+        ax.set_ylim(0, 1.05)
+        ax.legend(fontsize=7, loc="lower right")
+    for ax in list(axes.flat)[len(panels):]:
+        ax.set_visible(False)
+    return fig
+
+
+def section_lines(tasks: Sequence[str], lines: Sequence[tuple[str, list]]) -> Any:
+    """F1 against observability per task: one line and interval band per column (a figure of the web page).
+
+    Args:
+        tasks: Panels, in order.
+        lines: ``(label, points)`` per column, each point ``(task, level, mean, low, high)``.
+    """
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(tasks), figsize=(3.4 * len(tasks), 2.8), squeeze=False)
+    for ax, task in zip(axes.flat, tasks):
+        for i, (name, points) in enumerate(lines):
+            mine = sorted(p for p in points if p[0] == task)
+            if not mine:
+                continue
+            x = [100 * p[1] for p in mine]
+            ax.plot(x, [p[2] for p in mine], marker="o", color=f"C{i % 10}", label=name)
+            ax.fill_between(x, [p[3] for p in mine], [p[4] for p in mine], color=f"C{i % 10}", alpha=0.2)
+        ax.set_title(short_name(task), fontsize=9)
+        ax.set_xlabel("observed (%)")
+        ax.set_ylim(0, 1.05)
+    axes.flat[0].set_ylabel("F1")
+    axes.flat[0].legend(fontsize=7)
+    return fig

@@ -1,0 +1,266 @@
+"""Terminal (rich) and Markdown renderings of boards, the scorer ablation and the modes' tables.
+
+Every table is built once as a header and rows of text (a *grid*), then drawn
+by rich or written as Markdown; nothing here computes a statistic or a ceiling.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Sequence
+
+from rich.table import Table
+
+from grail_bench.harness.ceiling import normalised
+from grail_bench.harness.modes import Mode
+from grail_bench.report.boards import (
+    Board,
+    Row,
+    paper_method,
+    placement_counts,
+    short_name,
+    timing_rows,
+    verdict_counts,
+)
+from grail_bench.report.reference import MARKS
+
+Grid = tuple[list[str], list[list[tuple[str, bool]]]]  # header; per row, (text, bold) cells
+
+VERDICT_MARKS = {"consistent": "", "higher": "↑", "lower": "↓"}
+
+
+def _cell(board: Board, row: Row, column: str, ci: bool = False) -> tuple[str, bool]:
+    record = board.cells.get((*row, column))
+    if record is None:
+        return "–", False
+    text = f"{record.f1_mean:.2f} ± {record.f1_std:.2f}"
+    if ci:
+        text += f" ({record.f1_ci95_low:.2f}–{record.f1_ci95_high:.2f})"
+    reported = board.reported.get((*row, column))
+    if reported is not None:
+        place = reported.place(record.f1_mean)
+        verdict = reported.verdict(list(record.f1_values))
+        text += f" {MARKS[place]}" if place else ""
+        text += VERDICT_MARKS[verdict.verdict] if verdict else ""
+    ceiling = board.ceilings.get(row)
+    if ceiling is not None:
+        norm = normalised(record.f1_mean, ceiling.accuracy, ceiling.chance)
+        text += f" [{norm:.2f}]" if norm is not None else ""
+    return text, record.f1_mean == board.best(row)
+
+
+def _ceiling_text(board: Board, row: Row) -> str:
+    ceiling = board.ceilings.get(row)
+    if ceiling is None:
+        return "–"
+    return f"{ceiling.accuracy:.2f}" + (f" ± {ceiling.stderr:.2f}" if ceiling.method == "monte-carlo" else "")
+
+
+def board_grid(board: Board, paper_label: Callable[[str], str] = str, ci: bool = False) -> Grid:
+    """The table model both renderers draw: a header and, per row, ``(text, best)`` cells."""
+    header = ["task", "goals", "obs", "ceiling"]
+    for c in board.columns:
+        header.append(c)
+        if board.has_reported(c):
+            header.append(paper_label(c))
+    rows = []
+    for row in board.rows:
+        cells = [(short_name(row[1]), False), (str(row[0]), False), (f"{row[3]:.0%}", False),
+                 (_ceiling_text(board, row), False)]
+        for c in board.columns:
+            cells.append(_cell(board, row, c, ci))
+            if board.has_reported(c):
+                cells.append((str(board.reported.get((*row, c), "–")), False))
+        rows.append(cells)
+    return header, rows
+
+
+def rich_tables(boards: Sequence[Board]) -> list[Table]:
+    """Terminal tables (best mean per row in bold)."""
+    tables = []
+    for board in boards:
+        header, rows = board_grid(board, lambda c: f"{c} (paper)")
+        table = Table(title=f"F1 (mean ± std over seeds) [normalised F1]: {board.title}")
+        for name in header:
+            table.add_column(name, justify="center", style="dim" if name.endswith("(paper)") else None)
+        for cells in rows:
+            table.add_row(*(f"[bold]{text}[/]" if best else text for text, best in cells))
+        tables.append(table)
+    return tables
+
+
+def comparison_lines(boards: Sequence[Board]) -> list[str]:
+    """The counts of our cells against the reported values: placement and Welch verdicts (empty without any)."""
+    places, verdicts = placement_counts(boards), verdict_counts(boards)
+    lines = []
+    if any(places.values()):
+        lines.append(f"Against the paper's 95 % intervals (appendix tables): our mean is inside (=) in "
+                     f"{places['inside']} cells, above (▲) in {places['above']}, below (▼) in {places['below']}.")
+    if any(verdicts.values()):
+        lines.append(f"Two-sided Welch test of our seeds against the paper's mean and std over its 10 seeds "
+                     f"(alpha 0.05): consistent in {verdicts['consistent']} cells, significantly higher (↑) in "
+                     f"{verdicts['higher']}, lower (↓) in {verdicts['lower']}.")
+    return lines
+
+
+def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
+             title: str = "grail-bench leaderboard") -> str:
+    """The leaderboard as Markdown, with seeds, timings and ranking metrics under the tables.
+
+    Args:
+        ci: Also show each cell's 95 % Student-t interval over seeds (the paper's appendix format).
+        title: The document's heading.
+    """
+    lines = [f"# {title}", "",
+             "F1 of each recognizer, mean ± std over seeds" + (" (95 % CI over seeds)" if ci else "")
+             + " (best of each row in bold). Where the task has a",
+             "Bayes ceiling (the best accuracy any recognizer can reach under that protocol and level; ± its",
+             "Monte Carlo standard error), the cell adds the normalised F1 in brackets,",
+             "(F1 - chance) / (ceiling - chance).",
+             "Columns marked *(paper)* are the values the GRAIL paper (AAMAS 2026) reports, transcribed",
+             "from its tables and text; they were not produced by grail-bench, and are shown on the rows",
+             "of each task's default protocol only.", ""]
+    comparison = comparison_lines(boards)
+    if comparison:
+        lines += [" ".join(comparison), ""]
+    for board in boards:
+        header, rows = board_grid(board, lambda c: f"{paper_method(c.split('/')[0])[0]} *(paper)*", ci)
+        lines += [f"## {board.title}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        lines += ["| " + " | ".join(f"**{text}**" if best else text for text, best in cells) + " |"
+                  for cells in rows]
+        lines.append("")
+    lines += ["## Runs, timings and ranking", "",
+              "Top-2: share of observations whose true goal is among the 2 best scored; mean rank of the true",
+              "goal (1 = best); both averaged over levels and protocols (– where rows stored before they were",
+              "recorded take part).", "",
+              "| task | column | seeds | fit s/goal | score µs/observation | ties | top-2 | mean rank |",
+              "|---|---|---|---|---|---|---|---|"]
+    for t in timing_rows(records):
+        ranking = " | ".join("–" if t[k] is None else f"{t[k]:.2f}" for k in ("top2", "mean_rank"))
+        lines.append(f"| {t['task']} | {t['column']} | {t['seeds']} | {t['fit_seconds_per_goal']:.2f} | "
+                     f"{t['score_us_per_observation']:.0f} | {t['tie_rate']:.1%} | {ranking} |")
+    return "\n".join(lines) + "\n"
+
+
+def timing_table(records: Sequence[Any]) -> Table:
+    """Terminal table of fit and scoring times per recognizer and scorer (means over seeds and levels)."""
+    table = Table(title="timings (mean over seeds)")
+    for col in ("recognizer", "scorer", "fit s/goal", "score µs/observation"):
+        table.add_column(col)
+    pairs = dict.fromkeys((r.recognizer, r.scorer) for r in records)
+    for name, scorer in pairs:
+        mine = [r for r in records if (r.recognizer, r.scorer) == (name, scorer)]
+        table.add_row(name, scorer, f"{mine[0].fit_seconds_per_goal:.2f}",
+                      f"{sum(r.score_us_per_observation for r in mine) / len(mine):.0f}")
+    return table
+
+
+def _ablation_cells(r: dict[str, Any], levels: list[float]) -> list[str]:
+    return [f"{r['f1'][lv][0]:.2f} ± {r['f1'][lv][1]:.2f}" if lv in r["f1"] else "–" for lv in levels]
+
+
+def _calibration(r: dict[str, Any]) -> tuple[str, str]:
+    cal = r.get("calibration")
+    if not cal:
+        return "–", "–"
+    return f"{sum(b for b, _ in cal) / len(cal):.3f}", f"{sum(n for _, n in cal) / len(cal):.3f}"
+
+
+def ablation_table(rows: list[dict[str, Any]]) -> Table:
+    """Terminal table of :func:`grail_bench.report.boards.ablation_rows`."""
+    levels = sorted({lv for r in rows for lv in r["f1"]})
+    table = Table(title="scorer ablation: F1 (mean ± std) and scoring time")
+    for col in ("task", "recognizer", "scorer", *[f"F1 @ {lv:.0%}" for lv in levels], "µs / observation",
+                "Brier / NLL"):
+        table.add_column(col)
+    for r in rows:
+        brier, nll = _calibration(r)
+        table.add_row(r["task"], r["recognizer"], r["scorer"], *_ablation_cells(r, levels), f"{r['score_us']:.0f}",
+                      "–" if brier == "–" else f"{brier} / {nll}")
+    return table
+
+
+def ablation_markdown(rows: list[dict[str, Any]]) -> str:
+    """:func:`grail_bench.report.boards.ablation_rows` as a Markdown table."""
+    levels = sorted({lv for r in rows for lv in r["f1"]})
+    header = ["task", "recognizer", "scorer", *[f"F1 @ {lv:.0%}" for lv in levels], "µs / observation", "Brier", "NLL"]
+    lines = ["# Scorer ablation", "",
+             "F1 (mean ± std over seeds) of each recognizer under each scorer, from the same fitted policies,",
+             "and the mean time to score one observation against all goals. Brier score and NLL are those of",
+             "the posterior over goals that the `loglik` scorer yields.", "",
+             "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for r in rows:
+        brier, nll = _calibration(r)
+        lines.append(f"| {r['task']} | {r['recognizer']} | {r['scorer']} | " + " | ".join(_ablation_cells(r, levels))
+                     + f" | {r['score_us']:.0f} | {brier} | {nll} |")
+    return "\n".join(lines) + "\n"
+
+
+def mode_grid(records: Sequence[Any], mode: Mode) -> tuple[list[str], list[list[str]]]:
+    """Header and the rows of text of a mode's table (one row per record, the mode's columns)."""
+    return [c.header for c in mode.columns], [[c.text(r) for c in mode.columns] for r in records]
+
+
+def mode_table(records: Sequence[Any], mode: Mode) -> Table:
+    """A mode's records as a terminal table."""
+    header, rows = mode_grid(records, mode)
+    table = Table(title=mode.title)
+    for col in header:
+        table.add_column(col)
+    for row in rows:
+        table.add_row(*row)
+    return table
+
+
+def mode_markdown(records: Sequence[Any], mode: Mode) -> str:
+    """A mode's records as a Markdown document (title, what the table shows, the table)."""
+    header, rows = mode_grid(records, mode)
+    lines = [f"# {mode.title}", "", mode.intro, "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def tasks_table(tasks: Sequence[Any]) -> Table:
+    """Every task with its domain, regime, goals, demonstration counts, levels and protocol."""
+    table = Table(title="GRAIL/ tasks")
+    table.add_column("task", no_wrap=True, style="bold")
+    for col in ("domain", "regime", "goals", "demos/goal (train/test)", "observability", "protocol"):
+        table.add_column(col)
+    for task in tasks:
+        goals = " ".join("(" + ",".join(f"{c:g}" for c in g) + ")" for g in task.goals)
+        table.add_row(task.id, task.domain, task.regime, goals,
+                      f"{task.n_demos} ({task.n_train}/{task.n_demos - task.n_train})",
+                      ", ".join(f"{p:.0%}" for p in task.observability), task.protocol)
+    return table
+
+
+def names_table(title: str, rows: Sequence[tuple[str, str]], second: str) -> Table:
+    """A two-column listing (name in bold, then what provides or describes it)."""
+    table = Table(title=title)
+    table.add_column("name", style="bold")
+    table.add_column(second)
+    for name, text in rows:
+        table.add_row(name, text)
+    return table
+
+
+def protocols_table(rows: Sequence[tuple[str, bool, str]]) -> Table:
+    """The observation protocols: name, whether it leaks the goal, what a recognizer observes."""
+    table = Table(title="observation protocols (entry-point group grail_bench.protocols)")
+    table.add_column("name", style="bold")
+    table.add_column("leaks the goal")
+    table.add_column("what a recognizer observes")
+    for name, leaks, text in rows:
+        table.add_row(name, "yes" if leaks else "no", text)
+    return table
+
+
+def ceiling_table(task_id: str, ceilings: Sequence[Any]) -> Table:
+    """Bayes ceilings of one task (one row per protocol and level)."""
+    table = Table(title=f"Bayes ceiling (accuracy): {task_id}")
+    for col in ("protocol", "obs", "ceiling", "std. error", "chance", "method"):
+        table.add_column(col)
+    for c in ceilings:
+        table.add_row(c.protocol, f"{c.observability:.0%}", f"{c.accuracy:.3f}",
+                      f"{c.stderr:.3f}" if c.method == "monte-carlo" else "exact", f"{c.chance:.3f}",
+                      c.method + (f" ({c.samples} samples)" if c.samples else ""))
+    return table

@@ -1,0 +1,88 @@
+"""Metrics as pure functions: per-seed classification scores and across-seed summaries."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from scipy import stats
+from scipy.special import softmax
+
+
+def predict(scores: np.ndarray) -> tuple[int, bool]:
+    """Index of the best score, ties broken towards the lowest index; and whether it tied."""
+    best = scores.max()
+    winners = np.flatnonzero(scores == best)
+    return int(winners[0]), len(winners) > 1
+
+
+def ranking(scores: np.ndarray, label: int, k: int = 2) -> tuple[float, float]:
+    """Rank of the true goal (1 = best) and whether it is in the top ``k``, expected under random tie-breaking.
+
+    With ``h`` goals scoring strictly higher than the true goal and ``t``
+    others tying with it, the expected rank is ``h + 1 + t / 2`` and the
+    chance of being among the ``k`` best is ``clip((k - h) / (t + 1), 0, 1)``.
+    """
+    mine = scores[label]
+    higher = int(np.sum(scores > mine))
+    tied = int(np.sum(scores == mine)) - 1
+    return higher + 1 + tied / 2, float(np.clip((k - higher) / (tied + 1), 0.0, 1.0))
+
+
+def _safe_divide(num: np.ndarray, den: np.ndarray) -> np.ndarray:
+    return np.divide(num, den, out=np.zeros(len(num)), where=den > 0)
+
+
+def classification(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> dict[str, float]:
+    """Accuracy and macro precision, recall and F1 over all ``n_classes`` candidate goals.
+
+    A class never predicted (or never true) scores 0 precision (recall) and 0
+    F1, as scikit-learn's ``precision_recall_fscore_support(average="macro",
+    zero_division=0)`` computes them (tested equal); numpy only, so importing
+    the metrics imports no scikit-learn.
+    """
+    yt, yp = np.asarray(y_true, dtype=np.int64), np.asarray(y_pred, dtype=np.int64)
+    tp = np.bincount(yt[yt == yp], minlength=n_classes).astype(float)
+    true = np.bincount(yt, minlength=n_classes).astype(float)
+    pred = np.bincount(yp, minlength=n_classes).astype(float)
+    return {"accuracy": float(np.mean(yt == yp)), "precision": float(np.mean(_safe_divide(tp, pred))),
+            "recall": float(np.mean(_safe_divide(tp, true))), "f1": float(np.mean(_safe_divide(2 * tp, true + pred)))}
+
+
+def macro_f1(y_true: np.ndarray, y_pred: np.ndarray, n_classes: int) -> float:
+    """Macro F1 of :func:`classification` alone."""
+    return classification(y_true, y_pred, n_classes)["f1"]
+
+
+def calibration(loglik: np.ndarray, n_steps: int, label: int) -> tuple[float, float]:
+    """Brier score and negative log-likelihood of the posterior over goals.
+
+    The posterior is the softmax of summed log-likelihoods (mean ``loglik``
+    times the ``n_steps`` observed), i.e. Bayes' rule with a uniform prior.
+    """
+    p = softmax(loglik * n_steps)
+    target = np.zeros_like(p)
+    target[label] = 1.0
+    return float(np.sum((p - target) ** 2)), float(-np.log(max(p[label], 1e-12)))
+
+
+def summarize(values: Sequence[float], confidence: float = 0.95) -> dict[str, float]:
+    """Mean, sample standard deviation and a Student-t confidence interval.
+
+    With one value the interval collapses to it; with identical values too.
+    """
+    x = np.asarray(values, dtype=float)
+    mean = float(x.mean())
+    if len(x) < 2:
+        return {"mean": mean, "std": 0.0, "ci_low": mean, "ci_high": mean}
+    std = float(x.std(ddof=1))
+    if std == 0.0:
+        return {"mean": mean, "std": 0.0, "ci_low": mean, "ci_high": mean}
+    low, high = stats.t.interval(confidence, df=len(x) - 1, loc=mean, scale=std / np.sqrt(len(x)))
+    return {"mean": mean, "std": std, "ci_low": float(low), "ci_high": float(high)}
+
+
+def summary_fields(name: str, values: Sequence[float]) -> dict[str, float]:
+    """``{name}_mean``, ``{name}_ci95_low`` and ``{name}_ci95_high`` of :func:`summarize`, as records carry them."""
+    s = summarize(values)
+    return {f"{name}_mean": s["mean"], f"{name}_ci95_low": s["ci_low"], f"{name}_ci95_high": s["ci_high"]}

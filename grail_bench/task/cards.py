@@ -1,0 +1,130 @@
+"""Task cards: the declarative TOML files that define every GRAIL/ task.
+
+A card file describes one domain and lists its tasks::
+
+    domain = "minigrid"
+
+    [defaults]              # optional, applied to every task below
+    n_demos = 10
+
+    [[task]]
+    id = "GRAIL/MiniGrid-Biased-v0"
+    regime = "biased"
+    goals = [[7, 1], [7, 7]]
+    params = { routes = ["NE", "ES"] }
+
+Parsing builds :class:`~grail_bench.task.model.GRTask` objects, which validate every
+field (regime parameters included, through the domain); errors read
+``file: task[i].field: why``. A task ID defined twice, in one card or two, is
+an error naming the file(s).
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from functools import lru_cache
+from importlib.resources import files
+from pathlib import Path
+from typing import Any, Iterable
+
+from grail_bench.core.errors import UserError
+from grail_bench.task.domain import available_domains
+from grail_bench.task.model import GRTask, TaskFieldError
+
+ID_PATTERN = re.compile(r"^GRAIL/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
+FILE_KEYS = {"domain", "description", "defaults", "task"}
+TASK_KEYS = {
+    "id", "regime", "goals", "params", "env", "n_demos", "n_train",
+    "observability", "protocol", "description",
+}
+DEFAULT_FIELDS = {"n_demos": 10, "n_train": 7, "observability": [0.1, 0.2, 0.3], "protocol": "subset"}
+
+
+class CardError(UserError):
+    """A task card is malformed; the message names the file and the field."""
+
+
+def _fail(source: str, where: str, why: str) -> CardError:
+    return CardError(f"{source}: {where}: {why}")
+
+
+def _task(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: str, where: str) -> GRTask:
+    unknown = set(raw) - TASK_KEYS
+    if unknown:
+        raise _fail(source, f"{where}.{sorted(unknown)[0]}", f"unknown field (known: {', '.join(sorted(TASK_KEYS))})")
+    merged = {**DEFAULT_FIELDS, **defaults, **raw}
+    task_id = merged.get("id")
+    if not isinstance(task_id, str) or not ID_PATTERN.match(task_id):
+        raise _fail(source, f"{where}.id", f"expected an ID like 'GRAIL/Name-v0', got {task_id!r}")
+    try:
+        return GRTask(
+            id=task_id, domain=domain, regime=merged.get("regime"), goals=merged.get("goals"),
+            params=merged.get("params", {}), env_params=merged.get("env", {}), n_demos=merged["n_demos"],
+            n_train=merged["n_train"], observability=merged["observability"], protocol=merged["protocol"],
+            description=merged.get("description", ""), source=source,
+        )
+    except TaskFieldError as exc:
+        raise _fail(source, f"{where}.{exc.field}", exc.why) from None
+
+
+def parse_card(text: str, source: str) -> list[GRTask]:
+    """Parse and validate one card file's text.
+
+    Args:
+        text: TOML text of the card.
+        source: Name used in error messages (usually the file name).
+
+    Returns:
+        The tasks the card defines.
+
+    Raises:
+        CardError: If the TOML is invalid or any field is wrong.
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise CardError(f"{source}: invalid TOML: {exc}") from None
+    unknown = set(data) - FILE_KEYS
+    if unknown:
+        raise _fail(source, sorted(unknown)[0], f"unknown field (known: {', '.join(sorted(FILE_KEYS))})")
+    domain = data.get("domain")
+    if domain not in available_domains():
+        raise _fail(source, "domain", f"unknown domain {domain!r} (known: {', '.join(available_domains())})")
+    defaults = data.get("defaults", {})
+    if not isinstance(defaults, dict) or set(defaults) - (TASK_KEYS - {"id"}):
+        raise _fail(source, "defaults", f"expected a table with fields among {', '.join(sorted(TASK_KEYS - {'id'}))}")
+    tasks = data.get("task")
+    if not isinstance(tasks, list) or not tasks:
+        raise _fail(source, "task", "expected at least one [[task]] table")
+    return unique([_task(raw, domain, defaults, source, f"task[{i}]") for i, raw in enumerate(tasks)])
+
+
+def unique(tasks: Iterable[GRTask]) -> list[GRTask]:
+    """The tasks, checked to have distinct IDs.
+
+    Raises:
+        CardError: Naming the ID and the file(s) that define it twice.
+    """
+    seen: dict[str, GRTask] = {}
+    for task in tasks:
+        if task.id in seen:
+            first = seen[task.id].source
+            where = f"{first}" if first == task.source else f"{first} and {task.source}"
+            raise CardError(f"task id {task.id!r} is defined twice, in {where}")
+        seen[task.id] = task
+    return list(seen.values())
+
+
+def load_cards(paths: Iterable[Path] | None = None) -> list[GRTask]:
+    """Load every shipped card (parsed once per process), or the given files, in a stable order."""
+    if paths is None:
+        return list(_shipped_cards())
+    return unique(t for p in paths for t in parse_card(Path(p).read_text(encoding="utf-8"), str(p)))
+
+
+@lru_cache(maxsize=1)
+def _shipped_cards() -> tuple[GRTask, ...]:
+    root = files("grail_bench.tasks")
+    entries = sorted((p for p in root.iterdir() if p.name.endswith(".toml")), key=lambda p: p.name)
+    return tuple(unique(t for p in entries for t in parse_card(p.read_text(encoding="utf-8"), p.name)))

@@ -1,0 +1,119 @@
+"""What a task needs from its domain, and where domains are found.
+
+A domain is an object satisfying :class:`Domain`, registered under a name in
+the entry-point group ``grail_bench.domains`` (the built-in ones are declared
+in grail-bench's own ``pyproject.toml``, so a third-party package adds a
+domain the same way). The task layer knows domains only through this protocol
+and the registry, as gymnasium's registration knows its envs only by their
+entry points; the domain packages (:mod:`grail_bench.domains`) sit above it.
+
+A domain's module must stay light (plain data and validation): task cards are
+parsed on ``import gymnasium``, and only building an env or a demonstration
+may import the domain's simulator.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from typing import TYPE_CHECKING, Any, Mapping, Protocol, Sequence, runtime_checkable
+
+from grail_bench.core import plugins
+from grail_bench.core.errors import UserError
+from grail_bench.core.trajectory import Goal
+
+if TYPE_CHECKING:
+    import gymnasium as gym
+    import numpy as np
+    from imitation.data.types import Trajectory
+
+GROUP = "grail_bench.domains"
+
+
+class TaskView(Protocol):
+    """What a domain may read of a task (a :class:`~grail_bench.task.model.GRTask` is one)."""
+
+    id: str
+    regime: str
+    goals: tuple[Goal, ...]
+    params: Mapping[str, Any]
+    env_params: Mapping[str, Any]
+
+    def goal_index(self, goal: Sequence[float]) -> int:
+        """Position of ``goal`` among :attr:`goals`."""
+        ...
+
+    def make_env(self, goal: Sequence[float] | None = None, **env_overrides: Any) -> gym.Env:
+        """The domain env pursuing ``goal``, with the task's env parameters."""
+        ...
+
+
+@runtime_checkable
+class Domain(Protocol):
+    """What the task needs from a domain.
+
+    Attributes:
+        name: Short name used in task cards (``domain = "minigrid"``).
+        goal_dim: Number of coordinates in a goal.
+        env_defaults: Keyword arguments of the env and their defaults.
+        regimes: Behaviour regime name -> its parameters and their defaults.
+        ceiling_regimes: Regimes whose demonstrator has a known likelihood, so
+            that the Bayes ceiling can be computed (see :meth:`demonstrator`).
+    """
+
+    name: str
+    goal_dim: int
+    env_defaults: Mapping[str, Any]
+    regimes: Mapping[str, Mapping[str, Any]]
+    ceiling_regimes: frozenset[str]
+
+    def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
+              goals: Sequence[Goal]) -> None:
+        """Validate a task's regime parameters, env parameters and goals (cheaply, without the simulator).
+
+        Raises:
+            grail_bench.core.errors.UserError: Naming the parameter and what is wrong.
+        """
+        ...
+
+    def make_env(self, goal: Goal, **env_params: Any) -> gym.Env:
+        """The env pursuing ``goal``."""
+        ...
+
+    def generate_demos(self, task: TaskView, goal: Goal, n: int, rng: np.random.Generator) -> list[Trajectory]:
+        """``n`` demonstrations of ``goal`` under the task's regime, drawn from ``rng``."""
+        ...
+
+    def demonstrator(self, task: TaskView, goal: Goal) -> Any:
+        """The likelihood model of ``goal``'s demonstrator (a :class:`grail_bench.domains.base.GoalModel`),
+        for a regime in :attr:`ceiling_regimes`."""
+        ...
+
+
+@lru_cache(maxsize=1)
+def _registered() -> dict[str, str]:
+    return plugins.available(GROUP, (), "domain")
+
+
+def available_domains() -> list[str]:
+    """Names of every registered domain, sorted (nothing is imported)."""
+    return sorted(_registered())
+
+
+def get_domain(name: str) -> Domain:
+    """The domain registered as ``name`` (imported on first use).
+
+    Raises:
+        UserError: For unknown names, listing the known ones, or an entry point that is not a :class:`Domain`.
+    """
+    if not isinstance(name, str) or name not in _registered():
+        raise UserError(f"unknown domain {name!r}; known domains: {', '.join(available_domains())}")
+    return _load(name)
+
+
+@lru_cache(maxsize=None)
+def _load(name: str) -> Domain:
+    target = _registered()[name]
+    domain = plugins.load_target(target)
+    if not isinstance(domain, Domain):
+        raise UserError(f"domain entry point {target} does not satisfy grail_bench.task.domain.Domain")
+    return domain

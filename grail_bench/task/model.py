@@ -1,0 +1,232 @@
+"""The GR task: a domain, a goal set, a behaviour regime and its demonstrations."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+from grail_bench.core.errors import UserError
+from grail_bench.core.seeding import DEMOS, goal_rng
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal
+from grail_bench.task.domain import Domain, get_domain
+from grail_bench.task.observation import BUILTIN, available_protocols
+
+if TYPE_CHECKING:
+    import gymnasium as gym
+
+ENV_ONLY = ("render_mode", "goal")  # gym.make arguments that shape one env, not the task
+
+
+class TaskFieldError(UserError):
+    """A task field is invalid.
+
+    Attributes:
+        field: The field's path, e.g. ``"params.turn_prob"``.
+        why: What is wrong with it.
+    """
+
+    def __init__(self, field: str, why: str) -> None:
+        super().__init__(f"{field}: {why}")
+        self.field, self.why = field, why
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 1
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+@dataclass(frozen=True)
+class GRTask:
+    """A goal-recognition task as registered under a ``GRAIL/`` ID.
+
+    Every field is validated on construction (and so on
+    :meth:`with_overrides`); errors are :class:`TaskFieldError`.
+
+    Attributes:
+        id: The gymnasium ID, e.g. ``"GRAIL/MiniGrid-Biased-v0"``.
+        domain: Domain name (see :mod:`grail_bench.task.domain`).
+        regime: Behaviour regime of the demonstrator.
+        goals: Candidate goals, in a fixed order.
+        params: Regime parameters, every one of the regime's (its defaults merged in).
+        env_params: Keyword arguments of the domain env, every one of them.
+        n_demos: Demonstrations generated per goal.
+        n_train: How many of them form the training split.
+        observability: Default observability levels of the task.
+        protocol: Default observation protocol (see
+            :mod:`grail_bench.task.observation`).
+        description: One line for humans.
+        source: The card file that defines the task.
+    """
+
+    id: str
+    domain: str
+    regime: str
+    goals: tuple[Goal, ...]
+    params: Mapping[str, Any] = field(default_factory=dict)
+    env_params: Mapping[str, Any] = field(default_factory=dict)
+    n_demos: int = 10
+    n_train: int = 7
+    observability: tuple[float, ...] = (0.1, 0.2, 0.3)
+    protocol: str = "subset"
+    description: str = ""
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        spec = self.spec
+        if self.regime not in spec.regimes:
+            raise TaskFieldError("regime", f"unknown regime {self.regime!r} for domain {self.domain!r} "
+                                           f"(known: {', '.join(spec.regimes)})")
+        goals = self.goals
+        if not isinstance(goals, (list, tuple)) or len(goals) < 2:
+            raise TaskFieldError("goals", "expected a list of at least two goals")
+        for g in goals:
+            if not isinstance(g, (list, tuple)) or len(g) != spec.goal_dim or not all(_number(c) for c in g):
+                raise TaskFieldError("goals", f"each goal must be a list of {spec.goal_dim} numbers, got {g!r}")
+        object.__setattr__(self, "goals", tuple(tuple(g) for g in goals))
+        if len(set(self.goals)) != len(self.goals):
+            raise TaskFieldError("goals", "goals must be distinct")
+        for name, value, allowed in (("params", self.params, spec.regimes[self.regime]),
+                                     ("env", self.env_params, spec.env_defaults)):
+            if not isinstance(value, Mapping):
+                raise TaskFieldError(name, "expected a table")
+            extra = sorted(set(value) - set(allowed))
+            if extra:
+                raise TaskFieldError(f"{name}.{extra[0]}", f"unknown parameter (known: {', '.join(allowed) or 'none'})")
+        object.__setattr__(self, "params", {**spec.regimes[self.regime], **self.params})
+        object.__setattr__(self, "env_params", {**spec.env_defaults, **self.env_params})
+        for name in ("n_demos", "n_train"):
+            if not _count(getattr(self, name)):
+                raise TaskFieldError(name, f"expected a positive integer, got {getattr(self, name)!r}")
+        if self.n_train >= self.n_demos:
+            raise TaskFieldError("n_train", f"must be smaller than n_demos ({self.n_demos}) to leave test "
+                                            "demonstrations")
+        obs = self.observability
+        if not isinstance(obs, (list, tuple)) or not obs or not all(_number(p) and 0 < p <= 1 for p in obs):
+            raise TaskFieldError("observability", "expected a non-empty list of fractions in (0, 1]")
+        object.__setattr__(self, "observability", tuple(float(p) for p in obs))
+        if not isinstance(self.protocol, str) or not _known_protocol(self.protocol):
+            raise TaskFieldError("protocol", f"unknown observation protocol {self.protocol!r}")
+        if not isinstance(self.description, str):
+            raise TaskFieldError("description", "expected a string")
+        try:
+            spec.check(self.regime, self.params, self.env_params, self.goals)
+        except TaskFieldError:
+            raise
+        except UserError as exc:
+            raise TaskFieldError("params", str(exc)) from None
+
+    def __hash__(self) -> int:
+        return hash((self.id, self.regime, self.goals, repr(sorted(self.params.items()))))
+
+    @property
+    def spec(self) -> Domain:
+        """The task's :class:`~grail_bench.task.domain.Domain`."""
+        try:
+            return get_domain(self.domain)
+        except UserError as exc:
+            raise TaskFieldError("domain", str(exc)) from None
+
+    def with_overrides(self, **overrides: Any) -> GRTask:
+        """This task with regime parameters, env parameters, ``n_demos`` or ``n_train`` replaced.
+
+        Names are routed to where they belong (``turn_prob`` to :attr:`params`,
+        ``max_steps`` to :attr:`env_params`).
+
+        Raises:
+            UserError: For a name the task cannot apply, or an invalid value.
+        """
+        spec = self.spec
+        params, env_params, fields = dict(self.params), dict(self.env_params), {}
+        for name, value in overrides.items():
+            if name in ("n_demos", "n_train"):
+                fields[name] = value
+            elif name in spec.regimes[self.regime]:
+                params[name] = value
+            elif name in spec.env_defaults:
+                env_params[name] = value
+            else:
+                hint = " (it applies to gym.make, not to a task)" if name in ENV_ONLY else ""
+                known = sorted({*spec.regimes[self.regime], *spec.env_defaults, "n_demos", "n_train"})
+                raise UserError(f"{self.id} cannot apply parameter {name!r}{hint}; known: {', '.join(known)}")
+        try:
+            return dataclasses.replace(self, params=params, env_params=env_params, **fields)
+        except TaskFieldError as exc:
+            raise UserError(f"{self.id}: {exc}") from None
+
+    def goal_index(self, goal: Sequence[float]) -> int:
+        """Position of ``goal`` in :attr:`goals`; raises :class:`UserError` if absent."""
+        key = tuple(goal)
+        for i, g in enumerate(self.goals):
+            if tuple(g) == key:
+                return i
+        raise UserError(f"{tuple(goal)} is not a goal of {self.id}; goals: {list(self.goals)}")
+
+    def make_env(self, goal: Sequence[float] | None = None, **env_overrides: Any) -> gym.Env:
+        """Build the domain env pursuing one candidate goal (default: the first).
+
+        Args:
+            goal: One of :attr:`goals`.
+            **env_overrides: Domain env keyword arguments (e.g. ``render_mode``).
+
+        Returns:
+            The env; ``env.unwrapped.task`` is this task.
+        """
+        chosen = self.goals[0] if goal is None else self.goals[self.goal_index(goal)]
+        env = self.spec.make_env(chosen, **{**self.env_params, **env_overrides})
+        env.unwrapped.task = self
+        return env
+
+    def env_factory(self) -> EnvFactory:
+        """``factory(goal) -> env`` building this task's goal envs."""
+        return functools.partial(_make_env, self)
+
+    @property
+    def env_key(self) -> str:
+        """JSON naming the domain and its env parameters (not the regime).
+
+        Recognizers that learn from interaction alone key their cached models
+        by it, so one training serves every regime of a domain.
+        """
+        return json.dumps({"domain": self.domain, "env": dict(self.env_params)}, sort_keys=True)
+
+    def generate_demos(self, seed: int, n_demos: int | None = None) -> Demos:
+        """Generate demonstrations for every goal.
+
+        The same seed always gives identical demonstrations. Each goal draws
+        from a stream keyed by ``(seed, goal)`` (:mod:`grail_bench.core.seeding`),
+        so a goal's demonstrations are the same in every task that has it.
+
+        Args:
+            seed: Seed of the demonstration generator.
+            n_demos: Per goal; defaults to :attr:`n_demos`.
+
+        Returns:
+            ``{goal: [Trajectory, ...]}`` in the order of :attr:`goals`.
+        """
+        n = self.n_demos if n_demos is None else n_demos
+        return {goal: self.spec.generate_demos(self, goal, n, goal_rng(seed, goal, DEMOS)) for goal in self.goals}
+
+    def split(self, demos: Demos) -> tuple[Demos, Demos]:
+        """Split each goal's demonstrations into the first ``n_train`` and the rest."""
+        train, test = {}, {}
+        for goal, trajs in demos.items():
+            if len(trajs) <= self.n_train:
+                raise UserError(f"goal {goal} has {len(trajs)} demonstrations; need more than "
+                                f"n_train={self.n_train}")
+            train[goal], test[goal] = list(trajs[: self.n_train]), list(trajs[self.n_train :])
+        return train, test
+
+
+def _make_env(task: GRTask, goal: Goal) -> gym.Env:
+    return task.make_env(goal)
+
+
+def _known_protocol(name: str) -> bool:
+    """Built in, or registered by a plugin (entry points are read only for unknown names)."""
+    return name in BUILTIN or name in available_protocols()
