@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import install_plugin
 
 import grail_bench
 from grail_bench.harness import modes
@@ -20,8 +21,6 @@ from grail_bench.harness.modes.base import Column, Mode, Record, Run
 from grail_bench.harness.store import ResultsStore
 from grail_bench.recognizers import capabilities
 from grail_bench.task.observation import observe
-
-from conftest import install_plugin
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent

@@ -78,7 +78,7 @@ def test_policy_bank_matches_sb3_policies():
     env = TASK.make_env()
     for goal in TASK.goals:
         # Re-train the same goal's policy to compare against torch directly.
-        policy = rec.train_policy(goal, TRAIN[goal], TASK.make_env, seed=11)
+        policy, _ = rec.train_policy(goal, TRAIN[goal], TASK.make_env, seed=11)
         from grail_bench.recognizers.policy_bank import PolicyBank
 
         single = PolicyBank([policy]).action_probs(obs)[0]
@@ -116,7 +116,7 @@ def test_graql_learns_to_reach_goals():
 def test_graql_unvisited_states_get_uniform_policy():
     rec = fitted("graql")
     rec.visited[:] = False
-    probs = rec.policy_probs(TEST[(7, 1)][0].obs[:4])
+    probs = rec.outputs_at(TEST[(7, 1)][0].obs[:4]).probs
     np.testing.assert_allclose(probs, 0.25)
 
 

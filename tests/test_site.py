@@ -12,7 +12,9 @@ import pytest
 from typer.testing import CliRunner
 
 from grail_bench.cli import app
+from grail_bench.harness.diagnostics import FitRow, to_json
 from grail_bench.harness.store import OnlineRow, OpenSetRow, ResultRow, ResultsStore
+from grail_bench.recognizers.contract import FitDiagnostics
 from grail_bench.report import leaderboard
 from grail_bench.report.html import build_page, common_strata, render, write_site
 from grail_bench.report.reference import paper_reference_path as reference_path
@@ -40,9 +42,11 @@ def rows(seeds: int = 5) -> list[ResultRow]:
             for lv in levels:
                 for seed in range(seeds):
                     f1 = float(np.clip(level_f1 + rng.normal(0, 0.1), 0, 1))
+                    k = 4 if "4Goals" in task or "Panda" in task else 2
                     out.append(ResultRow(task, rec, scorer, "h" + rec, seed, lv, PROTOCOL.get(task, "subset"),
                                          f1, f1, f1, f1, 6, 0, 1.5, 40.0, "{}", '{"torch": "2.13.0"}',
-                                         provenance=STAMP if seed < 3 else None))
+                                         provenance=STAMP if seed < 3 else None,
+                                         confusion=json.dumps(np.eye(k, dtype=int).tolist())))
     return out
 
 
@@ -59,9 +63,20 @@ def open_set_rows() -> list[OpenSetRow]:
             for rec, scorer, auroc in (("bc", "mse", 0.6), ("graql", "kl", 0.9)) for seed in range(3)]
 
 
-def board(offline, reference=None, online=(), open_set=()):
+def fit_rows() -> list[FitRow]:
+    """Diagnostics of the bc fits on the 2-goal optimal task (2 seeds)."""
+    out = []
+    for seed in range(2):
+        d = FitDiagnostics(goals=((7, 1), (7, 7)), agreement_train=(0.9, 0.8), agreement_held_out=(0.85, 0.7),
+                           imitation=((0.8, 0.3), (0.25, 0.75)), reached=(True, seed == 0), rollout_length=(11, 60),
+                           demo_length=(11.0, 11.0), curves={0: {"loss": [1.2, 0.8, 0.5]}, 1: {"loss": [1.3, 0.9]}})
+        out.append(FitRow("GRAIL/MiniGrid-Optimal-v0", "bc", "hbc", seed, "offline", to_json(d)))
+    return out
+
+
+def board(offline, reference=None, online=(), open_set=(), fits=()):
     """The leaderboard model the page draws (no Bayes ceilings: these rows' scores are made up)."""
-    return leaderboard.build(offline, reference, None, studies={"online": online, "open-set": open_set})
+    return leaderboard.build(offline, reference, None, studies={"online": online, "open-set": open_set}, fits=fits)
 
 
 def n_records(rs: list[ResultRow]) -> int:
@@ -205,7 +220,7 @@ def browser():
 @pytest.fixture(scope="module")
 def site(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("site")
-    write_site(board(rows(), read_reference(reference_path()), online_rows(), open_set_rows()), out)
+    write_site(board(rows(), read_reference(reference_path()), online_rows(), open_set_rows(), fit_rows()), out)
     return out / "index.html"
 
 
@@ -309,10 +324,32 @@ def test_cell_links_to_its_run(browser, site):
     page.context.close()
 
 
+def test_a_cell_shows_its_confusion_imitation_and_curves_on_demand(browser, site):
+    page, errors, _ = open_page(browser, site)
+    assert not page.locator("#details").is_visible()
+    index = page.evaluate("JSON.parse(document.getElementById('records').textContent).find(r => r.task === "
+                          "'GRAIL/MiniGrid-Optimal-v0' && r.column === 'bc/mse' && r.observability === 0.1).id")
+    page.locator(f"td.cell[data-record='{index}'] button.diag").click()
+    panel = page.locator("#details")
+    assert panel.is_visible() and "bc" in page.locator("#details-title").inner_text()
+    heatmaps = panel.locator("svg.heatmap")
+    assert heatmaps.count() == 2  # confusion and imitation
+    assert heatmaps.nth(1).locator("rect").count() == 4 and "0.80" in heatmaps.nth(1).text_content()
+    assert panel.locator("table tbody tr").count() == 2 and "2/2" in panel.locator("table").inner_text()
+    assert "1/2" in panel.locator("table").inner_text()  # goal (7,7) reached on one seed of two
+    assert panel.locator("svg.curve polyline").count() == 2  # one loss curve per goal
+    graql = page.locator("section.board td.cell[data-recognizer=graql] button.diag").first  # no diagnostics stored
+    graql.click()
+    assert "No fit diagnostics" in panel.inner_text() and panel.locator("svg.heatmap").count() == 1
+    assert errors == []
+    page.context.close()
+
+
 def test_page_reads_without_scripts(browser, site):
     page, errors, _ = open_page(browser, site, java_script_enabled=False)
     assert page.locator("td.cell").count() == n_records(rows())
     assert page.locator("td.cell").first.is_visible()
     assert not page.locator("form#filters").is_visible()  # nothing to filter with, so not shown
+    assert page.locator("button.diag:visible").count() == 0  # details need the script: no dead buttons
     assert page.locator("figure svg").count() >= 1
     page.context.close()

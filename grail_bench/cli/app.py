@@ -9,11 +9,20 @@ from typing import List, Optional
 
 import typer
 
-from grail_bench.cli.inputs import console, err_console, errors, fail, one_line_warnings, open_store, outputs, say
+from grail_bench.cli.inputs import (
+    console,
+    err_console,
+    errors,
+    fail,
+    one_line_warnings,
+    open_store,
+    outputs,
+    say,
+    write_text,
+)
 from grail_bench.cli.inputs import executor as make_executor
 from grail_bench.cli.inputs import params as parse_params
 from grail_bench.cli.inputs import settings as parse_settings
-from grail_bench.cli.inputs import write_text
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="grail-bench: goal-recognition benchmarks on gymnasium.")
@@ -164,6 +173,7 @@ def leaderboard_(
         None, "--html", help="Also write the leaderboard as a static web page into this folder (index.html)."),
 ) -> None:
     """Paper-style F1 tables from the results store."""
+    from grail_bench.harness.diagnostics import FitRow
     from grail_bench.harness.modes import MODES
     from grail_bench.report import leaderboard, plots
     from grail_bench.report.boards import ablation_rows
@@ -192,6 +202,7 @@ def leaderboard_(
         with open_store(store_path, must_exist=True) as store:
             selected = {name: _select(store, m, task, scorer, protocol) for name, m in MODES.items()
                         if name == mode.name or (html is not None)}
+            fits = store.select(FitRow, **({"task": task} if task else {})) if mode.name == "offline" else []
             where = store.path
         if not selected[mode.name]:
             hint = "" if mode.name == "offline" else f" --{mode.name}"
@@ -210,7 +221,7 @@ def leaderboard_(
         offline = selected.pop("offline", [])
         if mode.name != "offline" and plot is None:
             samples = None  # the tables show no ceiling; only the online plot draws one
-        board = leaderboard.build(offline, ref, samples, studies=selected, progress=True)
+        board = leaderboard.build(offline, ref, samples, studies=selected, progress=True, fits=fits)
         if mode.name != "offline":
             study = board.studies[mode.name]
             console.print(mode_table(study.records, mode))
@@ -222,7 +233,7 @@ def leaderboard_(
         for table in rich_tables(board.boards):
             console.print(table)
         if markdown_path is not None:
-            write_text(markdown_path, markdown(board.boards, board.records), "Markdown")
+            write_text(markdown_path, markdown(board.boards, board.records, fits=board.fits), "Markdown")
         if html is not None:
             with console.status("web page (bootstrap intervals)"):
                 index = write_site(board, html)[0]
@@ -254,6 +265,7 @@ def reproduce(
     from datetime import datetime, timezone
 
     from grail_bench.core.provenance import git_commit
+    from grail_bench.harness.diagnostics import FitRow
     from grail_bench.harness.modes import MODES
     from grail_bench.harness.sweep import run_sweep
     from grail_bench.report.reproduce import load_profile, manifest, write_outputs
@@ -269,13 +281,56 @@ def reproduce(
             meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary, commit)
             tasks = sorted({r.task_id for r in requests})
             rows = [row for mode in MODES.values() for row in store.select(mode, task=tasks)]
+            fits = store.select(FitRow, task=tasks)
         with console.status("tables, figures and web page"):
-            written = write_outputs(rows, chosen_profile, requests, out, meta, site=site)
+            written = write_outputs(rows, chosen_profile, requests, out, meta, site=site, fits=fits)
     say(f"{summary.units} units ({summary.skipped} already stored) in {summary.seconds:.0f} s on {chosen.name} x "
         f"{chosen.workers}; models trained {summary.trained}, reused from the cache {summary.reused}, a run "
         f"without reuse would train {summary.naive}")
     for path in written:
         say(f"wrote {path}")
+
+
+@app.command()
+def inspect(
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
+    recognizer: str = typer.Option("bc", "--recognizer", "-r", help="The recognizer to inspect."),
+    seed: int = typer.Option(0, "--seed", "-s", min=0, help="The seed whose fit to inspect."),
+    settings: Optional[List[str]] = typer.Option(None, "--set", help="Recognizer hyperparameter, e.g. bc.n_epochs=50."),
+    params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, as for `run`."),
+    protocol: Optional[str] = typer.Option(None, "--protocol", "-p", help="Observation protocol (default: the task's)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Also write diagnostics.json and the heatmaps (PNG) here."),
+) -> None:
+    """Train (or reload from the model cache) one fit and show whether it imitates: per goal, the greedy rollout,
+    agreement with the demonstrations and the imitation and confusion matrices. Nothing is stored."""
+    from grail_bench.harness.api import inspect_fit
+    from grail_bench.harness.diagnostics import to_json
+    from grail_bench.report import plots
+    from grail_bench.report.text import diagnostics_table, goal_label
+
+    with errors():
+        outputs(folders=[out])
+        config = parse_settings(settings or [], [recognizer])[recognizer]
+        with console.status(f"fitting {recognizer} on {task}, seed {seed} (or reading it from the model cache)"):
+            seen = inspect_fit(task, recognizer, seed, config, parse_params(params or []), protocol)
+        labels = [goal_label(g) for g in seen.task.goals]
+        if seen.diagnostics is None:
+            say(f"recognizer {recognizer!r} offers no fit diagnostics")
+        else:
+            console.print(diagnostics_table(seen.diagnostics, f"{recognizer} on {seen.task.id}, seed {seed}"))
+        levels = ", ".join(f"{r.observability:.0%} F1 {r.f1:.2f}" for r in seen.rows)
+        say(f"{seen.rows[0].protocol}: {levels}; confusion over these levels (rows true, columns predicted): "
+            f"{seen.confusion}")
+        if out is not None:
+            data = {"task": seen.task.id, "recognizer": recognizer, "seed": seed, "confusion": seen.confusion,
+                    "diagnostics": json.loads(to_json(seen.diagnostics)) if seen.diagnostics else None}
+            write_text(out / "diagnostics.json", json.dumps(data, indent=1) + "\n", "diagnostics")
+            say(f"heatmap written to {plots.save_png(plots.heatmap(seen.confusion, labels, 'confusion', 'predicted', 'true goal', 0), out / 'confusion.png')}")
+            if seen.diagnostics is not None:
+                say(f"heatmap written to {plots.save_png(plots.heatmap(seen.diagnostics.imitation, labels, 'imitation: P(goal i action | policy j)', 'policy of goal', 'demonstrations of goal'), out / 'imitation.png')}")
+                figure = plots.fit_curves(dict(seen.diagnostics.curves), labels)
+                if figure is not None:
+                    say(f"curves written to {plots.save_png(figure, out / 'curves.png')}")
 
 
 @app.command()

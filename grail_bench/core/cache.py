@@ -22,6 +22,7 @@ import pickle
 import time
 import warnings
 import zipfile
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -81,9 +82,27 @@ class Busy(Exception):
     """Another process holds the entry's lock (it is training that model now)."""
 
 
-def _cached(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]], suffix: str,
+@dataclass(frozen=True)
+class Cached:
+    """A model from the cache or freshly trained.
+
+    Attributes:
+        state: The ``state_dict`` or named arrays.
+        seconds: What training took (now, or when the cached model was trained).
+        reused: Whether it was read from the cache.
+        extra: JSON-able data the training returned beside the model (e.g. its training curves), kept in
+            the sidecar; empty for entries written before it was kept.
+    """
+
+    state: dict[str, Any]
+    seconds: float
+    reused: bool
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _cached(kind: str, key: dict[str, Any], train: Callable[[], Any], suffix: str,
             save: Callable[[dict[str, Any], Path], None], load: Callable[[Path], dict[str, Any]],
-            root: Path | None, wait: bool = True) -> tuple[dict[str, Any], float, bool]:
+            root: Path | None, wait: bool = True) -> Cached:
     from filelock import FileLock, Timeout
 
     folder = (root or cache_dir()) / kind
@@ -105,49 +124,58 @@ def _cached(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]],
                 elif info.get("sha256") != _sha256(model):
                     problem = "its weights do not match their checksum"
                 else:
-                    return load(model), float(info.get("train_seconds", 0.0)), True
+                    return Cached(load(model), float(info.get("train_seconds", 0.0)), True, dict(info.get("extra") or {}))
             except (OSError, ValueError, RuntimeError, EOFError, KeyError, pickle.UnpicklingError,
                     zipfile.BadZipFile) as exc:
                 problem = f"it cannot be read ({type(exc).__name__})"
             warnings.warn(f"cached model {model} is unusable: {problem}; retraining", CacheWarning, stacklevel=3)
         start = time.perf_counter()
-        state = train()
+        state, extra = _split(train())
         seconds = time.perf_counter() - start
         _write_atomic(model, lambda tmp: save(state, tmp))
-        sidecar = json.dumps({"key": key, "sha256": _sha256(model), "train_seconds": seconds}, sort_keys=True,
-                             default=str)
+        sidecar = json.dumps({"key": key, "sha256": _sha256(model), "train_seconds": seconds, "extra": extra},
+                             sort_keys=True, default=str)
         _write_atomic(meta, lambda tmp: tmp.write_text(sidecar, encoding="utf-8"))
     finally:
         lock.release()
-    return state, seconds, False
+    return Cached(state, seconds, False, extra)
 
 
-def cached_state_dict(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]],
-                      root: Path | None = None, wait: bool = True) -> tuple[dict[str, Any], float]:
-    """Load a cached ``state_dict`` for ``key`` or train, save and return a new one.
+def _split(trained: Any) -> tuple[dict[str, Any], dict[str, Any]]:
+    """A training function's ``state`` or ``(state, extra)``."""
+    if isinstance(trained, tuple):
+        state, extra = trained
+        return state, dict(extra)
+    return trained, {}
+
+
+def cached(kind: str, key: dict[str, Any], train: Callable[[], Any], *, arrays: bool = False,
+           root: Path | None = None, wait: bool = True) -> Cached:
+    """Load a cached model for ``key`` or train, save and return a new one, with what training returned beside it.
 
     Args:
         kind: Folder under the cache (e.g. ``"panda-sac-expert"``).
         key: Everything the model depends on (JSON-able).
-        train: Produces the ``state_dict`` when the cache cannot serve it.
+        train: Produces the model (a torch ``state_dict``, or named numpy arrays with ``arrays``), or
+            ``(model, extra)`` with JSON-able ``extra`` kept beside it.
+        arrays: Named numpy arrays (``.npz``) rather than a ``state_dict`` (``.pt``).
         root: Cache root (default :func:`grail_bench.core.paths.cache_dir`).
-        wait: When another process is training this model, wait for it
-            (default) or raise :class:`Busy` at once, so the caller can do
-            other work first.
-
-    Returns:
-        ``(state_dict, seconds)``: ``seconds`` is what training took, when it
-        happened now or when the cached model was trained.
+        wait: When another process is training this model, wait for it (default) or raise :class:`Busy`.
     """
-    state, seconds, _ = _cached(kind, key, train, ".pt", _save_torch, _load_torch, root, wait)
-    return state, seconds
+    if arrays:
+        return _cached(kind, key, train, ".npz", _save_arrays, _load_arrays, root, wait)
+    return _cached(kind, key, train, ".pt", _save_torch, _load_torch, root, wait)
+
+
+def cached_state_dict(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]],
+                      root: Path | None = None, wait: bool = True) -> tuple[dict[str, Any], float]:
+    """:func:`cached` for a torch ``state_dict``: ``(state_dict, seconds)``."""
+    entry = cached(kind, key, train, root=root, wait=wait)
+    return entry.state, entry.seconds
 
 
 def cached_arrays(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]],
                   root: Path | None = None) -> tuple[dict[str, Any], float, bool]:
-    """Like :func:`cached_state_dict` for named numpy arrays (``.npz``).
-
-    Returns:
-        ``(arrays, seconds, reused)``.
-    """
-    return _cached(kind, key, train, ".npz", _save_arrays, _load_arrays, root)
+    """:func:`cached` for named numpy arrays (``.npz``): ``(arrays, seconds, reused)``."""
+    entry = cached(kind, key, train, arrays=True, root=root)
+    return entry.state, entry.seconds, entry.reused

@@ -10,9 +10,10 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
-from stable_baselines3.common.vec_env import DummyVecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
 from stable_baselines3.sac.policies import SACPolicy
 
 from grail_bench.core.cache import cached_state_dict
@@ -28,8 +29,8 @@ def make_sac(env: gym.Env, net_arch: Sequence[int], seed: int = 0) -> SAC:
 
 
 def make_ppo(env_fn: Callable[[], gym.Env], net_arch: Sequence[int], seed: int = 0, n_envs: int = 8) -> PPO:
-    """SB3 PPO on ``n_envs`` copies of an env."""
-    venv = DummyVecEnv([env_fn for _ in range(n_envs)])
+    """SB3 PPO on ``n_envs`` copies of an env (monitored, so its episode returns can be read)."""
+    venv = VecMonitor(DummyVecEnv([env_fn for _ in range(n_envs)]))
     venv.seed(seed)
     return PPO("MlpPolicy", venv, policy_kwargs={"net_arch": list(net_arch)}, n_steps=128, batch_size=64,
                seed=seed, verbose=0, device="cpu")
@@ -48,14 +49,39 @@ def empty_policy(algorithm: str, observation_space: gym.Space, action_space: gym
     return cls(observation_space, action_space, lambda _: 0.0, **kwargs)
 
 
-def learn(model: BaseAlgorithm, steps: int) -> dict[str, Any]:
-    """Train (with a progress bar on a terminal) and return the policy's ``state_dict``.
+#: Points of a training curve (curves are evidence to look at, not logs).
+CURVE_POINTS = 50
+
+
+class ReturnCurve(BaseCallback):
+    """Records the mean episode return of the environment's own reward (SB3's ``ep_rew_mean``) as training goes.
+
+    A point every ``steps / CURVE_POINTS`` environment steps, once episodes have ended.
+    """
+
+    def __init__(self, steps: int) -> None:
+        super().__init__()
+        self.every = max(1, steps // CURVE_POINTS)
+        self.values: list[float] = []
+        self._next = self.every
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self._next:
+            self._next += self.every
+            if self.model.ep_info_buffer:
+                self.values.append(float(np.mean([info["r"] for info in self.model.ep_info_buffer])))
+        return True
+
+
+def learn(model: BaseAlgorithm, steps: int) -> tuple[dict[str, Any], list[float]]:
+    """Train (with a progress bar on a terminal); the policy's ``state_dict`` and its return curve.
 
     SB3's logger is replaced by one writing nowhere, so no log folder appears in ``$TMPDIR``.
     """
+    curve = ReturnCurve(steps)
     model.set_logger(Logger(folder=None, output_formats=[]))
-    model.learn(steps, progress_bar=sys.stderr.isatty())
-    return model.policy.state_dict()
+    model.learn(steps, progress_bar=sys.stderr.isatty(), callback=curve)
+    return model.policy.state_dict(), curve.values
 
 
 def sac_expert(kind: str, env: gym.Env, key: dict[str, Any], steps: int, seed: int,
@@ -73,7 +99,7 @@ def sac_expert(kind: str, env: gym.Env, key: dict[str, Any], steps: int, seed: i
     full_key = {**key, "seed": seed, "steps": steps, "net": list(net_arch),
                 "versions": [version("stable-baselines3"), version("torch")]}
     with single_thread():
-        state, _ = cached_state_dict(kind, full_key, lambda: learn(make_sac(env, net_arch, seed), steps))
+        state, _ = cached_state_dict(kind, full_key, lambda: learn(make_sac(env, net_arch, seed), steps)[0])
         policy = empty_policy("sac", env.observation_space, env.action_space, net_arch)
     policy.load_state_dict(state)
     policy.set_training_mode(False)

@@ -4,20 +4,36 @@ from __future__ import annotations
 
 import contextlib
 import os
-from typing import Iterator
+from typing import Any, Iterator
 
 import torch
 from imitation.util.logger import HierarchicalLogger
-from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.logger import KVWriter, Logger
 
 from grail_bench.core.paths import cache_dir
 
 _INDUCTOR_CACHE = "TORCHINDUCTOR_CACHE_DIR"
 
 
-def silent_logger() -> HierarchicalLogger:
-    """An imitation logger that writes nothing anywhere (no folders in $TMPDIR)."""
-    return HierarchicalLogger(Logger(folder=None, output_formats=[]), format_strs=[])
+class _Recorder(KVWriter):
+    """Keeps every logged value in memory, by key, in the order it was dumped."""
+
+    def __init__(self) -> None:
+        self.values: dict[str, list[float]] = {}
+
+    def write(self, key_values: dict[str, Any], key_excluded: dict[str, Any], step: int = 0) -> None:
+        for key, value in key_values.items():
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                self.values.setdefault(key, []).append(float(value))
+
+    def close(self) -> None:
+        pass
+
+
+def recording_logger() -> tuple[HierarchicalLogger, dict[str, list[float]]]:
+    """An imitation logger that writes no file, and the values it was given (by key, one per dump)."""
+    recorder = _Recorder()
+    return HierarchicalLogger(Logger(folder=None, output_formats=[recorder]), format_strs=[]), recorder.values
 
 
 @contextlib.contextmanager

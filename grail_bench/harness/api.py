@@ -1,17 +1,22 @@
-"""``evaluate``: benchmark recognizers on one task from Python (what ``grail-bench run`` calls)."""
+"""``evaluate``: benchmark recognizers on one task from Python (what ``grail-bench run`` calls); ``inspect_fit``."""
 
 from __future__ import annotations
 
+import json
+from dataclasses import dataclass
 from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import seed_list
 from grail_bench.harness.executors import Executor
-from grail_bench.harness.modes import Record, get_mode
-from grail_bench.harness.planning import RecognizerSpec
+from grail_bench.harness.modes import Record, ResultRow, SeedRun, get_mode
+from grail_bench.harness.planning import RecognizerSpec, plan
 from grail_bench.harness.store import ResultsStore
 from grail_bench.harness.sweep import Request, plan_request, run_sweep
-from grail_bench.task import make_task
+from grail_bench.recognizers.contract import FitDiagnostics
+from grail_bench.task import GRTask, make_task
 from grail_bench.task.observation import ObservationSpec
 
 
@@ -99,3 +104,47 @@ def collect(req: Request, store: ResultsStore) -> list[Record]:
                                          config_hash=p.config_hash, protocol=req.label, seed=list(req.seeds))
                  if getattr(r, "observability", None) in levels]
     return mode.aggregate(rows)
+
+
+@dataclass(frozen=True)
+class Inspection:
+    """One fit looked at closely (``grail-bench inspect``).
+
+    Attributes:
+        task: The task (with the parameters used).
+        recognizer: Its registered name.
+        seed: The seed.
+        diagnostics: The fit's diagnostics (None when the recognizer offers none).
+        rows: The offline rows of the same fit, one per level (their ``confusion`` summed is the fit's).
+    """
+
+    task: GRTask
+    recognizer: str
+    seed: int
+    diagnostics: FitDiagnostics | None
+    rows: list[ResultRow]
+
+    @property
+    def confusion(self) -> list[list[int]]:
+        """Test observations of each true goal (rows) and the goal predicted (columns), over every level."""
+        return np.sum([json.loads(r.confusion) for r in self.rows], axis=0).astype(int).tolist()
+
+
+def inspect_fit(task_id: str, recognizer: str, seed: int = 0, config: Mapping[str, Any] | None = None,
+                task_params: Mapping[str, Any] | None = None, protocol: str | None = None) -> Inspection:
+    """Fit (or reload from the model cache) one recognizer on one seed of a task, score it offline at the task's
+    levels, and return its diagnostics and rows; nothing is stored.
+
+    Raises:
+        UserError: For an unknown task, recognizer, hyperparameter or protocol, before any training.
+    """
+    req = request(task_id, [RecognizerSpec(recognizer, dict(config or {}))], seeds=[seed], protocol=protocol,
+                  task_params=task_params)
+    task = make_task(req.task_id, **dict(req.task_params))
+    env = task.make_env()
+    planned = plan(task, req.specs[0], env.action_space)
+    env.close()
+    job = SeedRun(task=task, planned=planned, seed=seed, observation=req.observation, versions="{}",
+                  demos=task.generate_demos(seed))
+    rows, fitted = get_mode("offline").run(job)
+    return Inspection(task, recognizer, seed, fitted.diagnostics, rows)

@@ -16,7 +16,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from grail_bench.core.trajectory import Demos, Goal
-from grail_bench.recognizers.contract import Capabilities, FitReport, RecognizerError
+from grail_bench.recognizers.contract import Capabilities, FitDiagnostics, FitReport, RecognizerError
 from grail_bench.recognizers.registry import build
 from grail_bench.recognizers.scoring import available_scorers, check_scorer, get_scorer
 from grail_bench.task import GRTask
@@ -129,20 +129,28 @@ class Fitted:
         recognizer: Its capabilities (what the harness scores through).
         report: What the fit reported (None: it reported nothing).
         seconds_per_goal: Training seconds per goal fitted (the report's, else the timed call's).
+        diagnostics: The fit's diagnostics, where the recognizer offers them (read-only evidence: nothing
+            selects, retrains or filters on them).
     """
 
     recognizer: Capabilities
     report: FitReport | None
     seconds_per_goal: float
+    diagnostics: FitDiagnostics | None = None
 
 
-def fit_recognizer(task: GRTask, planned: Planned, seed: int, train: Demos) -> Fitted:
-    """A new recognizer of ``planned``, fitted on ``train`` (the goals it is to recognise)."""
+def fit_recognizer(task: GRTask, planned: Planned, seed: int, train: Demos, held_out: Demos) -> Fitted:
+    """A new recognizer of ``planned``, fitted on ``train`` (the goals it is to recognise), then diagnosed.
+
+    Args:
+        held_out: Other demonstrations of the fitted goals, for the diagnostics only.
+    """
     caps = build(planned.spec.name, dict(planned.spec.config))
     start = time.perf_counter()
     report = caps.fit(train, task.env_factory(), seed, task.env_key)
     seconds = report.train_seconds if report is not None else time.perf_counter() - start
-    return Fitted(caps, report, seconds / len(train))
+    diagnostics = caps.diagnose(train, {g: held_out[g] for g in train if g in held_out}, task.env_factory())
+    return Fitted(caps, report, seconds / len(train), diagnostics)
 
 
 def task_params(config_json: str) -> dict[str, Any]:

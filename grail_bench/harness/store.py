@@ -1,7 +1,9 @@
 """The results store: an embedded SQLite database, the only code that touches it.
 
 One table per mode (:data:`grail_bench.harness.modes.MODES`), named and keyed
-by the mode: ``results`` (offline, the paper's protocol), one
+by the mode, and one of fit diagnostics (``fits``, one
+:class:`~grail_bench.harness.diagnostics.FitRow` per task, recognizer, config
+hash, seed and mode): ``results`` (offline, the paper's protocol), one
 :class:`ResultRow` per (task, recognizer, scorer, config hash, seed,
 observability, observation protocol); ``online`` (every prefix scored), one
 :class:`OnlineRow` per (task, recognizer, scorer, config hash, seed, protocol);
@@ -25,10 +27,12 @@ from typing import Any, Iterable
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import data_dir
-from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, mode_of
+from grail_bench.harness import diagnostics
+from grail_bench.harness.diagnostics import FitRow
+from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row
 
-SCHEMA_VERSION = 5
-__all__ = ["SCHEMA_VERSION", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
+SCHEMA_VERSION = 6
+__all__ = ["SCHEMA_VERSION", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
            "default_store_path"]
 
 
@@ -40,14 +44,20 @@ _COLUMNS = [f.name for f in fields(ResultRow)]
 _TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash": "TEXT", "seed": "INTEGER",
           "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
           "config": "TEXT", "versions": "TEXT", "provenance": "TEXT", "n_trajectories": "INTEGER",
-          "curve": "TEXT", "held_out": "TEXT"}
+          "curve": "TEXT", "held_out": "TEXT", "confusion": "TEXT", "mode": "TEXT", "diagnostics": "TEXT"}
 
 
-def _create(mode: Mode) -> str:
-    table, key = mode.table, mode.key
+def _tables() -> dict[type, tuple[str, tuple[str, ...]]]:
+    """Row type -> (table, primary key): every mode's, and the fit diagnostics'."""
+    out = {mode.row: (mode.table, mode.key) for mode in MODES.values()}
+    out[FitRow] = (diagnostics.TABLE, diagnostics.KEY)
+    return out
+
+
+def _create(kind: type, table: str, key: tuple[str, ...]) -> str:
     return (f"CREATE TABLE IF NOT EXISTS {table} ("
             + ", ".join(f"{f.name} {_TYPES.get(f.name, 'REAL')}" + (" NOT NULL" if f.name in key else "")
-                        for f in fields(mode.row))
+                        for f in fields(kind))
             + ", created_at TEXT NOT NULL DEFAULT (datetime('now'))"
             + f", PRIMARY KEY ({', '.join(key)}))")
 
@@ -88,8 +98,8 @@ class ResultsStore:
                     _migrate_v1(self._conn)
                 if tables and version < SCHEMA_VERSION:
                     _add_missing_columns(self._conn)
-                for mode in MODES.values():
-                    self._conn.execute(_create(mode))
+                for kind, (table, key) in _tables().items():
+                    self._conn.execute(_create(kind, table, key))
                 self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
         except sqlite3.Error as exc:
             raise StoreError(f"cannot use results store {self.path}: {exc}") from None
@@ -117,9 +127,10 @@ class ResultsStore:
         try:
             with self._conn:
                 before = self._conn.total_changes
+                tables = _tables()
                 for kind, values in by_kind.items():
                     names = [f.name for f in fields(kind)]
-                    self._conn.executemany(f"INSERT OR IGNORE INTO {mode_of(kind).table} ({', '.join(names)}) "
+                    self._conn.executemany(f"INSERT OR IGNORE INTO {tables[kind][0]} ({', '.join(names)}) "
                                            f"VALUES ({', '.join('?' * len(names))})", values)
                 return self._conn.total_changes - before
         except sqlite3.Error as exc:
@@ -129,10 +140,11 @@ class ResultsStore:
         """Stored :class:`ResultRow` rows, optionally filtered by column equality (a list means any of)."""
         return self.select(ResultRow, **where)
 
-    def select(self, kind: type[Row] | Mode, **where: Any) -> list[Any]:
-        """Stored rows of one mode (or its row type), optionally filtered by column equality (a list means any of)."""
-        mode = kind if isinstance(kind, Mode) else mode_of(kind)
-        kind = mode.row
+    def select(self, kind: type | Mode, **where: Any) -> list[Any]:
+        """Stored rows of one mode (or of a row type, :class:`FitRow` included), optionally filtered by column
+        equality (a list means any of)."""
+        kind = kind.row if isinstance(kind, Mode) else kind
+        table = _tables()[kind][0]
         columns = [f.name for f in fields(kind)]
         clauses, params = [], []
         for column, value in where.items():
@@ -141,10 +153,11 @@ class ResultsStore:
             values = list(value) if isinstance(value, (list, tuple, set)) else [value]
             clauses.append(f"{column} IN ({', '.join('?' * len(values))})")
             params += values
-        sql = f"SELECT {', '.join(columns)} FROM {mode.table}"
+        sql = f"SELECT {', '.join(columns)} FROM {table}"
         if clauses:
             sql += " WHERE " + " AND ".join(clauses)
-        sql += " ORDER BY task, recognizer, scorer, " + ("observability, " if "observability" in columns else "") + "seed"
+        order = [c for c in ("task", "recognizer", "scorer", "observability", "mode", "seed") if c in columns]
+        sql += " ORDER BY " + ", ".join(order)
         try:
             return [kind(*r) for r in self._conn.execute(sql, params)]
         except sqlite3.Error as exc:
@@ -172,8 +185,8 @@ def _migrate_v1(conn: sqlite3.Connection) -> None:
 
 
 def _add_missing_columns(conn: sqlite3.Connection) -> None:
-    """Schema 2 -> 3 -> 4: the columns added since (``provenance``; ``top2``, ``mean_rank``), empty for the rows
-    already stored. (Schema 5 only adds tables.)"""
+    """Schema 2 -> 3 -> 4 -> 6: the columns added since (``provenance``; ``top2``, ``mean_rank``; ``confusion``),
+    empty for the rows already stored. (Schema 5 added tables, and schema 6 the ``fits`` table too.)"""
     columns = {r[1] for r in conn.execute("PRAGMA table_info(results)")}
     for name in _COLUMNS:
         if name not in columns:

@@ -22,6 +22,8 @@ from functools import lru_cache
 from typing import Any, Mapping, Sequence
 
 from grail_bench.core.provenance import package_versions, stamp
+from grail_bench.harness import diagnostics
+from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.executors import Executor, SerialExecutor
 from grail_bench.harness.modes import Row, SeedRun, get_mode
 from grail_bench.harness.planning import Planned, RecognizerSpec, plan
@@ -76,7 +78,7 @@ class Unit:
 class UnitResult:
     """What a worker sends back: the unit's rows and how its models were obtained."""
 
-    rows: list[Row]
+    rows: list[Row | FitRow]
     trained: int  # models trained by this unit
     reused: int  # models loaded from the cache
 
@@ -89,7 +91,8 @@ class SweepSummary:
         units: Units in the sweep.
         skipped: Units already in the store.
         done: Units run and stored by this sweep.
-        rows: Rows stored by this sweep.
+        rows: Result rows stored by this sweep.
+        fits: Fit diagnostics stored by this sweep (one per unit whose recognizer offers them).
         trained: Models trained.
         reused: Models loaded from the model cache.
         naive: Models a sweep without the cache would train for the units run.
@@ -100,6 +103,7 @@ class SweepSummary:
     skipped: int = 0
     done: int = 0
     rows: int = 0
+    fits: int = 0
     trained: int = 0
     reused: int = 0
     naive: int = 0
@@ -142,7 +146,11 @@ def run_unit(unit: Unit) -> UnitResult:
                   observation=unit.observation, versions=_versions(),
                   demos=_demos(unit.task_id, unit.task_params, unit.seed))
     with single_thread():  # as every worker does: the same arithmetic wherever a unit runs
-        rows, report = get_mode(unit.mode).run(job)
+        rows, fitted = get_mode(unit.mode).run(job)
+    if fitted is not None and fitted.diagnostics is not None:
+        rows = [*rows, FitRow(unit.task_id, unit.planned.name, unit.planned.config_hash, unit.seed, unit.mode,
+                              diagnostics.to_json(fitted.diagnostics))]
+    report = fitted.report if fitted is not None else None
     if report is None:  # a recognizer that reports nothing trained every goal
         return UnitResult(rows, trained=unit.goals, reused=0)
     return UnitResult(rows, trained=report.trained, reused=report.reused)
@@ -228,7 +236,9 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
         with Progress(*columns, disable=not progress, transient=False) as bar:
             job = bar.add_task(f"{description} ({executor.name}, {executor.workers} worker(s))", total=len(units))
             for _, result in executor.map_unordered(run_unit, units):
-                summary.rows += store.add(replace(r, provenance=origin) for r in result.rows)
+                stored = [replace(r, provenance=origin) for r in result.rows]
+                summary.rows += store.add(r for r in stored if not isinstance(r, FitRow))
+                summary.fits += store.add(r for r in stored if isinstance(r, FitRow))
                 summary.done += 1
                 summary.trained += result.trained
                 summary.reused += result.reused

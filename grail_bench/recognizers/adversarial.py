@@ -14,6 +14,7 @@ from __future__ import annotations
 import warnings
 from typing import Sequence
 
+import numpy as np
 from imitation.algorithms.adversarial.airl import AIRL
 from imitation.algorithms.adversarial.gail import GAIL
 from imitation.data.types import Trajectory
@@ -21,13 +22,14 @@ from imitation.rewards.reward_nets import BasicRewardNet, BasicShapedRewardNet
 from imitation.util.networks import RunningNorm
 from stable_baselines3 import PPO
 from stable_baselines3.common.policies import ActorCriticPolicy
-from stable_baselines3.common.vec_env import DummyVecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.rl import empty_policy
 from grail_bench.core.torchutil import scratch_logger, unchecked_distributions
 from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.stats.metrics import thin
 
 # Adam's fused kernel: the same update rule as the default per-tensor loop in one kernel per step
 # (the loop was a fifth of each PPO update on these small networks; fits are ~17 % faster).
@@ -70,7 +72,8 @@ class AdversarialRecognizer(PolicyRecognizer):
 
     def _generator(self, goal: Goal, env_factory: EnvFactory, n_envs: int, seed: int = 0) -> PPO:
         cfg = self.config
-        venv = DummyVecEnv([lambda: env_factory(goal) for _ in range(n_envs)])
+        # Monitored, so the generator's returns under the environment's own reward can be read (a curve).
+        venv = VecMonitor(DummyVecEnv([lambda: env_factory(goal) for _ in range(n_envs)]))
         venv.seed(seed)
         return PPO("MlpPolicy", venv, batch_size=cfg["batch_size"], gamma=cfg["gamma"],
                    learning_rate=cfg["learning_rate"], n_steps=cfg["n_steps"], n_epochs=cfg["n_epochs"],
@@ -80,7 +83,7 @@ class AdversarialRecognizer(PolicyRecognizer):
         return empty_policy("ppo", *spaces_of(env_factory, goal))
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
-                     seed: int) -> ActorCriticPolicy:
+                     seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
         cfg = self.config
         generator = self._generator(goal, env_factory, cfg["n_envs"], seed)
         venv = generator.get_env()
@@ -97,12 +100,18 @@ class AdversarialRecognizer(PolicyRecognizer):
             )
             # imitation's train() draws its own progress bar; run its rounds directly.
             rounds = max(1, cfg["total_timesteps"] // trainer.gen_train_timesteps)
+            disc_acc, gen_return = [], []
             for _ in range(rounds):
                 trainer.train_gen(trainer.gen_train_timesteps)
+                stats = None
                 for _ in range(cfg["n_disc_updates_per_round"]):
-                    trainer.train_disc()
+                    stats = trainer.train_disc()
+                if stats is not None:
+                    disc_acc.append(float(stats["disc_acc"]))
+                if generator.ep_info_buffer:
+                    gen_return.append(float(np.mean([info["r"] for info in generator.ep_info_buffer])))
         venv.close()
-        return generator.policy
+        return generator.policy, {"disc_acc": thin(disc_acc), "gen_return": thin(gen_return)}
 
 
 class GAILRecognizer(AdversarialRecognizer):

@@ -13,9 +13,10 @@ from imitation.policies.base import FeedForward32Policy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 from grail_bench.core.errors import UserError
-from grail_bench.core.torchutil import silent_logger
+from grail_bench.core.torchutil import recording_logger
 from grail_bench.core.trajectory import EnvFactory, Goal, until_success
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.stats.metrics import thin
 
 
 class BCRecognizer(PolicyRecognizer):
@@ -51,19 +52,22 @@ class BCRecognizer(PolicyRecognizer):
                                    lr_schedule=lambda _: self.config["learning_rate"])
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
-                     seed: int) -> ActorCriticPolicy:
+                     seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
         transitions = rollout.flatten_trajectories([until_success(t) for t in demos])
         batch_size = min(self.config["batch_size"], len(transitions))
         policy = self.new_policy(goal, env_factory)
         observation_space, action_space = policy.observation_space, policy.action_space
+        logger, logged = recording_logger()
         trainer = bc.BC(
             observation_space=observation_space, action_space=action_space, demonstrations=transitions,
             rng=np.random.default_rng(seed), policy=policy, batch_size=batch_size,
             optimizer_kwargs={"lr": self.config["learning_rate"]}, ent_weight=self.config["ent_weight"],
-            device="cpu", custom_logger=silent_logger(),
+            device="cpu", custom_logger=logger,
         )
         with warnings.catch_warnings():
             # imitation 1.0.1 logs a tensor that still requires grad on every batch.
             warnings.filterwarnings("ignore", message="Converting a tensor with requires_grad", category=UserWarning)
-            trainer.train(n_epochs=self.config["n_epochs"], progress_bar=False, log_interval=1 << 30)
-        return trainer.policy
+            # One logged batch per epoch (the loader drops the last, incomplete batch): the loss curve.
+            trainer.train(n_epochs=self.config["n_epochs"], progress_bar=False,
+                          log_interval=max(1, len(transitions) // batch_size))
+        return trainer.policy, {"loss": thin(logged.get("bc/loss", []))}

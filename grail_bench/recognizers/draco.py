@@ -14,6 +14,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.rl import empty_policy, learn, make_ppo, make_sac
 from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.stats.metrics import thin
 
 
 class DRACORecognizer(PolicyRecognizer):
@@ -53,9 +54,9 @@ class DRACORecognizer(PolicyRecognizer):
         return empty_policy(algorithm, observation_space, action_space, self.config["net_arch"])
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
-                     seed: int) -> BasePolicy:
+                     seed: int) -> tuple[BasePolicy, dict[str, list[float]]]:
         model = self._model(goal, env_factory, seed)
         steps = self.config["sac_steps"] if isinstance(model, SAC) else self.config["ppo_steps"]
-        learn(model, steps)
+        _, returns = learn(model, steps)
         model.get_env().close()
-        return model.policy
+        return model.policy, {"return": thin(returns)}

@@ -10,13 +10,14 @@ from gymnasium import spaces
 from imitation.data.types import Trajectory
 from scipy.special import softmax
 
-from grail_bench.core.cache import cached_arrays
+from grail_bench.core.cache import cached
 from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import goal_seed
 from grail_bench.core.trajectory import EnvFactory, Goal
-from grail_bench.recognizers.contract import FitReport, observed_arrays
+from grail_bench.recognizers.contract import FitReport
 from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.recognizers.scoring import PolicyOutput
+from grail_bench.stats.metrics import thin
 
 _CHUNK = 4096  # exploration draws made at a time
 
@@ -93,33 +94,41 @@ class GRAQLRecognizer(ScoredRecognizer):
         demonstrations, which GRAQL ignores), so every regime and goal set of
         a domain shares them.
         """
-        tables, visits, seconds, reused = [], [], 0.0, 0
+        tables, visits, seconds, reused, curves = [], [], 0.0, 0, {}
         for goal in demos:
             env = env_factory(goal)
             try:
                 own_seed = goal_seed(seed, goal)
                 if cache_key is None:
                     start = time.perf_counter()
-                    q, v = self._q_learning(env, own_seed)
+                    q, v, returns = self._q_learning(env, own_seed)
                     cost, hit = time.perf_counter() - start, False
                 else:
                     key = {"recognizer": self.name, "config": self.config, "env": cache_key, "goal": list(goal),
                            "seed": own_seed}
-                    arrays, cost, hit = cached_arrays(f"policy-{self.name}", key, lambda: dict(
-                        zip(("q", "visited"), self._q_learning(env, own_seed))))
-                    q, v = arrays["q"], arrays["visited"]
+                    entry = cached(f"policy-{self.name}", key, lambda: self._train(env, own_seed), arrays=True)
+                    q, v, cost, hit = entry.state["q"], entry.state["visited"], entry.seconds, entry.reused
+                    returns = entry.extra.get("return", [])
                     self.observation_space, self.action_space = env.observation_space, env.action_space
             finally:
                 env.close()
             tables.append(q)
             visits.append(v)
+            if returns:
+                curves[goal] = {"return": list(returns)}
             seconds += cost
             reused += hit
         self.goals = list(demos)
-        self.q, self.visited = np.stack(tables), np.stack(visits)
+        self.q, self.visited, self.curves = np.stack(tables), np.stack(visits), curves
         return FitReport(train_seconds=seconds, trained=len(tables) - reused, reused=reused)
 
-    def _q_learning(self, env: Any, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    def _train(self, env: Any, seed: int) -> tuple[dict[str, np.ndarray], dict[str, list[float]]]:
+        """The tables to cache, and the episode returns kept beside them."""
+        q, visited, returns = self._q_learning(env, seed)
+        return {"q": q, "visited": visited}, {"return": returns}
+
+    def _q_learning(self, env: Any, seed: int) -> tuple[np.ndarray, np.ndarray, list[float]]:
+        """Q-table, visited states and the episode returns (thinned to a short curve)."""
         obs_space, act_space = env.observation_space, env.action_space
         if not isinstance(obs_space, (spaces.Discrete, spaces.MultiDiscrete)) or not isinstance(act_space, spaces.Discrete):
             raise UserError("graql needs discrete observations and actions (tabular Q-learning); this domain's "
@@ -134,12 +143,13 @@ class GRAQLRecognizer(ScoredRecognizer):
         alpha, gamma = cfg["alpha"], cfg["gamma"]
         decay_episodes = max(1, int(0.8 * cfg["episodes"]))
         limit = cfg.get("max_episode_steps")
+        returns = []
         for episode in range(cfg["episodes"]):
             frac = min(1.0, episode / decay_episodes)
             epsilon = cfg["epsilon_start"] + frac * (cfg["epsilon_end"] - cfg["epsilon_start"])
             obs, _ = env.reset(seed=int(rng.integers(1 << 31)) if episode == 0 else None)
             s = int(state_index(obs[None], obs_space)[0])
-            t = 0
+            t, episode_return = 0, 0.0
             while True:
                 if t % _CHUNK == 0:
                     explore, random_actions = rng.random(_CHUNK), rng.integers(n_actions, size=_CHUNK)
@@ -150,14 +160,11 @@ class GRAQLRecognizer(ScoredRecognizer):
                 target = reward if done else reward + gamma * q[s2].max()
                 q[s, a] += alpha * (target - q[s, a])
                 visited[s] = True
-                s, t = s2, t + 1
+                s, t, episode_return = s2, t + 1, episode_return + reward
                 if done or truncated or t == limit:
                     break
-        return q, visited
-
-    def policy_probs(self, obs: np.ndarray) -> np.ndarray:
-        """softmax(Q / temperature) at each observed state, uniform where unvisited; ``(K, T, A)``."""
-        return self._probs_at(state_index(obs, self.observation_space))
+            returns.append(episode_return)
+        return q, visited, thin(returns)
 
     def _probs_at(self, idx: np.ndarray) -> np.ndarray:
         probs = softmax(self.q[:, idx, :] / self.config["temperature"], axis=-1)
@@ -167,9 +174,6 @@ class GRAQLRecognizer(ScoredRecognizer):
     def exposes(self, action_space: Any) -> frozenset[str]:
         return frozenset({"probs", "q"})
 
-    def policy_output(self, observed: Trajectory) -> tuple[PolicyOutput, np.ndarray]:
-        if self.q is None:
-            raise RuntimeError("graql: call fit() before score()")
-        obs, acts = observed_arrays(observed, self.observation_space, self.action_space)
-        idx = state_index(obs, self.observation_space)
-        return PolicyOutput(probs=self._probs_at(idx), q=self.q[:, idx, :]), acts
+    def outputs_at(self, states: np.ndarray) -> PolicyOutput:
+        idx = state_index(states, self.observation_space)
+        return PolicyOutput(probs=self._probs_at(idx), q=self.q[:, idx, :])

@@ -14,15 +14,17 @@ from gymnasium import spaces
 from imitation.data.types import Trajectory
 from stable_baselines3.common.policies import BasePolicy
 
-from grail_bench.core.cache import Busy, cached_state_dict
+from grail_bench.core.cache import Busy, cached
 from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import goal_seed
 from grail_bench.core.torchutil import single_thread
 from grail_bench.core.trajectory import EnvFactory, Goal
-from grail_bench.recognizers.contract import FitReport, observed_arrays
+from grail_bench.recognizers.contract import FitReport
 from grail_bench.recognizers.policy_bank import PolicyBank
 from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.recognizers.scoring import PolicyOutput
+
+Curves = dict[str, list[float]]  # a training curve per name, e.g. {"loss": [...]}
 
 
 class PolicyRecognizer(ScoredRecognizer):
@@ -50,8 +52,8 @@ class PolicyRecognizer(ScoredRecognizer):
 
     @abc.abstractmethod
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
-                     seed: int) -> BasePolicy:
-        """Train and return the policy of one goal."""
+                     seed: int) -> tuple[BasePolicy, Curves]:
+        """Train the policy of one goal; return it and the training curves its learner logged (kept short)."""
 
     def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int,
             cache_key: str | None = None) -> FitReport:
@@ -62,7 +64,7 @@ class PolicyRecognizer(ScoredRecognizer):
         """
         if len(demos) < 2:
             raise UserError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
-        fitted: dict[Goal, tuple[BasePolicy, float, bool]] = {}
+        fitted: dict[Goal, tuple[BasePolicy, float, bool, Curves]] = {}
         with single_thread():
             # A goal whose model another process is training now is left for later, so parallel
             # fits of overlapping goal sets share the work rather than wait for each other.
@@ -76,49 +78,52 @@ class PolicyRecognizer(ScoredRecognizer):
                         continue
         self.goals = list(demos)
         self.bank = PolicyBank([fitted[g][0] for g in self.goals])
-        reused = sum(hit for _, _, hit in fitted.values())
-        return FitReport(train_seconds=sum(cost for _, cost, _ in fitted.values()), trained=len(fitted) - reused,
+        self.observation_space, self.action_space = self.bank.observation_space, self.bank.action_space
+        self.curves = {g: fitted[g][3] for g in self.goals if fitted[g][3]}
+        reused = sum(hit for _, _, hit, _ in fitted.values())
+        return FitReport(train_seconds=sum(cost for _, cost, _, _ in fitted.values()), trained=len(fitted) - reused,
                          reused=reused)
 
     def _policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory, seed: int,
-                cache_key: str | None, wait: bool = True) -> tuple[BasePolicy, float, bool]:
-        """``(policy, training seconds, reloaded from the cache)``.
+                cache_key: str | None, wait: bool = True) -> tuple[BasePolicy, float, bool, Curves]:
+        """``(policy, training seconds, reloaded from the cache, training curves)``.
+
+        The curves are kept in the cache beside the weights, so a reloaded policy has them too (empty for
+        entries cached before they were kept).
 
         Raises:
             grail_bench.core.cache.Busy: With ``wait=False``, when another process is training it.
         """
         if cache_key is None:
             start = time.perf_counter()
-            policy = self.train_policy(goal, demos, env_factory, seed)
-            return policy, time.perf_counter() - start, False
+            policy, curves = self.train_policy(goal, demos, env_factory, seed)
+            return policy, time.perf_counter() - start, False, curves
         key = {"recognizer": self.name, "config": self.config, "env": cache_key, "goal": list(goal), "seed": seed,
                "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}
         if self.uses_demos:
             key["demos"] = demos_digest(demos)
         trained: dict[str, BasePolicy] = {}
 
-        def train() -> dict[str, Any]:
-            trained["policy"] = self.train_policy(goal, demos, env_factory, seed)
-            return trained["policy"].state_dict()
+        def train() -> tuple[dict[str, Any], dict[str, Any]]:
+            trained["policy"], curves = self.train_policy(goal, demos, env_factory, seed)
+            return trained["policy"].state_dict(), {"curves": curves}
 
-        state, seconds = cached_state_dict(f"policy-{self.name}", key, train, wait=wait)
+        entry = cached(f"policy-{self.name}", key, train, wait=wait)
+        curves = dict(entry.extra.get("curves") or {})
         if "policy" in trained:
-            return trained["policy"], seconds, False
+            return trained["policy"], entry.seconds, False, curves
         policy = self.new_policy(goal, env_factory)
-        policy.load_state_dict(state)
-        return policy, seconds, True
+        policy.load_state_dict(entry.state)
+        return policy, entry.seconds, True, curves
 
     def exposes(self, action_space: Any) -> frozenset[str]:
         return frozenset({"probs"}) if isinstance(action_space, spaces.Discrete) else frozenset({"mean", "std"})
 
-    def policy_output(self, observed: Trajectory) -> tuple[PolicyOutput, np.ndarray]:
-        if self.bank is None:
-            raise RuntimeError(f"{self.name}: call fit() before score()")
-        obs, acts = observed_arrays(observed, self.bank.observation_space, self.bank.action_space)
+    def outputs_at(self, states: np.ndarray) -> PolicyOutput:
         if self.bank.discrete:
-            return PolicyOutput(probs=self.bank.action_probs(obs)), acts
-        mean, std = self.bank.mean_std(obs)
-        return PolicyOutput(mean=mean, std=std), acts
+            return PolicyOutput(probs=self.bank.action_probs(states))
+        mean, std = self.bank.mean_std(states)
+        return PolicyOutput(mean=mean, std=std)
 
 
 def demos_digest(demos: Sequence[Trajectory]) -> str:

@@ -7,8 +7,9 @@ from typing import Any
 
 import numpy as np
 
-from grail_bench.core.trajectory import Goal
-from grail_bench.recognizers.contract import RecognizerBase
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal
+from grail_bench.recognizers.contract import FitDiagnostics, RecognizerBase, observed_arrays
+from grail_bench.recognizers.diagnostics import policy_diagnostics
 from grail_bench.recognizers.scoring import PolicyOutput, check_scorer, get_scorer
 
 
@@ -16,9 +17,10 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     """Base of recognizers that expose :class:`~grail_bench.recognizers.scoring.PolicyOutput`.
 
     Subclasses say what they expose for an action space and compute the
-    outputs on an observation; scoring is then any registered scorer that can
-    work from those outputs, and every prefix of an observation is scored
-    from one pass (:meth:`score_prefixes`).
+    outputs on states (:meth:`outputs_at`); scoring is then any registered
+    scorer that can work from those outputs, every prefix of an observation
+    is scored from one pass (:meth:`score_prefixes`), and the fit is
+    diagnosed from the same outputs (:meth:`diagnose`).
 
     Args:
         scorer: What :meth:`score` uses when no scorer is named; defaults to
@@ -33,14 +35,33 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         self.default_scorer = scorer or type(self).default_scorer
         get_scorer(self.default_scorer)  # unknown names fail at construction
         self.goals: list[Goal] = []
+        self.curves: dict[Goal, dict[str, list[float]]] = {}  # per goal, what its training logged
+        self.observation_space: Any = None
+        self.action_space: Any = None
 
     @abc.abstractmethod
     def exposes(self, action_space: Any) -> frozenset[str]:
         """Which :class:`PolicyOutput` fields this recognizer fills for ``action_space``."""
 
     @abc.abstractmethod
+    def outputs_at(self, states: np.ndarray) -> PolicyOutput:
+        """Outputs of every goal's policy on ``(T, ...)`` states (already checked against the spaces)."""
+
     def policy_output(self, observed: Any) -> tuple[PolicyOutput, np.ndarray]:
-        """Outputs of every goal's policy on the observed states, and the observed actions."""
+        """Outputs of every goal's policy on the observed states, and the observed actions.
+
+        Raises:
+            RuntimeError: Before :meth:`fit`.
+            UserError: For an observation that does not fit the env's spaces.
+        """
+        if not self.goals:
+            raise RuntimeError(f"{self.name}: call fit() before score()")
+        states, actions = observed_arrays(observed, self.observation_space, self.action_space)
+        return self.outputs_at(states), actions
+
+    def diagnose(self, train: Demos, held_out: Demos, env_factory: EnvFactory | None) -> FitDiagnostics:
+        """Evidence about each goal's fitted policy (:mod:`grail_bench.recognizers.diagnostics`)."""
+        return policy_diagnostics(self.outputs_at, self.goals, train, held_out, env_factory, self.curves)
 
     def score(self, observed: Any, scorer: str | None = None) -> dict[Goal, float]:
         """Scores of every goal (see :class:`~grail_bench.recognizers.contract.Recognizer`)."""

@@ -189,9 +189,11 @@ def verdict_counts(boards: Iterable[Board]) -> dict[str, int]:
     return counts
 
 
-def timing_rows(records: Sequence[OfflineRecord]) -> list[dict[str, Any]]:
-    """Per task and column: seeds, training seconds per goal, and the means over levels of the scoring µs per
-    observation, tie rate, top-2 accuracy and mean rank (``None`` when a level lacks them)."""
+def timing_rows(records: Sequence[OfflineRecord],
+                fits: dict[tuple[str, str, str], Any] | None = None) -> list[dict[str, Any]]:
+    """Per task and column: seeds, training seconds per goal, the means over levels of the scoring µs per
+    observation, tie rate, top-2 accuracy and mean rank (``None`` when a level lacks them), and the share of its
+    goal fits whose greedy rollout reached the goal (``None`` without stored diagnostics)."""
     variants = config_variants(records)
     groups: dict[tuple, list[OfflineRecord]] = defaultdict(list)
     for r in records:
@@ -204,8 +206,16 @@ def timing_rows(records: Sequence[OfflineRecord]) -> list[dict[str, Any]]:
                     "score_us_per_observation": sum(x.score_us_per_observation for x in same) / len(same),
                     "tie_rate": sum(x.tie_rate for x in same) / len(same),
                     "top2": _level_mean([x.top2_mean for x in same]),
-                    "mean_rank": _level_mean([x.mean_rank_mean for x in same])})
+                    "mean_rank": _level_mean([x.mean_rank_mean for x in same]),
+                    "reached": _reached((fits or {}).get((first.task, first.recognizer, first.config_hash)))})
     return out
+
+
+def _reached(summary: Any) -> str | None:
+    """``"reached/rolled out"`` of a fit summary (None without one)."""
+    if summary is None or not sum(summary.rolled_out):
+        return None
+    return f"{sum(summary.reached)}/{sum(summary.rolled_out)}"
 
 
 def _level_mean(values: list[float | None]) -> float | None:

@@ -237,11 +237,12 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0) -> dict[str,
                          "normalised_f1": c.normalised if c else None,
                          "runs": c.runs if c else []})
     return {"sections": sections, "summaries": summaries, "runs": runs, "records": exported,
-            "timings": timing_rows(records), "domains": sorted(by_domain),
+            "timings": timing_rows(records, board.fits), "domains": sorted(by_domain),
             "regimes": sorted({s.regime for s in sections}),
             "recognizers": sorted({r.recognizer for r in records}), "reps": reps, "seed": seed,
             "studies": _studies(board), "n_seeds": sorted({r.n_seeds for r in records}),
-            "comparison": comparison_lines(board.boards)}
+            "comparison": comparison_lines(board.boards),
+            "fits": {"|".join(key): summary.to_dict() for key, summary in sorted(board.fits.items())}}
 
 
 def _json_for_script(data: Any) -> str:
@@ -258,7 +259,8 @@ def render(page: dict[str, Any], title: str = "grail-bench leaderboard") -> str:
                              trim_blocks=True, lstrip_blocks=True)
     env.filters["f2"] = lambda v: "–" if v is None else f"{v:.2f}"
     return env.get_template("leaderboard.html").render(
-        **page, title=title, version=version("grail-bench"), records_json=_json_for_script(page["records"]))
+        **page, title=title, version=version("grail-bench"), records_json=_json_for_script(page["records"]),
+        fits_json=_json_for_script(page["fits"]))
 
 
 def write_site(board: Leaderboard, out: str | Path, title: str = "grail-bench leaderboard") -> list[Path]:

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 from grail_bench.harness.ceiling import Ceiling, ceiling_curve, ceilings_for
+from grail_bench.harness.diagnostics import FitRow, FitSummary, summarize
 from grail_bench.harness.modes import MODES, Mode, ResultRow
 from grail_bench.harness.modes.offline import OfflineRecord
 from grail_bench.report.boards import Board, build_boards, ceiling_cells
@@ -42,6 +43,7 @@ class Leaderboard:
         ceilings: The Bayes ceilings by ``(task, protocol, level)``.
         reference: The reported values, if any.
         studies: Per mode beyond the offline one that has rows, its :class:`Study`.
+        fits: The offline fits' diagnostics by ``(task, recognizer, config hash)``, where stored.
     """
 
     rows: list[ResultRow]
@@ -50,6 +52,7 @@ class Leaderboard:
     ceilings: dict[tuple[str, str, float], Ceiling]
     reference: dict[tuple[str, str, float], Reported] | None = None
     studies: dict[str, Study] = field(default_factory=dict)
+    fits: dict[tuple[str, str, str], FitSummary] = field(default_factory=dict)
 
 
 def _progress(enabled: bool, total: int) -> tuple[Any, Any]:
@@ -65,7 +68,8 @@ def _progress(enabled: bool, total: int) -> tuple[Any, Any]:
 
 def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Reported] | None = None,
           ceiling_samples: int | None = 2000, studies: dict[str, Sequence[Any]] | None = None,
-          records: Sequence[OfflineRecord] | None = None, progress: bool = False) -> Leaderboard:
+          records: Sequence[OfflineRecord] | None = None, progress: bool = False,
+          fits: Sequence[FitRow] = ()) -> Leaderboard:
     """The leaderboard of stored rows.
 
     Args:
@@ -75,6 +79,7 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
         studies: Rows of the other modes by mode name (``online``, ``open-set``).
         records: The offline records when already aggregated (else aggregated here).
         progress: Show a progress bar while ceilings are computed.
+        fits: Stored fit diagnostics (:class:`~grail_bench.harness.diagnostics.FitRow`).
     """
     rows = list(rows)
     records = list(records) if records is not None else MODES["offline"].aggregate(rows)
@@ -92,7 +97,8 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
         if online is not None:
             online.curves = {key: ceiling_curve(task, key[1], fractions, ceiling_samples, tick)
                              for key, (task, fractions) in panels.items() if task is not None}
-    return Leaderboard(rows, records, build_boards(records, reference, ceilings), ceilings, reference, studies_out)
+    return Leaderboard(rows, records, build_boards(records, reference, ceilings), ceilings, reference, studies_out,
+                       summarize(fits))
 
 
 def _online_panels(records: Sequence[Any]) -> dict[tuple[str, str], tuple[Any, list[float]]]:

@@ -299,3 +299,41 @@ def section_lines(tasks: Sequence[str], lines: Sequence[tuple[str, list]]) -> An
     axes.flat[0].set_ylabel("F1")
     axes.flat[0].legend(fontsize=7)
     return fig
+
+
+def heatmap(matrix: Sequence[Sequence[float | None]], labels: Sequence[str], title: str, xlabel: str, ylabel: str,
+            digits: int = 2) -> Any:
+    """A labelled heatmap of a square matrix, each cell annotated (a figure)."""
+    plt = pyplot()
+    values = np.array([[np.nan if v is None else v for v in row] for row in matrix], dtype=float)
+    size = 1.0 + 0.55 * len(labels)
+    fig, ax = plt.subplots(figsize=(size + 1.2, size))
+    image = ax.imshow(values, cmap="Blues", vmin=0)
+    for (i, j), v in np.ndenumerate(values):
+        if not np.isnan(v):
+            ax.text(j, i, f"{v:.{digits}f}", ha="center", va="center", fontsize=7,
+                    color="white" if v > 0.6 * np.nanmax(values) else "black")
+    ax.set_xticks(range(len(labels)), labels, rotation=35, ha="right", fontsize=8)
+    ax.set_yticks(range(len(labels)), labels, fontsize=8)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=9)
+    fig.colorbar(image, ax=ax, shrink=0.8)
+    return fig
+
+
+def fit_curves(curves: dict[int, dict[str, Sequence[float]]], labels: Sequence[str]) -> Any | None:
+    """One panel per logged training curve, one line per goal (a figure; None without curves)."""
+    names = sorted({name for per_goal in curves.values() for name in per_goal})
+    if not names:
+        return None
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.0), squeeze=False)
+    for ax, name in zip(axes.flat, names):
+        for k, per_goal in sorted(curves.items()):
+            if per_goal.get(name):
+                ax.plot(per_goal[name], label=labels[k], color=f"C{k % 10}")
+        ax.set_title(name, fontsize=9)
+        ax.set_xlabel("training (points in order)")
+    axes.flat[0].legend(fontsize=7)
+    return fig

@@ -23,6 +23,7 @@ from typing import Any, Mapping, Sequence
 from grail_bench.core import provenance
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import cache_dir
+from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, Row, get_mode
 from grail_bench.harness.planning import RecognizerSpec
 from grail_bench.harness.sweep import Request, SweepSummary
@@ -144,12 +145,14 @@ def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executo
 
 
 def write_outputs(rows: Sequence[Row], profile: Profile, requests: Sequence[Request], out: Path,
-                  meta: dict[str, Any], site: bool = True, progress: bool = False) -> list[Path]:
+                  meta: dict[str, Any], site: bool = True, progress: bool = False,
+                  fits: Sequence[FitRow] = ()) -> list[Path]:
     """Tables, figures, the web page (``site/``, unless ``site`` is False) and the manifest into ``out``.
 
     The paper's tables and figures come from the offline rows; every other mode with rows adds its table
     (``ONLINE.md``, ``OPEN_SET.md``) and the online runs their figure (``online.png``). Only rows of the
-    requests' tasks, protocols and modes count. Returns the files written.
+    requests' tasks, protocols and modes count; ``fits`` are the stored fit diagnostics. Returns the files
+    written.
     """
     out.mkdir(parents=True, exist_ok=True)
     wanted = {(r.task_id, r.label, MODES[r.mode].row) for r in requests}
@@ -157,14 +160,14 @@ def write_outputs(rows: Sequence[Row], profile: Profile, requests: Sequence[Requ
     by_mode = {name: [r for r in rows if type(r) is mode.row] for name, mode in MODES.items()}
     offline = by_mode.pop("offline")
     reference = read_reference(paper_reference_path())
-    board = leaderboard.build(offline, reference, studies=by_mode, progress=progress)
+    board = leaderboard.build(offline, reference, studies=by_mode, progress=progress, fits=fits)
     title = f"grail-bench reproduce: {profile.name}"
     written: list[Path] = []
     if offline:
         own = own_scorer_records(board.records)
         paper_boards = build_boards(own, reference, board.ceilings)
         written.append(out / "TABLES.md")
-        written[-1].write_text(markdown(paper_boards, own, ci=True, title=title), encoding="utf-8")
+        written[-1].write_text(markdown(paper_boards, own, ci=True, title=title, fits=board.fits), encoding="utf-8")
         written += plots.write_all(board.records, out, models=model_sizes(board.records))
     written += write_studies(board, out)
     if site:

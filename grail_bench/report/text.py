@@ -103,12 +103,13 @@ def comparison_lines(boards: Sequence[Board]) -> list[str]:
 
 
 def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
-             title: str = "grail-bench leaderboard") -> str:
+             title: str = "grail-bench leaderboard", fits: dict | None = None) -> str:
     """The leaderboard as Markdown, with seeds, timings and ranking metrics under the tables.
 
     Args:
         ci: Also show each cell's 95 % Student-t interval over seeds (the paper's appendix format).
         title: The document's heading.
+        fits: Fit diagnostics by (task, recognizer, config hash), for the share of fits reaching their goal.
     """
     lines = [f"# {title}", "",
              "F1 of each recognizer, mean ± std over seeds" + (" (95 % CI over seeds)" if ci else "")
@@ -131,13 +132,14 @@ def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
     lines += ["## Runs, timings and ranking", "",
               "Top-2: share of observations whose true goal is among the 2 best scored; mean rank of the true",
               "goal (1 = best); both averaged over levels and protocols (– where rows stored before they were",
-              "recorded take part).", "",
-              "| task | column | seeds | fit s/goal | score µs/observation | ties | top-2 | mean rank |",
-              "|---|---|---|---|---|---|---|---|"]
-    for t in timing_rows(records):
+              "recorded take part). Goal reached: of the goal policies fitted over all seeds, how many reach",
+              "their goal when rolled out greedily from the task's start (– where no diagnostics are stored).", "",
+              "| task | column | seeds | fit s/goal | score µs/observation | ties | top-2 | mean rank | goal reached |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for t in timing_rows(records, fits):
         ranking = " | ".join("–" if t[k] is None else f"{t[k]:.2f}" for k in ("top2", "mean_rank"))
         lines.append(f"| {t['task']} | {t['column']} | {t['seeds']} | {t['fit_seconds_per_goal']:.2f} | "
-                     f"{t['score_us_per_observation']:.0f} | {t['tie_rate']:.1%} | {ranking} |")
+                     f"{t['score_us_per_observation']:.0f} | {t['tie_rate']:.1%} | {ranking} | {t['reached'] or '–'} |")
     return "\n".join(lines) + "\n"
 
 
@@ -264,3 +266,34 @@ def ceiling_table(task_id: str, ceilings: Sequence[Any]) -> Table:
                       f"{c.stderr:.3f}" if c.method == "monte-carlo" else "exact", f"{c.chance:.3f}",
                       c.method + (f" ({c.samples} samples)" if c.samples else ""))
     return table
+
+
+def goal_label(goal: Sequence[float]) -> str:
+    """``(7,1)``: a goal as the tables name it."""
+    return "(" + ",".join(f"{c:g}" for c in goal) + ")"
+
+
+def diagnostics_table(diagnostics: Any, title: str) -> Table:
+    """Per goal: greedy rollout reached and its length, the demonstrations' length, agreement with its own
+    training and held-out demonstrations, and its held-out actions' probability under its own and under the best
+    other goal's policy."""
+    table = Table(title=title)
+    for col in ("goal", "reached", "rollout", "demos", "agreement train", "held-out", "own p", "best other p",
+                "other goal"):
+        table.add_column(col, justify="right")
+    labels = [goal_label(g) for g in diagnostics.goals]
+    for i, label in enumerate(labels):
+        row = diagnostics.imitation[i]
+        others = [(v, j) for j, v in enumerate(row) if j != i and v is not None]
+        best, j = max(others) if others else (None, None)
+        reached = diagnostics.reached[i]
+        table.add_row(label, "–" if reached is None else "yes" if reached else "no",
+                      "–" if diagnostics.rollout_length[i] is None else str(diagnostics.rollout_length[i]),
+                      f"{diagnostics.demo_length[i]:.1f}", _num(diagnostics.agreement_train[i]),
+                      _num(diagnostics.agreement_held_out[i]), _num(row[i]), _num(best),
+                      labels[j] if j is not None else "–")
+    return table
+
+
+def _num(value: float | None) -> str:
+    return "–" if value is None or value != value else f"{value:.2f}"

@@ -49,6 +49,13 @@ def classification(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int)
             "recall": float(np.mean(_safe_divide(tp, true))), "f1": float(np.mean(_safe_divide(2 * tp, true + pred)))}
 
 
+def confusion(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> np.ndarray:
+    """``(n_classes, n_classes)`` counts: row the true class, column the predicted one."""
+    out = np.zeros((n_classes, n_classes), dtype=np.int64)
+    np.add.at(out, (np.asarray(y_true, dtype=np.int64), np.asarray(y_pred, dtype=np.int64)), 1)
+    return out
+
+
 def macro_f1(y_true: np.ndarray, y_pred: np.ndarray, n_classes: int) -> float:
     """Macro F1 of :func:`classification` alone."""
     return classification(y_true, y_pred, n_classes)["f1"]
@@ -86,3 +93,11 @@ def summary_fields(name: str, values: Sequence[float]) -> dict[str, float]:
     """``{name}_mean``, ``{name}_ci95_low`` and ``{name}_ci95_high`` of :func:`summarize`, as records carry them."""
     s = summarize(values)
     return {f"{name}_mean": s["mean"], f"{name}_ci95_low": s["ci_low"], f"{name}_ci95_high": s["ci_high"]}
+
+
+def thin(values: Sequence[float], points: int = 50) -> list[float]:
+    """A curve of at most ``points`` values: the means of equal consecutive chunks (unchanged if short)."""
+    values = [float(v) for v in values]
+    if len(values) <= points:
+        return values
+    return [float(np.mean(chunk)) for chunk in np.array_split(np.asarray(values), points)]

@@ -61,6 +61,17 @@ def test_bc_fit_one_goal(benchmark, bc):
     benchmark.pedantic(fit, rounds=5, warmup_rounds=1)
 
 
+@pytest.mark.parametrize("name", ["bc", "graql"])
+def test_fit_diagnostics_6_goals(benchmark, name, bc, graql):
+    """Diagnosing one fit of 6 goals (agreement, imitation matrix, 6 greedy rollouts), against that fit's cost:
+    the share is stored as extra info (goal: under 5 % of the fit's training seconds)."""
+    rec = {"bc": bc, "graql": graql}[name]
+    diagnostics = benchmark(rec.diagnose, TRAIN, TEST, TASK.env_factory())
+    assert len(diagnostics.goals) == 6
+    fit_seconds = rec.fit(TRAIN, TASK.make_env, seed=0).train_seconds  # the training each model cost (cache-free)
+    benchmark.extra_info["share_of_fit"] = benchmark.stats.stats.median / fit_seconds
+
+
 def test_graql_score_30_steps_6_goals(benchmark, graql):
     scores = benchmark(graql.score, thirty_steps())
     assert len(scores) == 6

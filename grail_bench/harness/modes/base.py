@@ -10,16 +10,13 @@ is one module defining these and one line in :data:`grail_bench.harness.modes.MO
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Demos
-
-if TYPE_CHECKING:
-    from grail_bench.harness.planning import Planned
-    from grail_bench.recognizers.contract import FitReport
-    from grail_bench.task import GRTask
-    from grail_bench.task.observation import ObservationSpec
+from grail_bench.harness.planning import Fitted, Planned
+from grail_bench.task import GRTask
+from grail_bench.task.observation import ObservationSpec
 
 
 @dataclass(frozen=True)
@@ -121,7 +118,7 @@ class Mode:
         row: The stored row type (a :class:`Run` subclass).
         table: The store's table of these rows.
         key: The row fields that identify a row (the table's primary key).
-        run: ``run(SeedRun) -> (rows, fit report)``.
+        run: ``run(SeedRun) -> (rows, the fitted recognizer)`` (None for a mode that fits nothing).
         aggregate: ``aggregate(rows) -> records`` across seeds.
         columns: How a table of its records is shown.
         title: A table's title.
@@ -135,7 +132,7 @@ class Mode:
     row: type
     table: str
     key: tuple[str, ...]
-    run: Callable[[SeedRun], tuple[list[Any], FitReport | None]]
+    run: Callable[[SeedRun], tuple[list[Any], Fitted | None]]
     aggregate: Callable[[Iterable[Any]], list[Any]]
     columns: Sequence[Column]
     title: str

@@ -10,6 +10,7 @@ t-interval and the IQM (:class:`OfflineRecord`).
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass
 from typing import Iterable
@@ -17,8 +18,7 @@ from typing import Iterable
 import numpy as np
 
 from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun
-from grail_bench.harness.planning import check_scores, fit_recognizer, recognizer_config, task_params
-from grail_bench.recognizers.contract import FitReport
+from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer, recognizer_config, task_params
 from grail_bench.stats import metrics, robust
 
 
@@ -43,6 +43,7 @@ class ResultRow(Run):
     provenance: str | None = None  # JSON of grail_bench.core.provenance.stamp(); None for rows stored before it
     top2: float | None = None  # share of observations whose true goal ranks in the top 2 (None: stored before)
     mean_rank: float | None = None  # mean rank of the true goal, 1 = best (None: stored before)
+    confusion: str | None = None  # JSON K x K counts: row the true goal, column the predicted (None: stored before)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -65,9 +66,10 @@ class OfflineRecord(Record):
     nll_mean: float | None = None
     top2_mean: float | None = None
     mean_rank_mean: float | None = None
+    confusion: list[list[int]] | None = None  # summed over seeds (None when a seed's was not stored)
 
 
-def run(job: SeedRun) -> tuple[list[ResultRow], FitReport | None]:
+def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
     """Fit one recognizer on one seed's training demos, then score every level with every scorer.
 
     The recognizer never sees the true goal: it gets the training demos per
@@ -78,11 +80,11 @@ def run(job: SeedRun) -> tuple[list[ResultRow], FitReport | None]:
     posterior (``loglik``), its Brier score and NLL are recorded too.
 
     Returns:
-        The rows (one per level and scorer) and the recognizer's fit report.
+        The rows (one per level and scorer) and the fitted recognizer.
     """
     task, planned, spec = job.task, job.planned, job.observation
     train, test = task.split(job.demos)
-    fitted = fit_recognizer(task, planned, job.seed, train)
+    fitted = fit_recognizer(task, planned, job.seed, train, test)
     labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
     rows = []
     for level in spec.levels:
@@ -108,20 +110,28 @@ def run(job: SeedRun) -> tuple[list[ResultRow], FitReport | None]:
                     brier.append(b)
                     nll.append(n)
             m = metrics.classification(y_true, y_pred, len(task.goals))
+            confusion = metrics.confusion(y_true, y_pred, len(task.goals))
             rows.append(ResultRow(
                 task=task.id, recognizer=planned.name, scorer=scorer, config_hash=planned.config_hash,
                 seed=job.seed, observability=level, protocol=spec.label, n_observations=len(y_true), n_ties=ties,
                 fit_seconds_per_goal=fitted.seconds_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
                 config=planned.config, versions=job.versions,
                 brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None,
-                top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)), **m,
+                top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)), confusion=json.dumps(confusion.tolist()),
+                **m,
             ))
-    return rows, fitted.report
+    return rows, fitted
 
 
 def _mean_or_none(values: list[float | None]) -> float | None:
     present = [v for v in values if v is not None]
     return float(np.mean(present)) if present else None
+
+
+def _summed_confusion(group: list[ResultRow]) -> list[list[int]] | None:
+    if any(r.confusion is None for r in group):
+        return None
+    return np.sum([json.loads(r.confusion) for r in group], axis=0).astype(int).tolist()
 
 
 def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
@@ -150,6 +160,7 @@ def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
             brier_mean=_mean_or_none([r.brier for r in group]), nll_mean=_mean_or_none([r.nll for r in group]),
             top2_mean=_mean_or_none([r.top2 for r in group]),
             mean_rank_mean=_mean_or_none([r.mean_rank for r in group]),
+            confusion=_summed_confusion(group),
         ))
     return sorted(records, key=lambda r: (r.task, r.recognizer, r.scorer, r.protocol, r.observability))
 

@@ -27,8 +27,8 @@ import numpy as np
 
 from grail_bench.core.trajectory import Goal
 from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, interval
-from grail_bench.harness.planning import check_scores, fit_recognizer, recognizer_config, task_params
-from grail_bench.recognizers.contract import Capabilities, FitReport, RecognizerError
+from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.recognizers.contract import Capabilities, RecognizerError
 from grail_bench.stats import metrics
 
 if TYPE_CHECKING:
@@ -189,18 +189,18 @@ def online_metrics(predictions: Sequence[np.ndarray], labels: Sequence[int], n_c
     }
 
 
-def run(job: SeedRun) -> tuple[list[OnlineRow], FitReport | None]:
+def run(job: SeedRun) -> tuple[list[OnlineRow], Fitted]:
     """Fit one recognizer on one seed's training demos, then score every prefix of every test observation.
 
     The observation of a test demonstration is the protocol's at level 1.0
     (drawn from its own random stream), revealed one step at a time.
 
     Returns:
-        One row per scorer, and the recognizer's fit report.
+        One row per scorer, and the fitted recognizer.
     """
     task, planned, spec = job.task, job.planned, job.observation
     train, test = task.split(job.demos)
-    fitted = fit_recognizer(task, planned, job.seed, train)
+    fitted = fit_recognizer(task, planned, job.seed, train, test)
     rng = spec.rng(job.seed, 1.0, "online")
     labelled = [(i, spec.observe(traj, 1.0, rng)) for i, goal in enumerate(task.goals) for traj in test[goal]]
     labels = [i for i, _ in labelled]
@@ -217,7 +217,7 @@ def run(job: SeedRun) -> tuple[list[OnlineRow], FitReport | None]:
             score_us_per_prefix=elapsed_us / n_prefixes, config=planned.config, versions=job.versions,
             **online_metrics(predictions, labels, len(task.goals), spec.rounding),
         ))
-    return rows, fitted.report
+    return rows, fitted
 
 
 def aggregate(rows: Iterable[OnlineRow]) -> list[OnlineRecord]:

@@ -29,8 +29,8 @@ import numpy as np
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Demos, Goal
 from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, interval
-from grail_bench.harness.planning import check_scores, fit_recognizer, recognizer_config, task_params
-from grail_bench.recognizers.contract import Capabilities, FitReport
+from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.recognizers.contract import Capabilities
 from grail_bench.stats import metrics
 from grail_bench.task.observation import ObservationSpec
 
@@ -138,18 +138,18 @@ def open_set_metrics(best: np.ndarray, argmax: np.ndarray, labels: np.ndarray, t
     }
 
 
-def run(job: SeedRun) -> tuple[list[OpenSetRow], FitReport | None]:
+def run(job: SeedRun) -> tuple[list[OpenSetRow], Fitted]:
     """Hold out seed ``seed``'s goal, fit on the others, calibrate, and score test observations of all goals.
 
     Returns:
-        One row per level and scorer, and the recognizer's fit report.
+        One row per level and scorer, and the fitted recognizer.
     """
     task, planned, spec, seed = job.task, job.planned, job.observation, job.seed
     hidden = held_out_goal(task.goals, seed)
     known = [g for g in task.goals if g != hidden]
     train, test = task.split(job.demos)
     known_train = {g: train[g] for g in known}
-    fitted = fit_recognizer(task, planned, seed, known_train)
+    fitted = fit_recognizer(task, planned, seed, known_train, test)
     labelled = [(known.index(g) if g != hidden else len(known), traj) for g in task.goals for traj in test[g]]
     labels = np.array([y for y, _ in labelled])
     rows = []
@@ -167,7 +167,7 @@ def run(job: SeedRun) -> tuple[list[OpenSetRow], FitReport | None]:
                 config=planned.config, versions=job.versions,
                 **open_set_metrics(best, argmax, labels, threshold, len(known)),
             ))
-    return rows, fitted.report
+    return rows, fitted
 
 
 def aggregate(rows: Iterable[OpenSetRow]) -> list[OpenSetRecord]:
