@@ -11,8 +11,16 @@ from grail_bench.report.reference import Reported
 from grail_bench.report.text import markdown
 
 
+def defaults(task_id):
+    """The task parameters a run at the task's defaults records."""
+    import grail_bench
+
+    task = grail_bench.make_task(task_id)
+    return {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
+
+
 def record(task, rec, scorer, obs, f1, protocol="subset", **fields):
-    base = dict(task=task, recognizer=rec, scorer=scorer, observability=obs, f1_mean=f1, f1_std=0.1,
+    base = dict(task_params=defaults(task), task=task, recognizer=rec, scorer=scorer, observability=obs, f1_mean=f1, f1_std=0.1,
                 f1_ci95_low=f1 - 0.1, f1_ci95_high=f1 + 0.1, f1_iqm=f1, f1_values=(f1 - 0.1, f1 + 0.1),
                 protocol=protocol, config_hash="abcdef123456", n_seeds=2, seeds=[0, 1], fit_seconds_per_goal=1.0,
                 score_us_per_observation=10.0, tie_rate=0.0, accuracy_mean=f1, precision_mean=f1, recall_mean=f1)
@@ -48,27 +56,39 @@ def test_reported_values_sit_beside_the_papers_scorer_only():
 
 
 def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise():
-    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.3, protocol="prefix"),
-               record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.95)]
+    uniform = {**defaults("GRAIL/MiniGrid-Optimal-v0"), "route_choice": "uniform"}
+    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.3, protocol="prefix", task_params=uniform),
+               record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.95),
+               record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.9, task_params=uniform)]
     reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
     boards = build_boards(records, reference, ceiling_samples=50)
     assert [b.title for b in boards] == ["minigrid / optimal (prefix)", "minigrid / optimal (subset)"]
     text = markdown(boards, records)
-    # Prefix at 10 %: ceiling 2/3 exactly, so 0.30 normalises to (0.3 - 0.5) / (2/3 - 0.5) = -1.2.
-    assert "| MiniGrid-Optimal | 2 | 10% | 0.67 | **0.30 ± 0.10 [-1.20]** |\n" in text  # no paper column here
-    assert "| MiniGrid-Optimal | 2 | 10% | 0.97 | **0.95 ± 0.10 ▲ [0.96]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
+    # Prefix at 10 % with every demonstration's route drawn uniformly: ceiling 2/3 exactly, so 0.30 normalises
+    # to (0.3 - 0.5) / (2/3 - 0.5) = -1.2.
+    assert '| MiniGrid-Optimal (route_choice="uniform") | 2 | 10% | 0.67 | **0.30 ± 0.10 [-1.20]** |\n' in text
+    # The paper's values sit beside the task's default reading only (one fixed route per goal: ceiling 10/11).
+    assert "| MiniGrid-Optimal | 2 | 10% | 0.91 | **0.95 ± 0.10 ▲ [1.10]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
+    assert '| MiniGrid-Optimal (route_choice="uniform") | 2 | 10% | 0.97 | **0.90 ± 0.10 [0.85]** | – |' in text
     assert placement_counts(boards) == {"inside": 0, "above": 1, "below": 0}
 
 
 def test_ceilings_use_the_task_parameters_of_the_run():
     plain = record("GRAIL/MiniGrid-Suboptimal-v0", "bc", "mse", 0.2, 0.9, protocol="prefix")
-    no_turns = dataclasses.replace(plain, task_params={"turn_prob": 0.0})
+    no_turns = dataclasses.replace(plain, task_params={**plain.task_params, "route_choice": "uniform",
+                                                       "turn_prob": 0.0})
     (board,) = build_boards([no_turns], ceiling_samples=50)
     (ceiling,) = board.ceilings.values()
     assert ceiling.method == "exact" and round(ceiling.accuracy, 2) == 0.75  # as the optimal task
-    mixed = [no_turns, dataclasses.replace(plain, recognizer="graql", task_params={"turn_prob": 0.5})]
+    mixed = [no_turns, dataclasses.replace(plain, recognizer="graql",
+                                           task_params={**plain.task_params, "route_choice": "uniform",
+                                                        "turn_prob": 0.5})]
     (board,) = build_boards(mixed, ceiling_samples=50)
-    assert board.ceilings == {}  # runs with different parameters share no ceiling
+    # Runs with other parameters (readings) get rows of their own, each with its own ceiling.
+    assert [row[4] for row in board.rows] == ['route_choice="uniform" turn_prob=0.0',
+                                              'route_choice="uniform" turn_prob=0.5']
+    assert len(board.ceilings) == 2 and round(board.ceilings[board.rows[0]].accuracy, 2) == 0.75
+    assert "| MiniGrid-Suboptimal (route_choice=\"uniform\" turn_prob=0.0) | 2 | 20% | 0.75 |" in markdown([board], mixed)
 
 
 def test_a_recognizer_run_with_two_configurations_gets_a_column_per_setting():

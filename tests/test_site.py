@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 
 from grail_bench.cli import app
 from grail_bench.harness.diagnostics import FitRow, to_json
+from grail_bench.task import make_task
 from grail_bench.harness.store import OnlineRow, OpenSetRow, ResultRow, ResultsStore
 from grail_bench.recognizers.contract import FitDiagnostics
 from grail_bench.report import leaderboard
@@ -32,6 +33,13 @@ STAMP = json.dumps({"command": ["grail-bench", "run", "-r", "bc</script>"], "git
                     "platform": "Linux", "cpu": "test CPU", "cores": 2, "date": "2026-11-22T00:00:00+00:00"})
 
 
+def config(task_id: str) -> str:
+    """The configuration JSON of a run at the task's defaults."""
+    task = make_task(task_id)
+    return json.dumps({"task": {"params": dict(task.params), "env": dict(task.env_params), "n_demos": task.n_demos,
+                                "n_train": task.n_train}})
+
+
 def rows(seeds: int = 5) -> list[ResultRow]:
     rng = np.random.default_rng(0)
     out = []
@@ -44,7 +52,7 @@ def rows(seeds: int = 5) -> list[ResultRow]:
                     f1 = float(np.clip(level_f1 + rng.normal(0, 0.1), 0, 1))
                     k = 4 if "4Goals" in task or "Panda" in task else 2
                     out.append(ResultRow(task, rec, scorer, "h" + rec, seed, lv, PROTOCOL.get(task, "subset"),
-                                         f1, f1, f1, f1, 6, 0, 1.5, 40.0, "{}", '{"torch": "2.13.0"}',
+                                         f1, f1, f1, f1, 6, 0, 1.5, 40.0, config(task), '{"torch": "2.13.0"}',
                                          provenance=STAMP if seed < 3 else None,
                                          confusion=json.dumps(np.eye(k, dtype=int).tolist())))
     return out
@@ -132,7 +140,7 @@ def test_summaries_compare_recognizers_on_the_strata_they_share():
     assert names == ["a", "b"] and shared == {2, 3} and left_out == ["c"]
     # A recognizer run on more strata is aggregated over the shared ones only.
     extra = [ResultRow("GRAIL/MiniGrid-Optimal-6Goals-v0", "bc", "mse", "hbc", seed, 0.1, "subset", 0.0, 0.0, 0.0,
-                       0.0, 6, 0, 1.5, 40.0, "{}", "{}") for seed in range(3)]
+                       0.0, 6, 0, 1.5, 40.0, config("GRAIL/MiniGrid-Optimal-6Goals-v0"), "{}") for seed in range(3)]
     with_extra = build_page(board(rows() + extra), reps=100)
     minigrid = next(s for s in with_extra["summaries"] if s["domain"] == "minigrid")
     assert minigrid["all_strata"] == {"bc/mse": 10, "graql/kl": 9} and minigrid["strata"] == 9

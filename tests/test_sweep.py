@@ -232,8 +232,14 @@ def test_reproduce_bad_input_is_one_line(tmp_path, args, message):
     assert out.returncode == 2 and message in out.stderr and len(out.stderr.strip().splitlines()) == 1
 
 
+# The paper profile's budget studies: tasks x values x 5 seeds (BC epochs, GRAQL episodes, GAIL and AIRL steps,
+# BC demonstrations on MiniGrid; DRACO's PPO and SAC steps and BC demonstrations on one PandaReach task).
+BUDGET_UNITS = (2 * 6 + 2 * 4 + 2 * 4 + 2 * 4 + 2 * 5 + 4 + 4 + 4) * 5
+
+
 @pytest.mark.parametrize("name, units", [("quick", 7 * 4 * 2 + 10 * 4 * 2 + 4 * 2 + 4 * 2),
-                                         ("paper", 7 * 4 * 10 + 10 * 4 * 10 + 7 * 4 * 10 + 4 * 4 * 10)])
+                                         ("paper", 7 * 4 * 10 + 10 * 4 * 10 + 10 * 10 + 7 * 4 * 10 + 4 * 4 * 10
+                                          + BUDGET_UNITS)])
 def test_the_shipped_profiles_plan(tmp_path, name, units):
     with ResultsStore(tmp_path / "r.sqlite") as store:
         planned = [plan_request(r, store) for r in load_profile(name).requests()]

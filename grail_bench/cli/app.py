@@ -283,7 +283,7 @@ def reproduce(
             rows = [row for mode in MODES.values() for row in store.select(mode, task=tasks)]
             fits = store.select(FitRow, task=tasks)
         with console.status("tables, figures and web page"):
-            written = write_outputs(rows, chosen_profile, requests, out, meta, site=site, fits=fits)
+            written = write_outputs(rows, chosen_profile, out, meta, only or (), site=site, fits=fits)
     say(f"{summary.units} units ({summary.skipped} already stored) in {summary.seconds:.0f} s on {chosen.name} x "
         f"{chosen.workers}; models trained {summary.trained}, reused from the cache {summary.reused}, a run "
         f"without reuse would train {summary.naive}")

@@ -75,8 +75,36 @@ def _describe(annotation: Any) -> str:
     return _NAMES.get(annotation, getattr(annotation, "__name__", str(annotation)))
 
 
+def _declared(factory: Callable[..., Any]) -> tuple[dict[str, inspect.Parameter], dict[str, Any], bool]:
+    """The keyword parameters a callable declares, their type hints, and whether it takes any keyword at all.
+
+    A class whose ``__init__`` passes ``**kwargs`` on to its base is read through the base classes too,
+    so their parameters count as declared.
+    """
+    targets = [c.__init__ for c in inspect.getmro(factory) if "__init__" in vars(c)] if inspect.isclass(factory) \
+        else [factory]
+    params: dict[str, inspect.Parameter] = {}
+    hints: dict[str, Any] = {}
+    for target in targets:
+        try:
+            signature = inspect.signature(target)
+        except (TypeError, ValueError):  # no signature to read (a builtin or C callable)
+            return params, hints, True
+        try:
+            own_hints = typing.get_type_hints(target)
+        except Exception:  # noqa: BLE001 - annotations that do not evaluate: leave the values to the callable
+            own_hints = {}
+        for name, param in signature.parameters.items():
+            if param.kind in (param.POSITIONAL_OR_KEYWORD, param.KEYWORD_ONLY) and name not in params:
+                params[name] = param
+                hints.setdefault(name, own_hints.get(name, inspect.Parameter.empty))
+        if not any(p.kind is p.VAR_KEYWORD for p in signature.parameters.values()):
+            return params, hints, False
+    return params, hints, True
+
+
 def check_kwargs(factory: Callable[..., Any], kwargs: Mapping[str, Any], owner: str) -> dict[str, Any]:
-    """``kwargs`` bound to ``factory``'s signature and converted to its declared types.
+    """``kwargs`` checked against the parameters ``factory`` declares and converted to their declared types.
 
     Args:
         factory: A class or function taking the keyword arguments.
@@ -89,19 +117,11 @@ def check_kwargs(factory: Callable[..., Any], kwargs: Mapping[str, Any], owner: 
     Raises:
         UserError: For an unknown parameter or a value of the wrong type, naming both.
     """
-    try:
-        signature = inspect.signature(factory)
-    except (TypeError, ValueError):  # no signature to read (a builtin or C callable)
-        return dict(kwargs)
-    try:
-        signature.bind(**kwargs)
-    except TypeError as exc:
-        raise UserError(f"{owner}: {exc}") from None
-    target = factory.__init__ if inspect.isclass(factory) else factory
-    try:
-        hints = typing.get_type_hints(target)
-    except Exception:  # noqa: BLE001 - annotations that do not evaluate: leave the values to the callable
-        hints = {}
+    params, hints, open_ended = _declared(factory)
+    unknown = [name for name in kwargs if name not in params or params[name].name == "self"]
+    if unknown and not open_ended:
+        known = ", ".join(n for n in params if n != "self") or "none"
+        raise UserError(f"{owner}: got an unexpected keyword argument {unknown[0]!r} (known: {known})")
     out = {}
     for name, value in kwargs.items():
         annotation = hints.get(name, inspect.Parameter.empty)

@@ -209,20 +209,19 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str = 
 
 
 def ceilings_for(cells: Iterable[tuple[str, dict[str, Any], str, float]], samples: int = 2000,
-                 on_cell: Callable[[], None] | None = None) -> dict[tuple[str, str, float], Ceiling]:
+                 on_cell: Callable[[], None] | None = None) -> dict[tuple[str, str, str, float], Ceiling]:
     """The Bayes ceiling of each ``(task, task parameters, protocol label, level)`` cell that has one.
 
-    Cells whose runs used different task parameters must not be passed (they have no single ceiling).
-
     Returns:
-        ``{(task, protocol label, level): Ceiling}``, without the cells that have none.
+        ``{(task, task parameters as sorted JSON, protocol label, level): Ceiling}``, without the cells that
+        have none.
     """
     out = {}
     for task_id, params, label, level in cells:
         task = find_task(task_id, params)
         ceiling = cached_ceiling(task, label, level, samples=samples) if task is not None else None
         if ceiling is not None:
-            out[(task_id, label, level)] = ceiling
+            out[(task_id, json.dumps(params, sort_keys=True), label, level)] = ceiling
         if on_cell is not None:
             on_cell()
     return out

@@ -154,12 +154,14 @@ def fit_recognizer(task: GRTask, planned: Planned, seed: int, train: Demos, held
 
 
 def task_params(config_json: str) -> dict[str, Any]:
-    """The regime and env parameters a row was run with (``{}`` for rows without them)."""
+    """The regime and env parameters a row was run with, and its demonstration counts (``{}`` for rows without
+    them)."""
     try:
         task = json.loads(config_json).get("task", {})
     except (ValueError, AttributeError):
         return {}
-    return {**task.get("params", {}), **task.get("env", {})}
+    counts = {k: task[k] for k in ("n_demos", "n_train") if k in task}
+    return {**task.get("params", {}), **task.get("env", {}), **counts}
 
 
 def recognizer_config(config_json: str) -> dict[str, Any]:

@@ -52,6 +52,19 @@ class Request:
     task_params: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "offline"
 
+    def planned(self) -> list[Planned]:
+        """Each recognizer as planning checks and hashes it (what identifies this request's stored rows)."""
+        task = make_task(self.task_id, **dict(self.task_params))
+        env = task.make_env()
+        action_space = env.action_space
+        env.close()
+        return [plan(task, spec, action_space) for spec in self.specs]
+
+    def owns(self, row: Any, planned: Sequence[Planned]) -> bool:
+        """Whether a stored row is one of this request's (its task, protocol, mode, recognizer and config)."""
+        return (row.task == self.task_id and row.protocol == self.label and type(row) is get_mode(self.mode).row
+                and any(row.recognizer == p.name and row.config_hash == p.config_hash for p in planned))
+
     @property
     def label(self) -> str:
         """The protocol as stored (e.g. ``prefix+floor``)."""
@@ -169,10 +182,7 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
     task = make_task(request.task_id, **dict(request.task_params))
     mode = get_mode(request.mode)
     mode.check(task, request.observation)
-    env = task.make_env()
-    action_space = env.action_space
-    env.close()
-    planned = [plan(task, spec, action_space) for spec in request.specs]
+    planned = request.planned()
     params = json.dumps(dict(request.task_params), sort_keys=True)
     levels = request.observation.levels or (None,)  # an online row has no level
     units, skipped = [], 0

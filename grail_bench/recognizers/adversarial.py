@@ -12,7 +12,7 @@ policy, exactly as BC-GRAIL uses its cloned policy.
 from __future__ import annotations
 
 import warnings
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 from imitation.algorithms.adversarial.airl import AIRL
@@ -88,7 +88,7 @@ class AdversarialRecognizer(PolicyRecognizer):
         generator = self._generator(goal, env_factory, cfg["n_envs"], seed)
         venv = generator.get_env()
         reward_net = self.reward_net_cls(venv.observation_space, venv.action_space,
-                                         normalize_input_layer=RunningNorm)
+                                         normalize_input_layer=RunningNorm, **self.reward_net_kwargs())
         demo_batch = min(cfg["demo_batch_size"], sum(len(t.acts) for t in demos))
         with scratch_logger() as logger, unchecked_distributions(), warnings.catch_warnings():
             warnings.filterwarnings("ignore", category=UserWarning, module="stable_baselines3")
@@ -114,6 +114,11 @@ class AdversarialRecognizer(PolicyRecognizer):
         return generator.policy, {"disc_acc": thin(disc_acc), "gen_return": thin(gen_return)}
 
 
+    def reward_net_kwargs(self) -> dict[str, Any]:
+        """Extra keyword arguments of the reward network."""
+        return {}
+
+
 class GAILRecognizer(AdversarialRecognizer):
     """GAIL-GRAIL (imitation's ``GAIL``, a ``BasicRewardNet`` discriminator)."""
 
@@ -124,9 +129,27 @@ class GAILRecognizer(AdversarialRecognizer):
 
 
 class AIRLRecognizer(AdversarialRecognizer):
-    """AIRL-GRAIL (imitation's ``AIRL``, a ``BasicShapedRewardNet`` with a state potential)."""
+    """AIRL-GRAIL (imitation's ``AIRL``, a ``BasicShapedRewardNet`` with a state potential).
+
+    Args:
+        shaping_discount: The discount of the reward's potential shaping. AIRL's shaping
+            ``g(s, a) + discount * h(s') - h(s)`` leaves the optimal policy unchanged only when its
+            discount is the generator's (Fu et al. 2018; Ng et al. 1999), so it defaults to ``gamma``
+            (imitation's own default, 0.99, would differ from the paper's 0.95).
+        **kwargs: As :class:`AdversarialRecognizer`.
+    """
 
     name = "airl"
     paper_name = "AIRL-GRAIL"
     trainer_cls = AIRL
     reward_net_cls = BasicShapedRewardNet
+
+    def __init__(self, *, shaping_discount: float | None = None, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        discount = self.config["gamma"] if shaping_discount is None else shaping_discount
+        if not 0 < discount <= 1:
+            raise UserError(f"airl: shaping_discount must be in (0, 1], got {discount}")
+        self.config["shaping_discount"] = float(discount)
+
+    def reward_net_kwargs(self) -> dict[str, Any]:
+        return {"discount_factor": self.config["shaping_discount"]}

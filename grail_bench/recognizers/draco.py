@@ -6,7 +6,6 @@ from typing import Sequence
 
 from gymnasium import spaces
 from imitation.data.types import Trajectory
-from stable_baselines3 import SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 
@@ -16,16 +15,21 @@ from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.stats.metrics import thin
 
+ALGORITHMS = ("ppo", "sac")
+
 
 class DRACORecognizer(PolicyRecognizer):
-    """DRACO: SAC (continuous actions) or PPO (discrete) per goal, on the env's own reward.
+    """DRACO: PPO (as the paper trains it) or SAC per goal, on the env's own reward.
 
     It learns from interaction only (the demonstrations are ignored), so its
     cached policies are reused by every regime of the domain.
 
     Args:
-        sac_steps: SAC steps per goal (continuous actions).
-        ppo_steps: PPO steps per goal (discrete actions), over 8 env copies.
+        algorithm: ``"ppo"`` (the paper's: "trains each goal-directed policy via PPO", on discrete and
+            continuous actions alike) or ``"sac"`` (continuous actions only; kept as a named configuration,
+            ``--set draco.algorithm=sac``).
+        sac_steps: SAC steps per goal.
+        ppo_steps: PPO steps per goal, over 8 env copies.
         net_arch: Hidden layers of the policy.
         scorer: Default ``"wasserstein"`` (DRACO's).
     """
@@ -35,28 +39,35 @@ class DRACORecognizer(PolicyRecognizer):
     default_scorer = "wasserstein"
     uses_demos = False
 
-    def __init__(self, *, sac_steps: int = 15_000, ppo_steps: int = 100_000, net_arch: Sequence[int] = (64, 64),
-                 scorer: str | None = None) -> None:
+    def __init__(self, *, algorithm: str = "ppo", sac_steps: int = 15_000, ppo_steps: int = 100_000,
+                 net_arch: Sequence[int] = (64, 64), scorer: str | None = None) -> None:
+        if algorithm not in ALGORITHMS:
+            raise UserError(f"draco: algorithm must be one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
         if sac_steps < 1 or ppo_steps < 1:
             raise UserError("draco: step budgets must be positive")
-        super().__init__(scorer, sac_steps=sac_steps, ppo_steps=ppo_steps, net_arch=list(net_arch))
+        super().__init__(scorer, algorithm=algorithm, sac_steps=sac_steps, ppo_steps=ppo_steps,
+                         net_arch=list(net_arch))
+
+    def _algorithm(self, action_space: spaces.Space) -> str:
+        if self.config["algorithm"] == "sac" and not isinstance(action_space, spaces.Box):
+            raise UserError("draco: SAC needs continuous actions; use algorithm=ppo on this domain")
+        return self.config["algorithm"]
 
     def _model(self, goal: Goal, env_factory: EnvFactory, seed: int) -> BaseAlgorithm:
         env = env_factory(goal)
-        if isinstance(env.action_space, spaces.Box):
+        if self._algorithm(env.action_space) == "sac":
             return make_sac(env, self.config["net_arch"], seed)
         env.close()
         return make_ppo(lambda: env_factory(goal), self.config["net_arch"], seed)
 
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> BasePolicy:
         observation_space, action_space = spaces_of(env_factory, goal)
-        algorithm = "sac" if isinstance(action_space, spaces.Box) else "ppo"
-        return empty_policy(algorithm, observation_space, action_space, self.config["net_arch"])
+        return empty_policy(self._algorithm(action_space), observation_space, action_space, self.config["net_arch"])
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[BasePolicy, dict[str, list[float]]]:
         model = self._model(goal, env_factory, seed)
-        steps = self.config["sac_steps"] if isinstance(model, SAC) else self.config["ppo_steps"]
+        steps = self.config[f"{self.config['algorithm']}_steps"]
         _, returns = learn(model, steps)
         model.get_env().close()
         return model.policy, {"return": thin(returns)}

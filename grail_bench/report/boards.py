@@ -1,7 +1,8 @@
 """The paper-style table model: offline records grouped into boards, computed once and drawn by every renderer.
 
 One board per domain, regime and observation protocol, like the paper's
-Table 2: a row per goal count and observability level, a column per
+Table 2: a row per goal count and observability level (and per reading of the
+task's parameters, where runs used other than its defaults), a column per
 recognizer (``name/scorer`` when a recognizer was run with several scorers),
 each cell an :class:`~grail_bench.harness.modes.offline.OfflineRecord`. Values
 a publication reports are attached on the rows of each task's default protocol
@@ -21,10 +22,10 @@ from grail_bench.harness.ceiling import Ceiling
 from grail_bench.harness.modes.offline import OfflineRecord
 from grail_bench.recognizers.registry import UnknownRecognizerError, recognizer_info
 from grail_bench.report.reference import Reported
-from grail_bench.task import find_task
+from grail_bench.task import find_task, variant
 
-Row = tuple[int, str, str, float]  # (goals, task, protocol, observability)
-CellKey = tuple[int, str, str, float, str]  # a row and a column label
+Row = tuple[int, str, str, float, str]  # (goals, task, protocol, observability, variant of the task's parameters)
+CellKey = tuple[int, str, str, float, str, str]  # a row and a column label
 
 
 @dataclass
@@ -62,6 +63,11 @@ def own_scorer_records(records: Sequence[OfflineRecord]) -> list[OfflineRecord]:
     """Each recognizer's records under its own (the paper's) scorer (a plugin no longer installed: all of them)."""
     own = {name: paper_method(name)[1] for name in {r.recognizer for r in records}}
     return [r for r in records if own[r.recognizer] in (None, r.scorer)]
+
+
+def row_name(row: Row) -> str:
+    """A board row's task as tables show it: the short name, and the reading of its parameters if any."""
+    return short_name(row[1]) + (f" ({row[4]})" if row[4] else "")
 
 
 def short_name(task_id: str) -> str:
@@ -118,25 +124,20 @@ def config_variants(records: Iterable[Any]) -> dict[tuple[str, str], list[str] |
 
 
 def ceiling_cells(records: Iterable[OfflineRecord]) -> list[tuple[str, dict[str, Any], str, float]]:
-    """The ``(task, task parameters, protocol, level)`` cells whose Bayes ceiling a set of records shows.
-
-    A row whose runs used different task parameters has no single ceiling and is left out.
-    """
-    used: dict[tuple[str, str, float], list[dict[str, Any]]] = defaultdict(list)
-    for r in records:
-        used[(r.task, r.protocol, r.observability)].append(r.task_params)
-    return [(task, params[0], protocol, level) for (task, protocol, level), params in sorted(used.items())
-            if all(p == params[0] for p in params)]
+    """The ``(task, task parameters, protocol, level)`` cells whose Bayes ceiling a set of records shows."""
+    cells = {(r.task, json.dumps(r.task_params, sort_keys=True), r.protocol, r.observability): r.task_params
+             for r in records}
+    return [(task, params, protocol, level) for (task, _, protocol, level), params in sorted(cells.items())]
 
 
 def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, str, float], Reported] | None = None,
-                 ceilings: dict[tuple[str, str, float], Ceiling] | None = None) -> list[Board]:
+                 ceilings: dict[tuple[str, str, str, float], Ceiling] | None = None) -> list[Board]:
     """Group records into boards (see the module docstring).
 
     Args:
         records: Offline records (:func:`grail_bench.harness.modes.offline.aggregate`).
-        reference: Reported values to show beside ours.
-        ceilings: Bayes ceilings by ``(task, protocol, level)``, computed beforehand.
+        reference: Reported values to show beside ours (on rows of the task's default parameters only).
+        ceilings: Bayes ceilings by ``(task, task parameters as JSON, protocol, level)``, computed beforehand.
     """
     records = list(records)
     tasks = {t: find_task(t) for t in {r.task for r in records}}
@@ -150,13 +151,15 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
         label = column_label(r, variants)
         if label not in board.columns:
             board.columns.append(label)
-        row = (len(task.goals) if task else 0, r.task, r.protocol, r.observability)
+        reading = variant(task, r.task_params) if task else ""
+        row = (len(task.goals) if task else 0, r.task, r.protocol, r.observability, reading)
         if row not in board.rows:
             board.rows.append(row)
-            if (r.task, r.protocol, r.observability) in ceilings:
-                board.ceilings[row] = ceilings[(r.task, r.protocol, r.observability)]
+            key = (r.task, json.dumps(r.task_params, sort_keys=True), r.protocol, r.observability)
+            if key in ceilings:
+                board.ceilings[row] = ceilings[key]
         board.cells[(*row, label)] = r
-        paper_protocol = task is not None and r.protocol == task.protocol
+        paper_protocol = task is not None and r.protocol == task.protocol and not reading
         if reference and paper_protocol and paper_method(r.recognizer)[1] in (r.scorer, None):
             reported = reference.get((r.task, r.recognizer, round(r.observability, 6)))
             if reported:

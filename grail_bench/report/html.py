@@ -29,7 +29,7 @@ from typing import Any, Sequence
 
 from grail_bench.harness.ceiling import normalised
 from grail_bench.report import plots
-from grail_bench.report.boards import Board, column_label, config_variants, own_scorer_records, short_name, timing_rows
+from grail_bench.report.boards import Board, column_label, config_variants, own_scorer_records, row_name, timing_rows
 from grail_bench.report.leaderboard import Leaderboard
 from grail_bench.report.reference import MARKS, Reported
 from grail_bench.report.text import comparison_lines
@@ -106,8 +106,8 @@ def _runs(rows: Sequence[Any]) -> tuple[list[dict[str, Any]], dict[str, int]]:
 
 def _figure(section: Section, cells: dict[tuple, Cell], own: set[int]) -> str | None:
     """F1 against observability per task of a section, a line and interval band per own-scorer column."""
-    tasks = sorted({row["task"] for row in section.rows})
-    levels = {t: {row["obs"] for row in section.rows if row["task"] == t} for t in tasks}
+    tasks = sorted({row["key"] for row in section.rows})
+    levels = {t: {row["obs"] for row in section.rows if row["key"] == t} for t in tasks}
     tasks = [t for t in tasks if len(levels[t]) > 1]
     if not tasks:
         return None
@@ -142,9 +142,9 @@ def _summary(domain: str, sections: list[Section], cells: dict[tuple, Cell], rec
     for section in sections:
         for row in section.rows:
             for label, _ in section.columns:
-                cell = cells.get((row["task"], row["obs"], label, section.id))
+                cell = cells.get((row["key"], row["obs"], label, section.id))
                 if cell is not None and cell.record in own:
-                    strata[label][(row["task"], section.id, row["obs"])] = list(records[cell.record].f1_values)
+                    strata[label][(row["key"], section.id, row["obs"])] = list(records[cell.record].f1_values)
     names, shared, left_out = common_strata(strata)
     common = {n: {k: v for k, v in strata[n].items() if k in shared} for n in names}
     iqms = {n: stratified_bootstrap(common[n], pooled_iqm, reps=reps, seed=seed) for n in names}
@@ -212,10 +212,11 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0) -> dict[str,
                             reported.place(record.f1_mean) if reported else None,
                             verdict.verdict if verdict else None,
                             normalised(record.f1_mean, ceiling.accuracy, ceiling.chance) if ceiling else None)
-                shown[label] = cells[(row[1], row[3], label, section.id)] = cell
+                shown[label] = cells[(row_name(row), row[3], label, section.id)] = cell
             for label in tied_best({k: c.interval for k, c in shown.items()}):
                 shown[label].best = True
-            section.rows.append({"task": row[1], "name": short_name(row[1]), "goals": row[0], "obs": row[3],
+            section.rows.append({"task": row[1], "key": row_name(row), "name": row_name(row), "goals": row[0],
+                                 "obs": row[3],
                                  "ceiling": ceiling, "cells": [shown.get(label) for label, _ in section.columns]})
         by_domain[domain].append(section)
         sections.append(section)

@@ -280,7 +280,7 @@ def section_lines(tasks: Sequence[str], lines: Sequence[tuple[str, list]]) -> An
     """F1 against observability per task: one line and interval band per column (a figure of the web page).
 
     Args:
-        tasks: Panels, in order.
+        tasks: Panels, in order (their titles).
         lines: ``(label, points)`` per column, each point ``(task, level, mean, low, high)``.
     """
     plt = pyplot()
@@ -293,7 +293,7 @@ def section_lines(tasks: Sequence[str], lines: Sequence[tuple[str, list]]) -> An
             x = [100 * p[1] for p in mine]
             ax.plot(x, [p[2] for p in mine], marker="o", color=f"C{i % 10}", label=name)
             ax.fill_between(x, [p[3] for p in mine], [p[4] for p in mine], color=f"C{i % 10}", alpha=0.2)
-        ax.set_title(short_name(task), fontsize=9)
+        ax.set_title(task, fontsize=9)
         ax.set_xlabel("observed (%)")
         ax.set_ylim(0, 1.05)
     axes.flat[0].set_ylabel("F1")
@@ -336,4 +336,32 @@ def fit_curves(curves: dict[int, dict[str, Sequence[float]]], labels: Sequence[s
         ax.set_title(name, fontsize=9)
         ax.set_xlabel("training (points in order)")
     axes.flat[0].legend(fontsize=7)
+    return fig
+
+
+def budgets(curves: Sequence[dict[str, Any]]) -> Any:
+    """Budget studies: per (recognizer, parameter) a column, F1 with its 95 % band against the value (log scale)
+    above, fit seconds per goal below; one line per task (a figure)."""
+    plt = pyplot()
+    panels = sorted({(c["recognizer"], c["param"]) for c in curves})
+    fig, axes = plt.subplots(2, len(panels), figsize=(3.8 * len(panels), 5.6), squeeze=False, sharex="col")
+    for col, (recognizer, param) in enumerate(panels):
+        top, bottom = axes[0, col], axes[1, col]
+        mine = [c for c in curves if (c["recognizer"], c["param"]) == (recognizer, param)]
+        for i, c in enumerate(mine):
+            x = [p["value"] for p in c["points"]]
+            label = f"{short_name(c['task'])} {c['observability']:.0%}"
+            top.plot(x, [p["f1_mean"] for p in c["points"]], marker="o", color=f"C{i}", label=label)
+            top.fill_between(x, np.clip([p["f1_ci95_low"] for p in c["points"]], 0, 1),
+                             np.clip([p["f1_ci95_high"] for p in c["points"]], 0, 1), color=f"C{i}", alpha=0.2)
+            top.axvline(c["plateau"], color=f"C{i}", linestyle=":", linewidth=1)
+            bottom.plot(x, [p["fit_seconds_per_goal"] for p in c["points"]], marker="o", color=f"C{i}")
+        top.set_title(f"{recognizer}: {param}", fontsize=9)
+        top.set_ylim(0, 1.05)
+        top.set_ylabel("F1")
+        bottom.set_ylabel("fit s / goal")
+        bottom.set_xlabel(param)
+        for ax in (top, bottom):
+            ax.set_xscale("log")
+        top.legend(fontsize=7)
     return fig

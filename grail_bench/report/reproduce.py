@@ -4,7 +4,14 @@ A profile (``grail_bench/report/profiles/*.toml``, or any TOML file of that shap
 lists sections (``minigrid``, ``panda``, ``online``, ``open-set``), each with
 tasks, recognizers, scorers, optional task parameters and a mode (``offline``,
 the paper's protocol, by default; ``online`` or ``open-set`` for the studies
-beyond it), plus the seeds and recognizer configs shared by all. The grid runs
+beyond it), plus the seeds and recognizer configs shared by all. A section
+with ``vary`` is a budget study: one recognizer hyperparameter (``vary =
+{param = "total_timesteps", values = [...]}``) or the training demonstrations
+per goal (``vary = {task_param = "n_train", values = [...], test = 3}``) takes
+each value in turn, optionally at its own ``observability`` levels and
+``seeds``; those sections write ``BUDGETS.md`` and ``budgets.png`` instead of
+joining the paper's tables. A section's ``config`` sets hyperparameters of all
+its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant). The grid runs
 through :func:`grail_bench.harness.sweep.run_sweep` (resumable through the
 store), then :func:`write_outputs` renders everything (tables, figures, the web
 page) from the store alone, so the outputs never depend on which units ran now.
@@ -31,16 +38,55 @@ from grail_bench.report import leaderboard, plots
 from grail_bench.report.boards import build_boards, own_scorer_records
 from grail_bench.report.html import write_site
 from grail_bench.report.reference import paper_reference_path, read_reference
-from grail_bench.report.text import markdown, mode_markdown
+from grail_bench.report.text import budgets_markdown, markdown, mode_markdown
+from grail_bench.stats.verdict import plateau
 from grail_bench.task import find_task, make_task
-from grail_bench.task.observation import ObservationSpec
+from grail_bench.task.observation import ObservationSpec, parse_observability
 
 PROFILES = ("quick", "paper")
 
 
 @dataclass(frozen=True)
+class Vary:
+    """A budget study: one parameter taking each of several values.
+
+    Attributes:
+        param: A recognizer hyperparameter, or the task parameter ``n_train``.
+        values: The values, in increasing order.
+        of: ``"recognizer"`` or ``"task"``.
+        test: With ``n_train``, the test demonstrations kept per goal (``n_demos = n_train + test``).
+    """
+
+    param: str
+    values: tuple[Any, ...]
+    of: str = "recognizer"
+    test: int = 3
+
+    @classmethod
+    def parse(cls, raw: Mapping[str, Any], where: str) -> Vary:
+        """From a section's ``vary`` table.
+
+        Raises:
+            UserError: Unless it names one parameter and at least two values.
+        """
+        if not isinstance(raw, Mapping) or ("param" in raw) == ("task_param" in raw):
+            raise UserError(f"{where}: vary needs param (a recognizer's) or task_param (n_train), and values")
+        values = raw.get("values")
+        if not isinstance(values, list) or len(values) < 2:
+            raise UserError(f"{where}: vary needs at least two values")
+        if "task_param" in raw:
+            if raw["task_param"] != "n_train" or not all(isinstance(v, int) and v >= 1 for v in values):
+                raise UserError(f"{where}: vary's task_param must be n_train, with positive integer values")
+            test = raw.get("test", 3)
+            if not isinstance(test, int) or test < 1:
+                raise UserError(f"{where}: vary's test must be a positive integer")
+            return cls("n_train", tuple(values), "task", test)
+        return cls(str(raw["param"]), tuple(values))
+
+
+@dataclass(frozen=True)
 class Section:
-    """One domain's part of a profile."""
+    """One part of a profile (a domain's grid, a mode's study, or a budget study)."""
 
     name: str
     tasks: tuple[str, ...]
@@ -48,6 +94,37 @@ class Section:
     scorers: tuple[str, ...] = ()
     params: Mapping[str, Any] = field(default_factory=dict)
     mode: str = "offline"
+    vary: Vary | None = None
+    observability: tuple[float, ...] = ()
+    seeds: int | None = None
+    config: Mapping[str, Any] = field(default_factory=dict)  # hyperparameters for every recognizer of the section
+
+    def requests(self, seeds: int, config: Mapping[str, Mapping[str, Any]]) -> list[Request]:
+        """This section's requests: each task's default protocol, its levels unless the section has its own."""
+        out = []
+        for task_id in self.tasks:
+            for params, configs in self._variants(config):
+                task = make_task(task_id, **params)
+                levels = (self.observability or task.observability) if get_mode(self.mode).takes_levels else ()
+                specs = tuple(RecognizerSpec(r, c, self.scorers) for r, c in configs)
+                out.append(Request(task.id, specs, tuple(range(self.seeds or seeds)),
+                                   ObservationSpec.resolve(task.protocol, "ceil", levels), params, self.mode))
+        return out
+
+    def _variants(self, config: Mapping[str, Mapping[str, Any]]) -> list[tuple[dict[str, Any], list]]:
+        """``(task parameters, [(recognizer, hyperparameters), ...])`` of each request per task."""
+        base = [(r, {**config.get(r, {}), **self.config}) for r in self.recognizers]
+        if self.vary is None:
+            return [(dict(self.params), base)]
+        if self.vary.of == "task":
+            return [({**self.params, "n_train": v, "n_demos": v + self.vary.test}, base) for v in self.vary.values]
+        return [(dict(self.params), [(r, {**c, self.vary.param: v}) for r, c in base for v in self.vary.values])]
+
+    def value_of(self, record: Any) -> Any:
+        """The studied parameter's value in a record of this section."""
+        if self.vary.of == "task":
+            return record.task_params.get(self.vary.param)
+        return record.recognizer_config.get(self.vary.param)
 
 
 @dataclass(frozen=True)
@@ -67,19 +144,18 @@ class Profile:
         if unknown:
             raise UserError(f"profile {self.name!r} has no section {sorted(unknown)[0]!r}; it has "
                             f"{', '.join(s.name for s in self.sections)}")
-        out = []
-        for section in self.sections:
-            if only and section.name not in only:
-                continue
-            specs = tuple(RecognizerSpec(r, dict(self.config.get(r, {})), section.scorers)
-                          for r in section.recognizers)
-            for task_id in section.tasks:
-                task = make_task(task_id, **dict(section.params))
-                levels = tuple(task.observability) if get_mode(section.mode).takes_levels else ()
-                out.append(Request(task.id, specs, tuple(range(self.seeds)),
-                                   ObservationSpec.resolve(task.protocol, "ceil", levels), dict(section.params),
-                                   section.mode))
-        return out
+        return [r for section in self.sections if not only or section.name in only
+                for r in section.requests(self.seeds, self.config)]
+
+    def grid_requests(self, only: Sequence[str] = ()) -> list[Request]:
+        """The requests of the sections that are not budget studies (the paper's tables and the modes')."""
+        return [r for s in self.sections if s.vary is None and (not only or s.name in only)
+                for r in s.requests(self.seeds, self.config)]
+
+    def studies(self, only: Sequence[str] = ()) -> list[tuple[Section, list[Request]]]:
+        """The budget-study sections (with ``vary``) to write, with their requests."""
+        return [(s, s.requests(self.seeds, self.config)) for s in self.sections
+                if s.vary is not None and (not only or s.name in only)]
 
 
 def load_profile(name_or_path: str) -> Profile:
@@ -101,8 +177,12 @@ def load_profile(name_or_path: str) -> Profile:
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise UserError(f"cannot read profile {name_or_path}: {exc}") from None
     try:
-        sections = tuple(Section(s["name"], tuple(s["tasks"]), tuple(s["recognizers"]), tuple(s.get("scorers", ())),
-                                 dict(s.get("params", {})), str(s.get("mode", "offline"))) for s in data["section"])
+        sections = tuple(Section(
+            s["name"], tuple(s["tasks"]), tuple(s["recognizers"]), tuple(s.get("scorers", ())),
+            dict(s.get("params", {})), str(s.get("mode", "offline")),
+            Vary.parse(s["vary"], f"profile {name_or_path}: section {s['name']!r}") if "vary" in s else None,
+            parse_observability(s["observability"]) if "observability" in s else (),
+            int(s["seeds"]) if "seeds" in s else None, dict(s.get("config", {}))) for s in data["section"])
         seeds = int(data["seeds"])
         config = {k: dict(v) for k, v in data.get("config", {}).items()}
     except (KeyError, TypeError, ValueError) as exc:
@@ -144,23 +224,30 @@ def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executo
     }
 
 
-def write_outputs(rows: Sequence[Row], profile: Profile, requests: Sequence[Request], out: Path,
-                  meta: dict[str, Any], site: bool = True, progress: bool = False,
-                  fits: Sequence[FitRow] = ()) -> list[Path]:
+def _owned(rows: Sequence[Any], requests: Sequence[Request]) -> list[Any]:
+    """The rows that belong to the requests (their tasks, protocols, modes, recognizers and configurations)."""
+    planned = [(r, r.planned()) for r in requests]
+    return [row for row in rows if any(r.owns(row, p) for r, p in planned)]
+
+
+def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[str, Any], only: Sequence[str] = (),
+                  site: bool = True, progress: bool = False, fits: Sequence[FitRow] = ()) -> list[Path]:
     """Tables, figures, the web page (``site/``, unless ``site`` is False) and the manifest into ``out``.
 
-    The paper's tables and figures come from the offline rows; every other mode with rows adds its table
-    (``ONLINE.md``, ``OPEN_SET.md``) and the online runs their figure (``online.png``). Only rows of the
-    requests' tasks, protocols and modes count; ``fits`` are the stored fit diagnostics. Returns the files
+    The paper's tables and figures come from the offline rows of the grid's sections; every other mode with
+    rows adds its table (``ONLINE.md``, ``OPEN_SET.md``) and the online runs their figure (``online.png``);
+    budget studies write ``BUDGETS.md`` and ``budgets.png``. Only the rows the profile's requests own count
+    (other configurations in a shared store do not); ``fits`` are the stored fit diagnostics. Returns the files
     written.
     """
     out.mkdir(parents=True, exist_ok=True)
-    wanted = {(r.task_id, r.label, MODES[r.mode].row) for r in requests}
-    rows = [r for r in rows if (r.task, r.protocol, type(r)) in wanted]
-    by_mode = {name: [r for r in rows if type(r) is mode.row] for name, mode in MODES.items()}
+    grid = _owned(rows, profile.grid_requests(only))
+    by_mode = {name: [r for r in grid if type(r) is mode.row] for name, mode in MODES.items()}
     offline = by_mode.pop("offline")
     reference = read_reference(paper_reference_path())
-    board = leaderboard.build(offline, reference, studies=by_mode, progress=progress, fits=fits)
+    owned_fits = [f for f in fits if any((f.task, f.recognizer, f.config_hash) == (r.task, r.recognizer, r.config_hash)
+                                         for r in offline)]
+    board = leaderboard.build(offline, reference, studies=by_mode, progress=progress, fits=owned_fits)
     title = f"grail-bench reproduce: {profile.name}"
     written: list[Path] = []
     if offline:
@@ -170,11 +257,44 @@ def write_outputs(rows: Sequence[Row], profile: Profile, requests: Sequence[Requ
         written[-1].write_text(markdown(paper_boards, own, ci=True, title=title, fits=board.fits), encoding="utf-8")
         written += plots.write_all(board.records, out, models=model_sizes(board.records))
     written += write_studies(board, out)
+    written += write_budgets(rows, profile.studies(only), out, title)
     if site:
         written += write_site(board, out / "site", title=title)
     (out / "manifest.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     written.append(out / "manifest.json")
     return written
+
+
+def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Request]]]) -> list[dict[str, Any]]:
+    """Per study section, task and recognizer: the studied values with F1 over seeds and fit seconds per goal."""
+    out = []
+    for section, requests in studies:
+        records = MODES["offline"].aggregate([r for r in _owned(rows, requests) if isinstance(r, MODES["offline"].row)])
+        groups: dict[tuple[str, str, str], list[Any]] = {}
+        for r in own_scorer_records(records):
+            groups.setdefault((r.task, r.recognizer, r.protocol), []).append(r)
+        for (task, recognizer, protocol), group in sorted(groups.items()):
+            for level in sorted({r.observability for r in group}):
+                points = sorted((section.value_of(r), r) for r in group if r.observability == level)
+                out.append({"section": section.name, "param": section.vary.param, "task": task,
+                            "recognizer": recognizer, "protocol": protocol, "observability": level,
+                            "points": [{"value": v, "n_seeds": r.n_seeds, "f1_mean": r.f1_mean,
+                                        "f1_ci95_low": r.f1_ci95_low, "f1_ci95_high": r.f1_ci95_high,
+                                        "fit_seconds_per_goal": r.fit_seconds_per_goal} for v, r in points],
+                            "plateau": plateau([(v, r.f1_mean, r.f1_ci95_low) for v, r in points])})
+    return out
+
+
+def write_budgets(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Request]]], out: Path,
+                  title: str) -> list[Path]:
+    """``BUDGETS.md``, ``budgets.png`` and ``budgets.json`` of the budget studies (nothing without one)."""
+    curves = budget_points(rows, studies)
+    if not curves:
+        return []
+    written = [out / "BUDGETS.md", out / "budgets.json"]
+    written[0].write_text(budgets_markdown(curves, title), encoding="utf-8")
+    written[1].write_text(json.dumps(curves, indent=1) + "\n", encoding="utf-8")
+    return written + plots.save(plots.budgets(curves), out, "budgets")
 
 
 def write_studies(board: leaderboard.Leaderboard, out: Path) -> list[Path]:

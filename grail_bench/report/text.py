@@ -17,7 +17,7 @@ from grail_bench.report.boards import (
     Row,
     paper_method,
     placement_counts,
-    short_name,
+    row_name,
     timing_rows,
     verdict_counts,
 )
@@ -64,7 +64,7 @@ def board_grid(board: Board, paper_label: Callable[[str], str] = str, ci: bool =
             header.append(paper_label(c))
     rows = []
     for row in board.rows:
-        cells = [(short_name(row[1]), False), (str(row[0]), False), (f"{row[3]:.0%}", False),
+        cells = [(row_name(row), False), (str(row[0]), False), (f"{row[3]:.0%}", False),
                  (_ceiling_text(board, row), False)]
         for c in board.columns:
             cells.append(_cell(board, row, c, ci))
@@ -297,3 +297,24 @@ def diagnostics_table(diagnostics: Any, title: str) -> Table:
 
 def _num(value: float | None) -> str:
     return "–" if value is None or value != value else f"{value:.2f}"
+
+
+def budgets_markdown(curves: Sequence[dict[str, Any]], title: str) -> str:
+    """Budget studies as Markdown: per task and recognizer, F1 at each value with its interval and fit cost."""
+    lines = [f"# {title}: budget studies", "",
+             "F1 (mean over seeds, [95 % t-interval]) of each recognizer under its own scorer at one observability",
+             "level, against one training budget or the training demonstrations per goal, with the fit's seconds",
+             "per goal. Plateau: the smallest value whose mean F1 reaches the 95 % interval of the best value's",
+             "(the rule that picks a default budget).", ""]
+    for c in curves:
+        lines += [f"## {c['recognizer']}: {c['param']} on {c['task'].removeprefix('GRAIL/')} "
+                  f"({c['protocol']}, {c['observability']:.0%} observed)", "",
+                  f"Plateau: {c['param']} = {c['plateau']}.", "",
+                  f"| {c['param']} | seeds | F1 | 95 % interval | fit s/goal |", "|---|---|---|---|---|"]
+        for p in c["points"]:
+            mark = " (plateau)" if p["value"] == c["plateau"] else ""
+            lines.append(f"| {p['value']}{mark} | {p['n_seeds']} | {p['f1_mean']:.2f} | "
+                         f"[{max(0.0, p['f1_ci95_low']):.2f}, {min(1.0, p['f1_ci95_high']):.2f}] | "
+                         f"{p['fit_seconds_per_goal']:.2f} |")
+        lines.append("")
+    return "\n".join(lines)

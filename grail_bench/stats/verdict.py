@@ -1,4 +1,4 @@
-"""Our seeds against a value a publication reports: where our mean falls, and a two-sided Welch test.
+"""Verdicts from seeds: our mean against a reported value (placement, two-sided Welch test), and budget plateaus.
 
 * :func:`place`: our mean inside, above or below the publication's 95 % interval;
 * :func:`welch_verdict`: Welch's unequal-variance t-test of our per-seed values
@@ -7,7 +7,8 @@
 
 A zero std on one side is fine (the other side's variance carries the test);
 on both sides the means either agree exactly (consistent) or differ with
-certainty.
+certainty. :func:`plateau` picks a default budget from a budget study: the
+smallest budget whose mean F1 reaches the 95 % interval of the best one's.
 """
 
 from __future__ import annotations
@@ -71,3 +72,18 @@ def welch_verdict(values: Sequence[float], mean: float, std: float, n: int, alph
     p = float(2 * stats.t.sf(abs(t), df))
     verdict = "consistent" if p >= alpha else "higher" if t > 0 else "lower"
     return Verdict(verdict, float(t), float(df), p)
+
+
+def plateau(points: Sequence[tuple[float, float, float]]) -> float:
+    """The smallest budget on the plateau: whose mean is at least the lower 95 % bound of the best budget's.
+
+    Args:
+        points: ``(budget, mean, lower 95 % bound)`` per budget measured.
+
+    Raises:
+        ValueError: Without points.
+    """
+    if not points:
+        raise ValueError("a plateau needs at least one budget")
+    best = max(points, key=lambda p: (p[1], -p[0]))
+    return min(budget for budget, mean, _ in points if mean >= best[2] - 1e-12)

@@ -9,6 +9,13 @@ Everything here is light (no torch): it runs on ``import gymnasium``.
 """
 
 from grail_bench.task.model import GRTask, TaskFieldError
-from grail_bench.task.registration import find_task, make_registered_env, make_task, register_envs, task_ids
+from grail_bench.task.registration import (
+    find_task,
+    make_registered_env,
+    make_task,
+    register_envs,
+    task_ids,
+    variant,
+)
 
-__all__ = ["GRTask", "TaskFieldError", "find_task", "make_registered_env", "make_task", "register_envs", "task_ids"]
+__all__ = ["GRTask", "TaskFieldError", "find_task", "make_registered_env", "make_task", "register_envs", "task_ids", "variant"]

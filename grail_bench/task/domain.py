@@ -58,6 +58,10 @@ class Domain(Protocol):
         regimes: Behaviour regime name -> its parameters and their defaults.
         ceiling_regimes: Regimes whose demonstrator has a known likelihood, so
             that the Bayes ceiling can be computed (see :meth:`demonstrator`).
+
+    A domain may also declare ``implicit``: per regime parameter added after
+    runs were stored, the value those runs used (so that a stored run is read
+    with the parameters it really had; see :func:`stored_params`).
     """
 
     name: str
@@ -117,3 +121,10 @@ def _load(name: str) -> Domain:
     if not isinstance(domain, Domain):
         raise UserError(f"domain entry point {target} does not satisfy grail_bench.task.domain.Domain")
     return domain
+
+
+def stored_params(domain: Domain, params: Mapping[str, Any]) -> dict[str, Any]:
+    """The parameters a stored run used: the recorded ones, plus the domain's ``implicit`` values of parameters
+    it declares were added since (those runs predate them)."""
+    implicit = getattr(domain, "implicit", None) or {}
+    return {**implicit, **params}

@@ -7,10 +7,12 @@ and import nothing heavier than the task cards.
 
 from __future__ import annotations
 
+import json
 from typing import TYPE_CHECKING, Any
 
 from grail_bench.core.errors import UserError
 from grail_bench.task.cards import load_cards
+from grail_bench.task.domain import stored_params
 from grail_bench.task.model import ENV_ONLY, GRTask
 
 if TYPE_CHECKING:
@@ -81,11 +83,27 @@ def make_task(task_id: str, **overrides: Any) -> GRTask:
 
 
 def find_task(task_id: str, params: dict[str, Any] | None = None) -> GRTask | None:
-    """The registered task with the parameters a stored run used, or None when its card is gone (or no longer
-    accepts those parameters): reports of old stores show such rows without the task's details."""
+    """The registered task with the parameters a stored run used (parameters added since the run filled in as
+    its domain declares, see :func:`~grail_bench.task.domain.stored_params`), or None when its card is gone (or
+    no longer accepts those parameters): reports of old stores show such rows without the task's details."""
     from gymnasium.error import Error as GymError
 
     try:
-        return make_task(task_id, **(params or {}))
+        task = make_task(task_id)
+        if params is None:
+            return task
+        return task.with_overrides(**{k: v for k, v in stored_params(task.spec, params).items()
+                                      if k in task.params or k in task.env_params or k in ("n_demos", "n_train")})
     except (GymError, UserError):
         return None
+
+
+def variant(task: GRTask, params: dict[str, Any]) -> str:
+    """How a stored run's parameters differ from the task's defaults, e.g. ``route_choice="uniform"`` (empty when
+    they do not)."""
+    run = find_task(task.id, params)
+    if run is None:
+        return ""
+    mine = {**run.params, **run.env_params, "n_demos": run.n_demos, "n_train": run.n_train}
+    defaults = {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
+    return " ".join(f"{k}={json.dumps(v)}" for k, v in sorted(mine.items()) if defaults.get(k) != v)

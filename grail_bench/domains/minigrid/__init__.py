@@ -33,14 +33,19 @@ class MiniGrid:
         "max_steps": 60,
         "fixed_horizon": True,
     }
+    # Defaults read from the paper's text (see .demos): "handcrafted to follow the shortest path to each
+    # goal" (one fixed path per goal) and turns inserted "before each action" (turn_prob 1.0).
     regimes: Mapping[str, Mapping[str, Any]] = {
-        "optimal": {},
+        # route_choice: "fixed" (one shortest path per goal) or "uniform" (drawn per demonstration).
+        "optimal": {"route_choice": "fixed"},
         # One preferred heading order per goal, e.g. "NE" = north, then east.
         "biased": {"routes": []},
         # turn_pattern: "left-right" or "around-and-back" (see .demos).
-        "suboptimal": {"turn_prob": 0.3, "turn_pattern": "left-right"},
+        "suboptimal": {"route_choice": "fixed", "turn_prob": 1.0, "turn_pattern": "left-right"},
     }
     ceiling_regimes = frozenset(regimes)
+    # Runs stored before route_choice existed drew every demonstration's path uniformly.
+    implicit: Mapping[str, Any] = {"route_choice": "uniform"}
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
               goals: Sequence[Goal]) -> None:

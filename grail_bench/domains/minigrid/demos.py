@@ -1,14 +1,20 @@
 """Scripted MiniGrid demonstrators for the three behaviour regimes.
 
-* ``optimal``: a shortest action sequence drawn uniformly among all of them.
+* ``optimal``: a shortest action sequence. ``route_choice`` reads the
+  paper's "handcrafted to follow the shortest path to each goal": ``"fixed"``
+  (the default: one path per goal, every demonstration follows it; of all
+  shortest paths, the one going straight ahead first, see :func:`fixed_path`)
+  or ``"uniform"`` (each demonstration draws one uniformly among all of them).
 * ``biased``: one fixed shortest route per goal. A route is a heading order,
   e.g. ``"NE"``: of all shortest paths, the one whose sequence of forward-move
   headings is lexicographically smallest when north ranks before east (headings
   not named rank after, in the order N, E, S, W). ``"NE"`` for (7, 1) goes
   north, then east; ``"ES"`` for (7, 7) goes east, then south, as in the paper.
-* ``suboptimal``: a uniformly drawn shortest path; before each of its actions,
-  with probability ``turn_prob``, the agent inserts turns that leave its
-  heading unchanged, so the cells it visits are those of the shortest path.
+* ``suboptimal``: a shortest path (``route_choice`` as for ``optimal``);
+  before each of its actions, with probability ``turn_prob`` (default 1.0:
+  the paper inserts turns "before each action"), the agent inserts turns
+  that leave its heading unchanged, so the cells it visits are those of the
+  shortest path.
   ``turn_pattern`` reads the paper's "180-degree turns (left and right)":
   ``"left-right"`` (the default) is one left and one right in either order
   (2 actions, 180 degrees of turning in all); ``"around-and-back"`` turns
@@ -142,21 +148,42 @@ def play(env, actions: list[int]) -> Trajectory:
     return rollout(env, lambda obs, t: actions[t] if t < len(actions) else STAY, require_success=True)
 
 
+def fixed_path(model: GridModel, start: State, goal: tuple[int, int]) -> list[int]:
+    """The one shortest path of the ``fixed`` route choice: straight ahead first.
+
+    Of all shortest paths, the one that keeps the start heading longest, then
+    the other headings in the order N, E, S, W (the heading order of the
+    start direction's compass letter, see :func:`biased_path`): from the
+    paper's start facing east, east first, then north or south to the goal.
+    """
+    return biased_path(model, start, goal, HEADINGS[start[2]])
+
+
+def route(task: GRTask, goal: Goal, model: GridModel, start: State) -> list[int] | None:
+    """The one path every demonstration of ``goal`` follows, or None when each draws its own."""
+    g = (int(goal[0]), int(goal[1]))
+    if task.regime == "biased":
+        return biased_path(model, start, g, task.params["routes"][task.goal_index(goal)])
+    if task.params.get("route_choice") == "fixed":
+        return fixed_path(model, start, g)
+    return None
+
+
 def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -> list[Trajectory]:
     """Demonstrations of one goal under the task's regime (see module docstring)."""
+    if task.regime not in ("optimal", "biased", "suboptimal"):
+        raise UserError(f"{task.id}: minigrid has no regime {task.regime!r}")
     env = task.make_env(goal)
     base = env.unwrapped
     start = (*base.start, base.start_dir)
     g = (int(goal[0]), int(goal[1]))
-    if task.regime == "optimal":
-        plans = [sample_shortest_path(base.model, start, g, rng) for _ in range(n)]
-    elif task.regime == "biased":
-        plans = [biased_path(base.model, start, g, task.params["routes"][task.goal_index(goal)])] * n
-    elif task.regime == "suboptimal":
-        p, pattern = float(task.params["turn_prob"]), task.params["turn_pattern"]
-        plans = [insert_turns(sample_shortest_path(base.model, start, g, rng), p, rng, pattern) for _ in range(n)]
-    else:
-        raise UserError(f"{task.id}: minigrid has no regime {task.regime!r}")
+    one = route(task, goal, base.model, start)
+    plans = []
+    for _ in range(n):
+        plan = list(one) if one is not None else sample_shortest_path(base.model, start, g, rng)
+        if task.regime == "suboptimal":
+            plan = insert_turns(plan, float(task.params["turn_prob"]), rng, task.params["turn_pattern"])
+        plans.append(plan)
     demos = [play(env, plan) for plan in plans]
     env.close()
     return demos

@@ -61,12 +61,19 @@ TURN_PATTERNS: dict[str, tuple[tuple[int, ...], ...]] = {
 }
 
 
+#: How the optimal and suboptimal demonstrators pick a shortest path: ``fixed`` (one per goal, straight ahead
+#: first) or ``uniform`` (drawn anew for every demonstration among all of them).
+ROUTE_CHOICES = ("fixed", "uniform")
+
+
 def check_params(regime: str, params: Mapping[str, Any], n_goals: int) -> None:
     """Validate a MiniGrid regime's parameters.
 
     Raises:
         UserError: With the parameter's name and what is wrong.
     """
+    if "route_choice" in params and params["route_choice"] not in ROUTE_CHOICES:
+        raise UserError(f"route_choice must be one of {', '.join(ROUTE_CHOICES)}, got {params['route_choice']!r}")
     if regime == "biased":
         check_routes(params["routes"], n_goals)
     elif regime == "suboptimal":

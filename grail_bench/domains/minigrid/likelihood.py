@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
-from grail_bench.domains.minigrid.demos import all_shortest_paths, biased_path, insert_turns, sample_shortest_path
+from grail_bench.domains.minigrid.demos import all_shortest_paths, insert_turns, route, sample_shortest_path
 from grail_bench.domains.minigrid.grid import STAY, TURN_PATTERNS, GridModel, State
 from grail_bench.task.observation import Selection, n_observed
 
@@ -52,11 +52,9 @@ class GoalDemonstrator:
         env.close()
         self.goal = (int(goal[0]), int(goal[1]))
         self.regime = task.regime
-        if task.regime == "biased":
-            route = task.params["routes"][task.goal_index(goal)]
-            self.paths = [biased_path(self.model, self.start, self.goal, route)]
-        else:
-            self.paths = all_shortest_paths(self.model, self.start, self.goal)
+        one = route(task, goal, self.model, self.start)
+        self.fixed = one is not None  # every demonstration follows one path (else each draws its own)
+        self.paths = [one] if self.fixed else all_shortest_paths(self.model, self.start, self.goal)
         suboptimal = task.regime == "suboptimal"
         self.turn_prob = float(task.params["turn_prob"]) if suboptimal else 0.0
         self.pattern = task.params["turn_pattern"] if suboptimal else None
@@ -95,9 +93,10 @@ class GoalDemonstrator:
 
     def sample(self, rng: np.random.Generator) -> list[int]:
         """One demonstration's actions up to the goal, drawn as the task's generator draws it."""
-        if self.regime == "biased":
-            return list(self.paths[0])
-        path = sample_shortest_path(self.model, self.start, self.goal, rng)
+        if self.fixed:
+            path = list(self.paths[0])
+        else:
+            path = sample_shortest_path(self.model, self.start, self.goal, rng)
         if self.regime == "suboptimal":
             path = insert_turns(path, self.turn_prob, rng, self.pattern)
         return path
