@@ -184,10 +184,10 @@ def test_ceiling_command_matches_the_library(tmp_path):
 
     path = tmp_path / "ceiling.json"
     out = cli(["ceiling", "-t", "GRAIL/MiniGrid-Optimal-6Goals-v0", "--protocol", "prefix", "--observability",
-               "0.1,0.3", "--json", str(path)], tmp_path)
+               "0.1,0.3", "--param", "route_choice=uniform", "--json", str(path)], tmp_path)
     assert out.returncode == 0, out.stderr
     records = json.loads(path.read_text())
-    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0")
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0", route_choice="uniform")
     assert [r["accuracy"] for r in records] == [bayes_ceiling(task, "prefix", p).accuracy for p in (0.1, 0.3)]
     assert {r["method"] for r in records} == {"exact"} and "0.444" in out.stdout
 

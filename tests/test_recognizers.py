@@ -89,6 +89,15 @@ def test_policy_bank_matches_sb3_policies():
     assert bank_probs.shape == (2, 20, env.action_space.n)
 
 
+def test_policy_bank_looks_up_discrete_observations_as_the_one_hot_product():
+    from grail_bench.recognizers.policy_bank import _apply, preprocess
+
+    bank = fitted("bc").bank
+    obs = np.concatenate([t.obs for t in TEST[(7, 7)]])
+    one_hot_product = _apply(preprocess(obs, bank.observation_space)[None], bank.trunk)
+    np.testing.assert_allclose(bank._latent(obs), one_hot_product, rtol=1e-6, atol=1e-6)
+
+
 def test_bc_separates_biased_routes():
     rec = make_recognizer("bc")
     rec.fit(TRAIN, TASK.make_env, seed=0)
@@ -191,7 +200,7 @@ def test_trained_policies_are_cached_and_reloaded(name, monkeypatch):
     assert (report.trained, report.reused) == (0, 2)
     assert report.train_seconds == pytest.approx(first_report.train_seconds)  # what training cost, not loading
 
-    other_task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0")
+    other_task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0", route_choice="uniform")
     other_train, _ = other_task.split(other_task.generate_demos(seed=0))
     second.fit(other_train, other_task.env_factory(), seed=4, cache_key=other_task.env_key)
     # Imitation learners retrain on other demonstrations; DRACO ignores them and reuses its policies.

@@ -18,6 +18,15 @@ def test_neg_mse_hand_computed():
     assert scoring.neg_mse(predicted, observed).tolist() == [0.0, -0.25, -1.0]
 
 
+def test_mse_of_probabilities_needs_no_one_hot_matrix(rng):
+    probs = rng.dirichlet(np.ones(4), size=(6, 30)).astype(np.float32)
+    actions = rng.integers(0, 4, size=30)
+    fast = scoring.mse_probs_steps(probs, actions)
+    reference = scoring.mse_steps(probs, scoring.one_hot(actions, 4))
+    np.testing.assert_allclose(fast, reference, rtol=1e-5, atol=1e-7)
+    np.testing.assert_array_equal(fast.argmax(axis=0), reference.argmax(axis=0))
+
+
 def test_neg_mse_continuous_mean_on_observed_scores_best():
     observed = np.array([[0.2, -0.1, 0.4], [0.0, 0.3, -0.2]])
     predicted = np.stack([observed, observed + 0.1, -observed])

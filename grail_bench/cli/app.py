@@ -92,6 +92,8 @@ def run(
     settings: Optional[List[str]] = typer.Option(None, "--set", help="Recognizer hyperparameter, e.g. bc.n_epochs=50."),
     params: Optional[List[str]] = typer.Option(
         None, "--param", help="Task parameter, as gym.make takes it, e.g. turn_prob=0.5, expert=scripted, n_demos=20."),
+    demos: Optional[str] = typer.Option(
+        None, "--demos", help="Take the demonstrations from a Minari dataset (folder, folder of datasets, or ID)."),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Also write the records to this JSON file."),
     store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE", help=STORE_HELP),
     progress: bool = typer.Option(True, help="Show progress bars."),
@@ -126,7 +128,8 @@ def run(
         scorers = tuple(dict.fromkeys(scorer or []))
         req = request(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
                       observability=observability, protocol=canonical_name(sampling) if sampling else protocol,
-                      rounding=rounding, task_params=parse_params(params or []), mode=mode)
+                      rounding=rounding, task_params=parse_params(params or []) | ({"demos": demos} if demos else {}),
+                      mode=mode)
         with open_store(store_path) as store, make_executor(executor, workers, address) as chosen:
             run_sweep([req], store, chosen, progress=progress, description=f"{req.task_id} ({mode})")
             records, where = collect(req, store), store.path
@@ -331,6 +334,26 @@ def inspect(
                 figure = plots.fit_curves(dict(seen.diagnostics.curves), labels)
                 if figure is not None:
                     say(f"curves written to {plots.save_png(figure, out / 'curves.png')}")
+
+
+@app.command()
+def export(
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
+    seeds: int = typer.Option(1, "--seeds", "-s", min=1, help="One dataset per seed 0..N-1."),
+    params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, as for `run`."),
+    out: Path = typer.Option(..., "--out", help="Folder the datasets are written into (as Minari lays them out)."),
+) -> None:
+    """Write a task's demonstrations as Minari datasets, one per seed (goals and splits in episode metadata)."""
+    from grail_bench.task import make_task
+    from grail_bench.task.datasets import export as export_datasets
+
+    with errors():
+        outputs(folders=[out])
+        gr_task = make_task(task, **parse_params(params or []))
+        with console.status(f"exporting {gr_task.id}"):
+            written = export_datasets(gr_task, list(range(seeds)), out)
+    for path in written:
+        say(f"wrote {path}")
 
 
 @app.command()

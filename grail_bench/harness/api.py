@@ -17,6 +17,7 @@ from grail_bench.harness.store import ResultsStore
 from grail_bench.harness.sweep import Request, plan_request, run_sweep
 from grail_bench.recognizers.contract import FitDiagnostics
 from grail_bench.task import GRTask, make_task
+from grail_bench.task.datasets import check_seeds
 from grail_bench.task.observation import ObservationSpec
 
 
@@ -39,7 +40,10 @@ def request(task_id: str, recognizers: Sequence[str | RecognizerSpec | tuple[str
     if not specs:
         raise UserError("name at least one recognizer")
     observation = ObservationSpec.resolve(protocol or task.protocol, rounding, levels)
-    return Request(task.id, specs, tuple(seed_list(seeds)), observation, dict(task_params or {}), chosen.name)
+    seeds = tuple(seed_list(seeds))
+    if task.demos:
+        check_seeds(task.demos, seeds)
+    return Request(task.id, specs, seeds, observation, dict(task_params or {}), chosen.name)
 
 
 def evaluate(

@@ -66,23 +66,37 @@ class SerialExecutor:
 
 
 class LocalExecutor:
-    """A pool of ``workers`` spawned processes on this machine."""
+    """A pool of ``workers`` spawned processes on this machine, started on first use.
+
+    Starting the pool costs seconds (each spawned worker imports torch and the
+    suite), so a map of a single item runs in this process instead and starts
+    no pool: one unit cannot run faster in parallel.
+    """
 
     name = "local"
 
     def __init__(self, workers: int) -> None:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
         self.workers = workers
-        self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                         initializer=one_thread)
+        self._pool: Any = None
+
+    def _started(self) -> Any:
+        if self._pool is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(max_workers=self.workers,
+                                             mp_context=multiprocessing.get_context("spawn"), initializer=one_thread)
+        return self._pool
 
     def map_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[Any, Any]]:
         from concurrent.futures import FIRST_COMPLETED, wait
         from concurrent.futures.process import BrokenProcessPool
 
-        pending = {self._pool.submit(fn, item): item for item in items}
+        if len(items) < 2 or self.workers < 2:
+            yield from SerialExecutor().map_unordered(fn, items)
+            return
+        pool = self._started()
+        pending = {pool.submit(fn, item): item for item in items}
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
@@ -94,7 +108,8 @@ class LocalExecutor:
                 yield item, result
 
     def close(self) -> None:
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 class RayExecutor:

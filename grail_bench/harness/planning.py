@@ -20,6 +20,7 @@ from grail_bench.recognizers.contract import Capabilities, FitDiagnostics, FitRe
 from grail_bench.recognizers.registry import build
 from grail_bench.recognizers.scoring import available_scorers, check_scorer, get_scorer
 from grail_bench.task import GRTask
+from grail_bench.task.datasets import source_digest
 
 
 @dataclass(frozen=True)
@@ -99,6 +100,8 @@ def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
     config = {"recognizer": spec.name, "config": dict(caps.config),
               "task": {"params": dict(task.params), "env": dict(task.env_params),
                        "n_demos": task.n_demos, "n_train": task.n_train}}
+    if task.demos:  # demonstrations from a dataset: its content keys the results
+        config["task"]["demos"] = source_digest(task.demos)
     return Planned(
         spec=RecognizerSpec(spec.name, dict(caps.kwargs), scorers),
         scorers=scorers, score_args=tuple(None if s == own else s for s in scorers),

@@ -4,6 +4,10 @@ GRAIL scores an observation against every goal's policy. Calling K torch
 modules costs far more in framework overhead than the arithmetic itself for
 these small MLPs, so the actor weights of the K SB3 policies are stacked into
 ``(K, in, out)`` arrays once, and one ``matmul`` per layer serves all goals.
+For discrete observations (one-hot encoded by SB3) the first layer is a
+lookup: the product of a one-hot vector with the weights is the sum of the
+weight rows it selects, so those rows are gathered instead of multiplying by
+the mostly-zero one-hot matrix (equal up to float rounding).
 """
 
 from __future__ import annotations
@@ -12,7 +16,6 @@ from typing import Callable, Sequence
 
 import numpy as np
 from gymnasium import spaces
-from scipy.special import softmax
 from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
 from stable_baselines3.common.torch_layers import FlattenExtractor
 from stable_baselines3.sac.policies import SACPolicy
@@ -39,6 +42,15 @@ def preprocess(obs: np.ndarray, space: spaces.Space) -> np.ndarray:
     if isinstance(space, spaces.Box):
         return obs.reshape(len(obs), -1).astype(np.float32)
     raise TypeError(f"unsupported observation space {space}")
+
+
+def _one_hot_offsets(space: spaces.Space) -> np.ndarray | None:
+    """Where each component's one-hot block starts, for discrete observation spaces (None for others)."""
+    if isinstance(space, spaces.MultiDiscrete):
+        return np.concatenate([[0], np.cumsum(space.nvec)[:-1]]).astype(np.int64)
+    if isinstance(space, spaces.Discrete):
+        return np.array([-int(space.start)], dtype=np.int64)
+    return None
 
 
 def _stack(modules_per_policy: list[list[nn.Module]]) -> list[tuple[np.ndarray, np.ndarray, Callable]]:
@@ -102,11 +114,22 @@ class PolicyBank:
         if not isinstance(extractor, FlattenExtractor):
             raise TypeError("PolicyBank supports flat (FlattenExtractor) policies only")
 
+        self._offsets = _one_hot_offsets(self.observation_space)
+        if self._offsets is not None and self.trunk:
+            weights, biases, activation = self.trunk[0]
+            self._rows = np.ascontiguousarray(weights.transpose(1, 0, 2))  # (in, K, out): one row per code
+            self._first = (biases, activation)
+
     def __len__(self) -> int:
         return self.head[0][0].shape[0]
 
     def _latent(self, obs: np.ndarray) -> np.ndarray:
-        return _apply(preprocess(obs, self.observation_space)[None], self.trunk)
+        if self._offsets is None or not self.trunk:
+            return _apply(preprocess(obs, self.observation_space)[None], self.trunk)
+        codes = np.asarray(obs, dtype=np.int64).reshape(len(obs), -1) + self._offsets  # (T, D)
+        summed = self._rows[codes].sum(axis=1)  # (T, K, out): the rows the one-hot vector selects, summed
+        biases, activation = self._first
+        return _apply(activation(summed.transpose(1, 0, 2) + biases), self.trunk[1:])
 
     def forward(self, obs: np.ndarray) -> np.ndarray:
         """Action logits (discrete) or deterministic actions (continuous), ``(K, T, A)``."""
@@ -115,7 +138,9 @@ class PolicyBank:
 
     def action_probs(self, obs: np.ndarray) -> np.ndarray:
         """Softmax action probabilities, ``(K, T, A)``; discrete actions only."""
-        return softmax(self.forward(obs), axis=-1)
+        logits = self.forward(obs)
+        e = np.exp(logits - logits.max(axis=-1, keepdims=True))
+        return e / e.sum(axis=-1, keepdims=True)
 
     def mean_std(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean action and its standard deviation per dimension, ``(K, T, D)`` each.

@@ -212,9 +212,16 @@ def prefix_means(steps: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------- adapters and registry
 
 
+def mse_probs_steps(probs: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """:func:`mse_steps` of action probabilities against one-hot observed actions, without building them:
+    ``sum_a (p_a - [a = y])^2 = sum_a p_a^2 - 2 p_y + 1``; ``(K, T)``."""
+    picked = probs[:, np.arange(len(actions)), actions]
+    return -(np.einsum("kta,kta->kt", probs, probs) - 2.0 * picked + 1.0) / probs.shape[-1]
+
+
 def _mse(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
     if out.probs is not None:
-        return mse_steps(out.probs, one_hot(actions.astype(np.int64), out.probs.shape[-1]))
+        return mse_probs_steps(out.probs, actions.astype(np.int64))
     return mse_steps(out.mean, actions.reshape(len(actions), -1).astype(out.mean.dtype))
 
 

@@ -62,6 +62,8 @@ class GRTask:
             :mod:`grail_bench.task.observation`).
         description: One line for humans.
         source: The card file that defines the task.
+        demos: A Minari dataset (a folder, a folder of datasets, or an ID) to take the demonstrations from
+            instead of the generator (see :mod:`grail_bench.task.datasets`); empty for the generator.
     """
 
     id: str
@@ -76,6 +78,7 @@ class GRTask:
     protocol: str = "subset"
     description: str = ""
     source: str = ""
+    demos: str = ""
 
     def __post_init__(self) -> None:
         spec = self.spec
@@ -114,6 +117,8 @@ class GRTask:
             raise TaskFieldError("protocol", f"unknown observation protocol {self.protocol!r}")
         if not isinstance(self.description, str):
             raise TaskFieldError("description", "expected a string")
+        if not isinstance(self.demos, str):
+            raise TaskFieldError("demos", "expected a Minari dataset's folder or ID")
         try:
             spec.check(self.regime, self.params, self.env_params, self.goals)
         except TaskFieldError:
@@ -133,10 +138,12 @@ class GRTask:
             raise TaskFieldError("domain", str(exc)) from None
 
     def with_overrides(self, **overrides: Any) -> GRTask:
-        """This task with regime parameters, env parameters, ``n_demos`` or ``n_train`` replaced.
+        """This task with regime parameters, env parameters, ``n_demos``, ``n_train`` or ``demos`` replaced.
 
         Names are routed to where they belong (``turn_prob`` to :attr:`params`,
-        ``max_steps`` to :attr:`env_params`).
+        ``max_steps`` to :attr:`env_params`). ``demos`` names a Minari dataset
+        to take the demonstrations from; its training and test episodes set
+        ``n_train`` and ``n_demos``.
 
         Raises:
             UserError: For a name the task cannot apply, or an invalid value.
@@ -146,18 +153,29 @@ class GRTask:
         for name, value in overrides.items():
             if name in ("n_demos", "n_train"):
                 fields[name] = value
+            elif name == "demos":
+                fields |= self._dataset_fields(value)
             elif name in spec.regimes[self.regime]:
                 params[name] = value
             elif name in spec.env_defaults:
                 env_params[name] = value
             else:
                 hint = " (it applies to gym.make, not to a task)" if name in ENV_ONLY else ""
-                known = sorted({*spec.regimes[self.regime], *spec.env_defaults, "n_demos", "n_train"})
+                known = sorted({*spec.regimes[self.regime], *spec.env_defaults, "n_demos", "n_train", "demos"})
                 raise UserError(f"{self.id} cannot apply parameter {name!r}{hint}; known: {', '.join(known)}")
         try:
             return dataclasses.replace(self, params=params, env_params=env_params, **fields)
         except TaskFieldError as exc:
             raise UserError(f"{self.id}: {exc}") from None
+
+    def _dataset_fields(self, source: Any) -> dict[str, Any]:
+        """``demos`` and the demonstration counts a dataset gives this task (read from the dataset, checked)."""
+        if not isinstance(source, str) or not source:
+            raise UserError(f"{self.id}: demos must name a Minari dataset (a folder or an ID), got {source!r}")
+        from grail_bench.task.datasets import load_demos
+
+        loaded = load_demos(self, source, seed=None)
+        return {"demos": source, "n_train": loaded.n_train, "n_demos": loaded.n_demos}
 
     def goal_index(self, goal: Sequence[float]) -> int:
         """Position of ``goal`` in :attr:`goals`; raises :class:`UserError` if absent."""
@@ -208,7 +226,18 @@ class GRTask:
 
         Returns:
             ``{goal: [Trajectory, ...]}`` in the order of :attr:`goals`.
+
+        Raises:
+            UserError: When :attr:`demos` names a dataset that does not fit the task.
         """
+        if self.demos:
+            from grail_bench.task.datasets import load_demos
+
+            loaded = load_demos(self, self.demos, seed)
+            if loaded.n_train != self.n_train:
+                raise UserError(f"{self.demos}: {loaded.n_train} training demonstrations per goal for seed {seed}, "
+                                f"the task expects {self.n_train}")
+            return loaded.demos
         n = self.n_demos if n_demos is None else n_demos
         return {goal: self.spec.generate_demos(self, goal, n, goal_rng(seed, goal, DEMOS)) for goal in self.goals}
 
