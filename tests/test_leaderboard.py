@@ -112,3 +112,25 @@ def test_runs_table_shows_ranking_metrics_averaged_over_levels():
     text = markdown(boards, records)
     assert "| GRAIL/MiniGrid-Optimal-v0 | bc/mse | 2 | 1.00 | 10 | 0.0% | 0.90 | 1.40 | – |" in text
     assert "| GRAIL/MiniGrid-Optimal-v0 | graql/kl | 2 | 1.00 | 10 | 0.0% | – | – | – |" in text
+
+
+def test_profiles_gaps_and_calibration_are_written_from_the_ceilings(tmp_path):
+    from grail_bench.report.reproduce import write_robust
+    from grail_bench.report.summary import TAUS, domain_summaries
+    from grail_bench.stats.metrics import reliability_bins
+
+    task = "GRAIL/MiniGrid-Optimal-v0"
+    good = [record(task, "bc", "mse", lv, 0.95, f1_values=(0.9, 1.0)) for lv in (0.1, 0.2, 0.3)]
+    weak = [record(task, "graql", "kl", lv, 0.6, f1_values=(0.5, 0.7)) for lv in (0.1, 0.2, 0.3)]
+    posterior = [record(task, "bc", "loglik", 0.1, 0.9, reliability=reliability_bins([0.9, 0.9], [True, False]))]
+    board = leaderboard.build([], None, 50, records=good + weak + posterior)
+    (summary,) = domain_summaries(board.boards, reps=200)
+    assert summary.profile_strata == 3 and set(summary.gaps) == {"bc/mse", "graql/kl"}  # own scorers only
+    assert summary.gaps["bc/mse"].point < summary.gaps["graql/kl"].point  # nearer the ceiling
+    point, low, high = summary.profiles["graql/kl"]  # F1 0.5 is chance: normalised 0, not above 0
+    assert len(point) == len(TAUS) and point[0] == 0.5 and all(lo <= p <= hi for p, lo, hi in zip(point, low, high))
+    written = {p.name for p in write_robust(board, tmp_path, reps=200)}
+    assert {"PROFILES.md", "performance_profiles.png", "CALIBRATION.md", "reliability.png"} <= written
+    text = (tmp_path / "CALIBRATION.md").read_text()
+    assert "| minigrid | bc/loglik | 1 |" in text and "| 0.40 |" in text  # ECE: |0.5 - 0.9|
+    assert "## minigrid (3 strata)" in (tmp_path / "PROFILES.md").read_text()

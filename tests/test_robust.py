@@ -90,3 +90,20 @@ def test_tied_best_marks_every_interval_overlapping_the_best():
     assert tied_best(intervals) == {"bc", "gail"}
     assert tied_best({"bc": Interval(0.8, 0.75, 0.85), "gail": Interval(0.5, 0.4, 0.6)}) == {"bc"}
     assert tied_best({}) == set()
+
+
+def test_performance_profile_and_optimality_gap_of_hand_computed_runs():
+    from grail_bench.stats.robust import optimality_gap, performance_profile, stratified_bootstrap_curve
+
+    scores = {"a": [0.2, 0.6], "b": [1.0, 1.2, 0.4]}  # five runs in all
+    profile = performance_profile(scores, np.array([0.0, 0.5, 1.0]))
+    assert profile.tolist() == [1.0, 3 / 5, 1 / 5]  # above 0: all; above 0.5: 0.6, 1.0, 1.2; above 1: 1.2
+    assert optimality_gap(scores) == pytest.approx((0.8 + 0.4 + 0 + 0 + 0.6) / 5)  # 1.2 counts 0, not -0.2
+    point, low, high = stratified_bootstrap_curve(scores, lambda s: performance_profile(s, np.array([0.5])),
+                                                  reps=500, seed=1)
+    assert point.tolist() == [0.6] and low[0] <= 0.6 <= high[0]
+    again = stratified_bootstrap_curve(scores, lambda s: performance_profile(s, np.array([0.5])), reps=500, seed=1)
+    assert (again[1] == low).all() and (again[2] == high).all()  # seeded
+    # Stratified: a task whose runs all lie above tau stays above it in every replicate.
+    _, low, _ = stratified_bootstrap_curve({"x": [0.9, 0.95]}, lambda s: performance_profile(s, np.array([0.5])))
+    assert low.tolist() == [1.0]

@@ -69,9 +69,28 @@ def test_posterior_sums_to_one_and_calibration(rng):
     for _ in range(20):
         p = scoring.posterior(rng.normal(size=6) * 10, n_steps=int(rng.integers(1, 30)))
         assert p.sum() == pytest.approx(1.0) and np.all(p >= 0)
-    brier, nll = metrics.calibration(np.log(np.array([0.5, 0.25, 0.25])), 1, label=0)
+    brier, nll, confidence = metrics.calibration(np.log(np.array([0.5, 0.25, 0.25])), 1, label=0)
     assert brier == pytest.approx(0.25 + 0.0625 + 0.0625)
-    assert nll == pytest.approx(np.log(2))
+    assert nll == pytest.approx(np.log(2)) and confidence == pytest.approx(0.5)
+
+
+def test_expected_calibration_error_of_a_hand_computed_case():
+    # Four predictions: confidence 0.9 (right, right, wrong) and 0.35 (right).
+    bins = metrics.reliability_bins([0.9, 0.9, 0.9, 0.35], [True, True, False, True])
+    assert bins[9] == pytest.approx([3, 2.7, 2]) and bins[3] == pytest.approx([1, 0.35, 1])
+    assert sum(b[0] for b in bins) == 4
+    # Bin 9: accuracy 2/3 against confidence 0.9; bin 3: 1 against 0.35. ECE = 3/4 * 0.2333 + 1/4 * 0.65.
+    assert metrics.expected_calibration_error(bins) == pytest.approx(0.75 * (0.9 - 2 / 3) + 0.25 * 0.65)
+    assert metrics.expected_calibration_error(metrics.reliability_bins([1.0], [True])) == 0.0  # 1.0 in the top bin
+    assert metrics.expected_calibration_error([[0, 0, 0]] * 10) is None
+
+
+def test_goal_sets_within_a_share_of_the_score_range():
+    scores = np.array([-1.0, -0.05, 0.0, -0.5])  # range 1: within 0.1 of the best, goals 1 and 2
+    assert metrics.goal_set(scores, 0.1).tolist() == [1, 2]
+    assert metrics.goal_set(scores, 0.0).tolist() == [2] and metrics.goal_set(scores, 1.0).tolist() == [0, 1, 2, 3]
+    assert metrics.goal_set(np.zeros(3), 0.1).tolist() == [0, 1, 2]  # all tied: every goal
+    assert metrics.goal_set(scores * 1000 + 7, 0.1).tolist() == [1, 2]  # scale-free
 
 
 def test_unsupported_scorer_names_both():

@@ -17,7 +17,8 @@ from grail_bench.task import make_task
 from grail_bench.harness.store import OnlineRow, OpenSetRow, ResultRow, ResultsStore
 from grail_bench.recognizers.contract import FitDiagnostics
 from grail_bench.report import leaderboard
-from grail_bench.report.html import build_page, common_strata, render, write_site
+from grail_bench.report.html import build_page, render, write_site
+from grail_bench.report.summary import common_strata
 from grail_bench.report.reference import paper_reference_path as reference_path
 from grail_bench.report.reference import read_reference
 
@@ -125,13 +126,13 @@ def test_ties_are_every_cell_overlapping_the_best(page):
 
 
 def test_domain_summary_iqm_and_probability_of_improvement(page):
-    minigrid = next(s for s in page["summaries"] if s["domain"] == "minigrid")
-    assert minigrid["names"] == ["bc/mse", "graql/kl"]  # own scorers only
-    assert minigrid["strata"] == 9 and minigrid["all_strata"] == {"bc/mse": 9, "graql/kl": 9}
-    assert minigrid["iqm"]["bc/mse"].point > minigrid["iqm"]["graql/kl"].point
-    p, q = minigrid["poi"][("bc/mse", "graql/kl")], minigrid["poi"][("graql/kl", "bc/mse")]
+    minigrid = next(s for s in page["summaries"] if s.domain == "minigrid")
+    assert minigrid.names == ["bc/mse", "graql/kl"]  # own scorers only
+    assert minigrid.strata == 9 and minigrid.all_strata == {"bc/mse": 9, "graql/kl": 9}
+    assert minigrid.iqm["bc/mse"].point > minigrid.iqm["graql/kl"].point
+    p, q = minigrid.poi[("bc/mse", "graql/kl")], minigrid.poi[("graql/kl", "bc/mse")]
     assert p.point == pytest.approx(1 - q.point) and p.point > 0.8
-    assert minigrid["best"] == {"bc/mse"}
+    assert minigrid.best == {"bc/mse"}
 
 
 def test_summaries_compare_recognizers_on_the_strata_they_share():
@@ -142,10 +143,10 @@ def test_summaries_compare_recognizers_on_the_strata_they_share():
     extra = [ResultRow("GRAIL/MiniGrid-Optimal-6Goals-v0", "bc", "mse", "hbc", seed, 0.1, "subset", 0.0, 0.0, 0.0,
                        0.0, 6, 0, 1.5, 40.0, config("GRAIL/MiniGrid-Optimal-6Goals-v0"), "{}") for seed in range(3)]
     with_extra = build_page(board(rows() + extra), reps=100)
-    minigrid = next(s for s in with_extra["summaries"] if s["domain"] == "minigrid")
-    assert minigrid["all_strata"] == {"bc/mse": 10, "graql/kl": 9} and minigrid["strata"] == 9
-    plain = next(s for s in build_page(board(rows()), reps=100)["summaries"] if s["domain"] == "minigrid")
-    assert minigrid["iqm"]["bc/mse"].point == plain["iqm"]["bc/mse"].point  # the extra zeros do not count
+    minigrid = next(s for s in with_extra["summaries"] if s.domain == "minigrid")
+    assert minigrid.all_strata == {"bc/mse": 10, "graql/kl": 9} and minigrid.strata == 9
+    plain = next(s for s in build_page(board(rows()), reps=100)["summaries"] if s.domain == "minigrid")
+    assert minigrid.iqm["bc/mse"].point == plain.iqm["bc/mse"].point  # the extra zeros do not count
 
 
 def test_paper_values_appear_on_the_default_protocol(page):

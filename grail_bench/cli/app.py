@@ -174,6 +174,9 @@ def leaderboard_(
         None, "--plot", help="With --ablation or --online: also write a PNG plot here."),
     html: Optional[Path] = typer.Option(
         None, "--html", help="Also write the leaderboard as a static web page into this folder (index.html)."),
+    profiles: Optional[Path] = typer.Option(
+        None, "--profiles", help="Also write performance profiles, optimality gaps and calibration (PROFILES.md, "
+        "performance_profiles.png, CALIBRATION.md, reliability.png) into this folder."),
 ) -> None:
     """Paper-style F1 tables from the results store."""
     from grail_bench.harness.diagnostics import FitRow
@@ -182,6 +185,7 @@ def leaderboard_(
     from grail_bench.report.boards import ablation_rows
     from grail_bench.report.html import write_site
     from grail_bench.report.reference import read_reference
+    from grail_bench.report.reproduce import write_robust
     from grail_bench.report.text import (
         ablation_markdown,
         ablation_table,
@@ -195,12 +199,13 @@ def leaderboard_(
         raise fail("choose one of --ablation, --online and --open-set")
     if plot is not None and not (ablation or online):
         raise fail("--plot needs --ablation or --online")
-    if html is not None and (online or open_set):
-        raise fail("--html shows every mode on one page; drop --online / --open-set")
+    if (html is not None or profiles is not None) and (online or open_set or ablation):
+        raise fail("--html and --profiles report the paper's protocol (and the page every mode); drop --online, "
+                   "--open-set and --ablation")
     mode = MODES["online" if online else "open-set" if open_set else "offline"]
     samples = None if no_ceiling else ceiling_samples
     with errors():
-        outputs(files=[markdown_path, plot], folders=[html])
+        outputs(files=[markdown_path, plot], folders=[html, profiles])
         ref = read_reference(reference) if reference else None
         with open_store(store_path, must_exist=True) as store:
             selected = {name: _select(store, m, task, scorer, protocol) for name, m in MODES.items()
@@ -241,6 +246,10 @@ def leaderboard_(
             with console.status("web page (bootstrap intervals)"):
                 index = write_site(board, html)[0]
             say(f"web page written to {index}")
+        if profiles is not None:
+            with console.status("performance profiles (bootstrap bands)"):
+                for path in write_robust(board, profiles):
+                    say(f"wrote {path}")
 
 
 def _select(store, mode, task: Optional[List[str]], scorer: Optional[List[str]],  # noqa: ANN001

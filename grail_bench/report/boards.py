@@ -18,10 +18,13 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any, Iterable, Sequence
 
+import numpy as np
+
 from grail_bench.harness.ceiling import Ceiling
 from grail_bench.harness.modes.offline import OfflineRecord
 from grail_bench.recognizers.registry import UnknownRecognizerError, recognizer_info
 from grail_bench.report.reference import Reported
+from grail_bench.stats.metrics import expected_calibration_error
 from grail_bench.task import find_task, variant
 
 Row = tuple[int, str, str, float, str]  # (goals, task, protocol, observability, variant of the task's parameters)
@@ -210,6 +213,8 @@ def timing_rows(records: Sequence[OfflineRecord],
                     "tie_rate": sum(x.tie_rate for x in same) / len(same),
                     "top2": _level_mean([x.top2_mean for x in same]),
                     "mean_rank": _level_mean([x.mean_rank_mean for x in same]),
+                    **{key: _level_mean([getattr(x, f"{key}_mean") for x in same])
+                       for key in ("set_precision", "set_recall", "set_spread")},
                     "reached": _reached((fits or {}).get((first.task, first.recognizer, first.config_hash)))})
     return out
 
@@ -223,6 +228,9 @@ def _reached(summary: Any) -> str | None:
 
 def _level_mean(values: list[float | None]) -> float | None:
     return None if any(v is None for v in values) else sum(values) / len(values)
+
+
+
 
 
 def ablation_rows(records: Sequence[OfflineRecord]) -> list[dict[str, Any]]:
@@ -245,7 +253,28 @@ def ablation_rows(records: Sequence[OfflineRecord]) -> list[dict[str, Any]]:
         row["score_us"].append(r.score_us_per_observation)
         if r.brier_mean is not None:
             row.setdefault("calibration", []).append((r.brier_mean, r.nll_mean))
+        if r.reliability is not None:
+            row.setdefault("bins", []).append(r.reliability)
     for row in out.values():
         row["score_us"] = sum(row["score_us"]) / len(row["score_us"])
+        bins = row.pop("bins", None)
+        row["ece"] = expected_calibration_error(np.sum(bins, axis=0).tolist()) if bins else None
         row["f1_overall"] = sum(m for m, _ in row["f1"].values()) / len(row["f1"])
     return [out[k] for k in sorted(out)]
+
+
+def calibration_rows(records: Sequence[OfflineRecord]) -> list[dict[str, Any]]:
+    """Per domain and recognizer/scorer with a posterior (``loglik``): Brier score, NLL and the ECE and
+    reliability bins of every observation of every seed, task and level pooled."""
+    groups: dict[tuple[str, str], list[OfflineRecord]] = defaultdict(list)
+    for r in records:
+        if r.reliability is not None:
+            task = find_task(r.task)
+            groups[(task.domain if task else domain_of(r.task), f"{r.recognizer}/{r.scorer}")].append(r)
+    out = []
+    for (domain, label), group in sorted(groups.items()):
+        bins = np.sum([r.reliability for r in group], axis=0).tolist()
+        out.append({"domain": domain, "column": label, "records": len(group),
+                    "brier": _level_mean([r.brier_mean for r in group]), "nll": _level_mean([r.nll_mean for r in group]),
+                    "ece": expected_calibration_error(bins), "bins": bins})
+    return out

@@ -29,15 +29,22 @@ from typing import Any, Sequence
 
 from grail_bench.harness.ceiling import normalised
 from grail_bench.report import plots
-from grail_bench.report.boards import Board, column_label, config_variants, own_scorer_records, row_name, timing_rows
+from grail_bench.report.boards import (
+    Board,
+    calibration_rows,
+    column_label,
+    config_variants,
+    own_scorer_records,
+    row_name,
+    timing_rows,
+)
 from grail_bench.report.leaderboard import Leaderboard
 from grail_bench.report.reference import MARKS, Reported
+from grail_bench.report.summary import domain_summaries, profile_figure_data
 from grail_bench.report.text import comparison_lines
 from grail_bench.stats.robust import (
     Interval,
-    pooled_iqm,
     pooled_mean,
-    probability_of_improvement_ci,
     stratified_bootstrap,
     tied_best,
 )
@@ -119,44 +126,6 @@ def _figure(section: Section, cells: dict[tuple, Cell], own: set[int]) -> str | 
     return plots.svg(lambda: plots.section_lines(tasks, lines))
 
 
-def common_strata(strata: dict[str, dict[tuple, list[float]]]) -> tuple[list[str], set[tuple], list[str]]:
-    """The columns a domain summary compares, the strata they all ran, and the columns left out.
-
-    Every compared column is aggregated over the same strata (common ground). If no stratum is shared by
-    all, the column with the fewest strata is left out until one is.
-    """
-    names = sorted(strata, key=lambda n: (-len(strata[n]), n))
-    left_out = []
-    while names:
-        shared = set.intersection(*(set(strata[n]) for n in names))
-        if shared:
-            return sorted(names), shared, sorted(left_out)
-        left_out.append(names.pop())
-    return [], set(), sorted(left_out)
-
-
-def _summary(domain: str, sections: list[Section], cells: dict[tuple, Cell], records: list[Any], own: set[int],
-             reps: int, seed: int) -> dict[str, Any]:
-    """IQM per own-scorer column over the (task, protocol, level) strata all of them ran, and P(improvement)."""
-    strata: dict[str, dict[tuple, list[float]]] = defaultdict(dict)
-    for section in sections:
-        for row in section.rows:
-            for label, _ in section.columns:
-                cell = cells.get((row["key"], row["obs"], label, section.id))
-                if cell is not None and cell.record in own:
-                    strata[label][(row["key"], section.id, row["obs"])] = list(records[cell.record].f1_values)
-    names, shared, left_out = common_strata(strata)
-    common = {n: {k: v for k, v in strata[n].items() if k in shared} for n in names}
-    iqms = {n: stratified_bootstrap(common[n], pooled_iqm, reps=reps, seed=seed) for n in names}
-    means = {n: pooled_mean(common[n]) for n in names}
-    poi = {(a, b): probability_of_improvement_ci(common[a], common[b], reps=reps, seed=seed)
-           for a in names for b in names if a != b}
-    recognizer = {label: rec for section in sections for label, rec in section.columns}
-    return {"domain": domain, "names": names, "iqm": iqms, "mean": means, "best": tied_best(iqms), "poi": poi,
-            "strata": len(shared), "all_strata": {n: len(strata[n]) for n in names}, "left_out": left_out,
-            "recognizer": recognizer}
-
-
 def _studies(board: Leaderboard) -> list[dict[str, Any]]:
     """The tables (and the online figure) of the other modes' runs, when there are any."""
     out = []
@@ -224,7 +193,9 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0) -> dict[str,
     for section in sections:
         section.figure = _figure(section, cells, own)
 
-    summaries = [_summary(d, by_domain[d], cells, records, own, reps, seed) for d in sorted(by_domain)]
+    summaries = domain_summaries(board.boards, reps, seed)
+    calibration = calibration_rows(records)
+    figure_data = profile_figure_data(summaries)
     cell_of = {c.record: c for c in cells.values()}
     exported = []
     for i, r in enumerate(records):
@@ -243,6 +214,9 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0) -> dict[str,
             "recognizers": sorted({r.recognizer for r in records}), "reps": reps, "seed": seed,
             "studies": _studies(board), "n_seeds": sorted({r.n_seeds for r in records}),
             "comparison": comparison_lines(board.boards),
+            "profiles_figure": plots.svg(lambda: plots.profiles(figure_data)) if figure_data else None,
+            "calibration": calibration,
+            "calibration_figure": plots.svg(lambda: plots.reliability(calibration)) if calibration else None,
             "fits": {"|".join(key): summary.to_dict() for key, summary in sorted(board.fits.items())}}
 
 

@@ -365,3 +365,43 @@ def budgets(curves: Sequence[dict[str, Any]]) -> Any:
             ax.set_xscale("log")
         top.legend(fontsize=7)
     return fig
+
+
+def profiles(data: Sequence[dict[str, Any]]) -> Any:
+    """Performance profiles: per domain a panel, per recognizer the share of runs above each normalised-F1
+    threshold with its 95 % stratified bootstrap band (a figure)."""
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(data), figsize=(4.4 * len(data), 3.4), squeeze=False)
+    for ax, d in zip(axes.flat, data):
+        for i, (name, (point, low, high)) in enumerate(sorted(d["curves"].items())):
+            ax.plot(d["taus"], point, color=f"C{i % 10}", label=name)
+            ax.fill_between(d["taus"], low, high, color=f"C{i % 10}", alpha=0.2)
+        ax.set_title(f"{d['domain']} ({d['strata']} strata)", fontsize=9)
+        ax.set_xlabel("normalised F1 threshold τ")
+        ax.set_ylabel("share of runs > τ")
+        ax.set_ylim(0, 1.05)
+        ax.legend(fontsize=7)
+    return fig
+
+
+def reliability(rows: Sequence[dict[str, Any]]) -> Any:
+    """Reliability diagrams: per domain, each posterior column's accuracy against its mean confidence per bin,
+    the diagonal being perfect calibration (a figure; rows are :func:`grail_bench.report.boards.calibration_rows`)."""
+    plt = pyplot()
+    domains = sorted({r["domain"] for r in rows})
+    fig, axes = plt.subplots(1, len(domains), figsize=(4.0 * len(domains), 3.6), squeeze=False)
+    for ax, domain in zip(axes.flat, domains):
+        ax.plot([0, 1], [0, 1], color="grey", linestyle=":", linewidth=1)
+        for i, r in enumerate(r for r in rows if r["domain"] == domain):
+            b = np.asarray(r["bins"], dtype=float)
+            used = b[:, 0] > 0
+            ece = "–" if r["ece"] is None else f"{r['ece']:.3f}"
+            ax.plot(b[used, 1] / b[used, 0], b[used, 2] / b[used, 0], marker="o", color=f"C{i % 10}",
+                    label=f"{r['column']} (ECE {ece})")
+        ax.set_title(domain, fontsize=9)
+        ax.set_xlabel("confidence (posterior of the predicted goal)")
+        ax.set_ylabel("accuracy")
+        ax.set_xlim(0, 1.02)
+        ax.set_ylim(0, 1.02)
+        ax.legend(fontsize=7)
+    return fig

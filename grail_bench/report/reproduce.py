@@ -35,10 +35,11 @@ from grail_bench.harness.modes import MODES, Row, get_mode
 from grail_bench.harness.planning import RecognizerSpec
 from grail_bench.harness.sweep import Request, SweepSummary
 from grail_bench.report import leaderboard, plots
-from grail_bench.report.boards import build_boards, own_scorer_records
+from grail_bench.report.boards import build_boards, calibration_rows, own_scorer_records
 from grail_bench.report.html import write_site
 from grail_bench.report.reference import paper_reference_path, read_reference
-from grail_bench.report.text import budgets_markdown, markdown, mode_markdown
+from grail_bench.report.summary import domain_summaries, profile_figure_data, profiles_markdown
+from grail_bench.report.text import budgets_markdown, calibration_markdown, markdown, mode_markdown
 from grail_bench.stats.verdict import plateau
 from grail_bench.task import find_task, make_task
 from grail_bench.task.observation import ObservationSpec, parse_observability
@@ -256,6 +257,7 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
         written.append(out / "TABLES.md")
         written[-1].write_text(markdown(paper_boards, own, ci=True, title=title, fits=board.fits), encoding="utf-8")
         written += plots.write_all(board.records, out, models=model_sizes(board.records))
+        written += write_robust(board, out)
     written += write_studies(board, out)
     written += write_budgets(rows, profile.studies(only), out, title)
     if site:
@@ -295,6 +297,24 @@ def write_budgets(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Req
     written[0].write_text(budgets_markdown(curves, title), encoding="utf-8")
     written[1].write_text(json.dumps(curves, indent=1) + "\n", encoding="utf-8")
     return written + plots.save(plots.budgets(curves), out, "budgets")
+
+
+def write_robust(board: leaderboard.Leaderboard, out: Path, reps: int = 2000) -> list[Path]:
+    """``PROFILES.md`` and ``performance_profiles.png`` (domains with Bayes ceilings), ``CALIBRATION.md`` and
+    ``reliability.png`` (recognizers with a posterior): reporting beyond means."""
+    out.mkdir(parents=True, exist_ok=True)
+    summaries = domain_summaries(board.boards, reps)
+    written = [out / "PROFILES.md"]
+    written[0].write_text(profiles_markdown(summaries), encoding="utf-8")
+    data = profile_figure_data(summaries)
+    if data:
+        written += plots.save(plots.profiles(data), out, "performance_profiles")
+    calibration = calibration_rows(board.records)
+    if calibration:
+        written.append(out / "CALIBRATION.md")
+        written[-1].write_text(calibration_markdown(calibration), encoding="utf-8")
+        written += plots.save(plots.reliability(calibration), out, "reliability")
+    return written
 
 
 def write_studies(board: leaderboard.Leaderboard, out: Path) -> list[Path]:

@@ -132,12 +132,17 @@ def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
     lines += ["## Runs, timings and ranking", "",
               "Top-2: share of observations whose true goal is among the 2 best scored; mean rank of the true",
               "goal (1 = best); both averaged over levels and protocols (– where rows stored before they were",
-              "recorded take part). Goal reached: of the goal policies fitted over all seeds, how many reach",
-              "their goal when rolled out greedily from the task's start (– where no diagnostics are stored).", "",
-              "| task | column | seeds | fit s/goal | score µs/observation | ties | top-2 | mean rank | goal reached |",
-              "|---|---|---|---|---|---|---|---|---|"]
+              "recorded take part). Set: the goals scored within 10 % of the scores' range of the best (the",
+              "set-valued answer of the planning-based GR literature); its precision (1/size when it holds the",
+              "true goal), recall (whether it does) and spread (its size). Goal reached: of the goal policies",
+              "fitted over all seeds, how many reach their goal when rolled out greedily from the task's start",
+              "(– where no diagnostics are stored).", "",
+              "| task | column | seeds | fit s/goal | score µs/observation | ties | top-2 | mean rank | set precision | "
+              "set recall | set spread | goal reached |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for t in timing_rows(records, fits):
-        ranking = " | ".join("–" if t[k] is None else f"{t[k]:.2f}" for k in ("top2", "mean_rank"))
+        ranking = " | ".join("–" if t[k] is None else f"{t[k]:.2f}"
+                             for k in ("top2", "mean_rank", "set_precision", "set_recall", "set_spread"))
         lines.append(f"| {t['task']} | {t['column']} | {t['seeds']} | {t['fit_seconds_per_goal']:.2f} | "
                      f"{t['score_us_per_observation']:.0f} | {t['tie_rate']:.1%} | {ranking} | {t['reached'] or '–'} |")
     return "\n".join(lines) + "\n"
@@ -160,11 +165,13 @@ def _ablation_cells(r: dict[str, Any], levels: list[float]) -> list[str]:
     return [f"{r['f1'][lv][0]:.2f} ± {r['f1'][lv][1]:.2f}" if lv in r["f1"] else "–" for lv in levels]
 
 
-def _calibration(r: dict[str, Any]) -> tuple[str, str]:
+def _calibration(r: dict[str, Any]) -> tuple[str, str, str]:
     cal = r.get("calibration")
     if not cal:
-        return "–", "–"
-    return f"{sum(b for b, _ in cal) / len(cal):.3f}", f"{sum(n for _, n in cal) / len(cal):.3f}"
+        return "–", "–", "–"
+    ece = r.get("ece")
+    return (f"{sum(b for b, _ in cal) / len(cal):.3f}", f"{sum(n for _, n in cal) / len(cal):.3f}",
+            "–" if ece is None else f"{ece:.3f}")
 
 
 def ablation_table(rows: list[dict[str, Any]]) -> Table:
@@ -172,28 +179,30 @@ def ablation_table(rows: list[dict[str, Any]]) -> Table:
     levels = sorted({lv for r in rows for lv in r["f1"]})
     table = Table(title="scorer ablation: F1 (mean ± std) and scoring time")
     for col in ("task", "recognizer", "scorer", *[f"F1 @ {lv:.0%}" for lv in levels], "µs / observation",
-                "Brier / NLL"):
+                "Brier / NLL / ECE"):
         table.add_column(col)
     for r in rows:
-        brier, nll = _calibration(r)
+        brier, nll, ece = _calibration(r)
         table.add_row(r["task"], r["recognizer"], r["scorer"], *_ablation_cells(r, levels), f"{r['score_us']:.0f}",
-                      "–" if brier == "–" else f"{brier} / {nll}")
+                      "–" if brier == "–" else f"{brier} / {nll} / {ece}")
     return table
 
 
 def ablation_markdown(rows: list[dict[str, Any]]) -> str:
     """:func:`grail_bench.report.boards.ablation_rows` as a Markdown table."""
     levels = sorted({lv for r in rows for lv in r["f1"]})
-    header = ["task", "recognizer", "scorer", *[f"F1 @ {lv:.0%}" for lv in levels], "µs / observation", "Brier", "NLL"]
+    header = ["task", "recognizer", "scorer", *[f"F1 @ {lv:.0%}" for lv in levels], "µs / observation", "Brier", "NLL",
+              "ECE"]
     lines = ["# Scorer ablation", "",
              "F1 (mean ± std over seeds) of each recognizer under each scorer, from the same fitted policies,",
-             "and the mean time to score one observation against all goals. Brier score and NLL are those of",
-             "the posterior over goals that the `loglik` scorer yields.", "",
+             "and the mean time to score one observation against all goals. Brier score, NLL and the expected",
+             "calibration error (ECE: 10 equal confidence bins, every level and seed pooled) are those of the",
+             "posterior over goals that the `loglik` scorer yields.", "",
              "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for r in rows:
-        brier, nll = _calibration(r)
+        brier, nll, ece = _calibration(r)
         lines.append(f"| {r['task']} | {r['recognizer']} | {r['scorer']} | " + " | ".join(_ablation_cells(r, levels))
-                     + f" | {r['score_us']:.0f} | {brier} | {nll} |")
+                     + f" | {r['score_us']:.0f} | {brier} | {nll} | {ece} |")
     return "\n".join(lines) + "\n"
 
 
@@ -318,3 +327,17 @@ def budgets_markdown(curves: Sequence[dict[str, Any]], title: str) -> str:
                          f"{p['fit_seconds_per_goal']:.2f} |")
         lines.append("")
     return "\n".join(lines)
+
+
+def calibration_markdown(rows: Sequence[dict[str, Any]]) -> str:
+    """:func:`grail_bench.report.boards.calibration_rows` as Markdown."""
+    lines = ["# Calibration", "",
+             "Recognizers that give a posterior over goals (the `loglik` scorer: the softmax of summed",
+             "log-likelihoods), per domain, every observation of every task, level and seed pooled: Brier score",
+             "and NLL (means), and the expected calibration error (ECE) of the top-label confidence over 10 equal",
+             "bins; `reliability.png` draws the bins.", "",
+             "| domain | recognizer/scorer | records | Brier | NLL | ECE |", "|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['domain']} | {r['column']} | {r['records']} | {_num(r['brier'])} | {_num(r['nll'])} | "
+                     f"{_num(r['ece'])} |")
+    return "\n".join(lines) + "\n"

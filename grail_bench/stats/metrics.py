@@ -61,8 +61,8 @@ def macro_f1(y_true: np.ndarray, y_pred: np.ndarray, n_classes: int) -> float:
     return classification(y_true, y_pred, n_classes)["f1"]
 
 
-def calibration(loglik: np.ndarray, n_steps: int, label: int) -> tuple[float, float]:
-    """Brier score and negative log-likelihood of the posterior over goals.
+def calibration(loglik: np.ndarray, n_steps: int, label: int) -> tuple[float, float, float]:
+    """Brier score and negative log-likelihood of the posterior over goals, and its top-label confidence.
 
     The posterior is the softmax of summed log-likelihoods (mean ``loglik``
     times the ``n_steps`` observed), i.e. Bayes' rule with a uniform prior.
@@ -70,7 +70,49 @@ def calibration(loglik: np.ndarray, n_steps: int, label: int) -> tuple[float, fl
     p = softmax(loglik * n_steps)
     target = np.zeros_like(p)
     target[label] = 1.0
-    return float(np.sum((p - target) ** 2)), float(-np.log(max(p[label], 1e-12)))
+    return float(np.sum((p - target) ** 2)), float(-np.log(max(p[label], 1e-12))), float(p.max())
+
+
+#: Equal-width confidence bins of the reliability diagram and the ECE.
+CALIBRATION_BINS = 10
+
+
+def reliability_bins(confidences: Sequence[float], correct: Sequence[bool],
+                     bins: int = CALIBRATION_BINS) -> list[list[float]]:
+    """Per equal-width confidence bin on [0, 1]: ``[count, summed confidence, correct count]`` (addable across seeds).
+
+    Args:
+        confidences: The posterior probability of each prediction's goal (the top-label confidence).
+        correct: Whether each prediction was the true goal.
+    """
+    conf = np.asarray(confidences, dtype=float)
+    index = np.minimum((conf * bins).astype(np.int64), bins - 1)
+    out = np.zeros((bins, 3))
+    np.add.at(out, index, np.stack([np.ones_like(conf), conf, np.asarray(correct, dtype=float)], axis=1))
+    return out.tolist()
+
+
+def expected_calibration_error(binned: Sequence[Sequence[float]]) -> float | None:
+    """ECE from :func:`reliability_bins`: the count-weighted mean gap between each bin's accuracy and confidence.
+
+    ``None`` without predictions.
+    """
+    b = np.asarray(binned, dtype=float)
+    total = b[:, 0].sum()
+    if total == 0:
+        return None
+    used = b[:, 0] > 0
+    gap = np.abs(b[used, 2] - b[used, 1]) / b[used, 0]  # |accuracy - mean confidence| per bin
+    return float(np.sum(b[used, 0] * gap) / total)
+
+
+def goal_set(scores: np.ndarray, tolerance: float) -> np.ndarray:
+    """The goals whose score is within ``tolerance`` of the best, as a share of the scores' range (indices).
+
+    Every goal is in the set when all scores are equal. Scale-free, so one tolerance serves every scorer.
+    """
+    best, worst = scores.max(), scores.min()
+    return np.flatnonzero(scores >= best - tolerance * (best - worst))
 
 
 def summarize(values: Sequence[float], confidence: float = 0.95) -> dict[str, float]:

@@ -144,3 +144,32 @@ def tied_best(intervals: Mapping[str, Interval]) -> set[str]:
         return set()
     best = max(intervals.values(), key=lambda i: i.point)
     return {name for name, i in intervals.items() if i.overlaps(best)}
+
+
+def performance_profile(scores: Mapping[Hashable, np.ndarray], taus: np.ndarray) -> Any:
+    """rliable's run-score performance profile: the share of all runs scoring above each threshold ``tau``.
+
+    Works over the last axis like the other statistics (so a bootstrap evaluates every replicate at once):
+    arrays ``(..., runs)`` give ``(..., len(taus))``.
+    """
+    pooled = np.concatenate([np.asarray(v, dtype=float) for v in scores.values()], axis=-1)
+    return (pooled[..., None, :] > np.asarray(taus)[:, None]).mean(axis=-1)
+
+
+def optimality_gap(scores: Mapping[Hashable, np.ndarray], gamma: float = 1.0) -> Any:
+    """rliable's optimality gap: the mean shortfall of the runs below ``gamma`` (scores above it count 0)."""
+    pooled = np.concatenate([np.asarray(v, dtype=float) for v in scores.values()], axis=-1)
+    out = np.maximum(gamma - pooled, 0.0).mean(axis=-1)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def stratified_bootstrap_curve(scores: Scores, statistic: Statistic, *, reps: int = 2000, confidence: float = 0.95,
+                               seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`stratified_bootstrap` of a vector statistic (e.g. :func:`performance_profile`): point, low, high."""
+    arrays = _check(scores)
+    rng = np.random.default_rng(seed)
+    draws = {task: rng.integers(0, a.size, size=(reps, a.size)) for task, a in arrays.items()}
+    replicates = np.asarray(statistic({task: a[draws[task]] for task, a in arrays.items()}))  # (reps, n)
+    tail = 100 * (1 - confidence) / 2
+    low, high = np.percentile(replicates, [tail, 100 - tail], axis=0)
+    return np.asarray(statistic(arrays), dtype=float), low, high

@@ -13,13 +13,16 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import dataclass
-from typing import Iterable
+from typing import Any, Iterable
 
 import numpy as np
 
 from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer, recognizer_config, task_params
 from grail_bench.stats import metrics, robust
+
+#: A goal is in the set-valued answer when its score is within this share of the scores' range of the best.
+SET_TOLERANCE = 0.1
 
 
 @dataclass(frozen=True)
@@ -44,6 +47,10 @@ class ResultRow(Run):
     top2: float | None = None  # share of observations whose true goal ranks in the top 2 (None: stored before)
     mean_rank: float | None = None  # mean rank of the true goal, 1 = best (None: stored before)
     confusion: str | None = None  # JSON K x K counts: row the true goal, column the predicted (None: stored before)
+    reliability: str | None = None  # JSON reliability bins of the posterior (posterior scorers only)
+    set_precision: float | None = None  # of the set of goals within SET_TOLERANCE of the best: 1/|set| if it
+    set_recall: float | None = None  # holds the true goal, else 0; whether it holds it; and its size,
+    set_spread: float | None = None  # each a mean over observations (None: stored before)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,6 +74,11 @@ class OfflineRecord(Record):
     top2_mean: float | None = None
     mean_rank_mean: float | None = None
     confusion: list[list[int]] | None = None  # summed over seeds (None when a seed's was not stored)
+    reliability: list[list[float]] | None = None  # summed over seeds (posterior scorers only)
+    ece: float | None = None  # expected calibration error of the summed reliability bins
+    set_precision_mean: float | None = None
+    set_recall_mean: float | None = None
+    set_spread_mean: float | None = None
 
 
 def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
@@ -93,6 +105,7 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
         observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
         for scorer, score_arg, posterior in zip(planned.scorers, planned.score_args, planned.posterior):
             y_true, y_pred, ties, elapsed_ns, brier, nll, ranks, top2 = [], [], 0, 0, [], [], [], []
+            confidence, in_set, set_sizes = [], [], []
             for label, observed in observations:
                 t0 = time.perf_counter_ns()
                 scores = fitted.recognizer.score(observed, score_arg)
@@ -105,10 +118,14 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
                 rank, in_top2 = metrics.ranking(values, label)
                 ranks.append(rank)
                 top2.append(in_top2)
+                chosen = metrics.goal_set(values, SET_TOLERANCE)
+                in_set.append(label in chosen)
+                set_sizes.append(len(chosen))
                 if posterior:
-                    b, n = metrics.calibration(values, len(observed.acts), label)
+                    b, n, c = metrics.calibration(values, len(observed.acts), label)
                     brier.append(b)
                     nll.append(n)
+                    confidence.append(c)
             m = metrics.classification(y_true, y_pred, len(task.goals))
             confusion = metrics.confusion(y_true, y_pred, len(task.goals))
             rows.append(ResultRow(
@@ -118,7 +135,10 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
                 config=planned.config, versions=job.versions,
                 brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None,
                 top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)), confusion=json.dumps(confusion.tolist()),
-                **m,
+                reliability=json.dumps(metrics.reliability_bins(confidence, np.array(y_pred) == np.array(y_true)))
+                if posterior else None,
+                set_precision=float(np.mean([hit / size for hit, size in zip(in_set, set_sizes)])),
+                set_recall=float(np.mean(in_set)), set_spread=float(np.mean(set_sizes)), **m,
             ))
     return rows, fitted
 
@@ -128,10 +148,17 @@ def _mean_or_none(values: list[float | None]) -> float | None:
     return float(np.mean(present)) if present else None
 
 
-def _summed_confusion(group: list[ResultRow]) -> list[list[int]] | None:
-    if any(r.confusion is None for r in group):
+def _summed(field: str, group: list[ResultRow], kind: type = float) -> list[list[Any]] | None:
+    """A JSON matrix field summed over the seeds' rows (None when a row lacks it)."""
+    values = [getattr(r, field) for r in group]
+    if any(v is None for v in values):
         return None
-    return np.sum([json.loads(r.confusion) for r in group], axis=0).astype(int).tolist()
+    return np.sum([json.loads(v) for v in values], axis=0).astype(kind).tolist()
+
+
+def _calibration(group: list[ResultRow]) -> dict[str, Any]:
+    bins = _summed("reliability", group)
+    return {"reliability": bins, "ece": metrics.expected_calibration_error(bins) if bins else None}
 
 
 def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
@@ -160,7 +187,11 @@ def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
             brier_mean=_mean_or_none([r.brier for r in group]), nll_mean=_mean_or_none([r.nll for r in group]),
             top2_mean=_mean_or_none([r.top2 for r in group]),
             mean_rank_mean=_mean_or_none([r.mean_rank for r in group]),
-            confusion=_summed_confusion(group),
+            confusion=_summed("confusion", group, int),
+            **_calibration(group),
+            set_precision_mean=_mean_or_none([r.set_precision for r in group]),
+            set_recall_mean=_mean_or_none([r.set_recall for r in group]),
+            set_spread_mean=_mean_or_none([r.set_spread for r in group]),
         ))
     return sorted(records, key=lambda r: (r.task, r.recognizer, r.scorer, r.protocol, r.observability))
 
