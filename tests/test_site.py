@@ -362,3 +362,29 @@ def test_page_reads_without_scripts(browser, site):
     assert page.locator("button.diag:visible").count() == 0  # details need the script: no dead buttons
     assert page.locator("figure svg").count() >= 1
     page.context.close()
+
+
+def test_profiles_and_calibration_show_offline(browser, tmp_path):
+    from grail_bench.harness.modes.offline import OfflineRecord
+    from grail_bench.stats.metrics import reliability_bins
+
+    task = make_task("GRAIL/MiniGrid-Optimal-v0")
+    params = {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
+
+    def record(rec, scorer, level, values, **extra):
+        return OfflineRecord(task=task.id, recognizer=rec, scorer=scorer, protocol="subset", config_hash="h" + rec,
+                             n_seeds=2, seeds=[0, 1], fit_seconds_per_goal=1.0, task_params=params,
+                             observability=level, f1_mean=float(np.mean(values)), f1_std=0.1, f1_ci95_low=0.0,
+                             f1_ci95_high=1.0, f1_iqm=float(np.mean(values)), f1_values=values, accuracy_mean=0.5,
+                             precision_mean=0.5, recall_mean=0.5, score_us_per_observation=1.0, tie_rate=0.0, **extra)
+
+    records = [record("bc", "mse", lv, (0.9, 1.0)) for lv in (0.1, 0.2, 0.3)]
+    records += [record("graql", "kl", lv, (0.5, 0.7)) for lv in (0.1, 0.2, 0.3)]
+    records.append(record("bc", "loglik", 0.1, (0.8, 0.9), reliability=reliability_bins([0.9, 0.6], [True, False])))
+    write_site(leaderboard.build([], None, 50, records=records), tmp_path)
+    page, errors, requests = open_page(browser, tmp_path / "index.html")
+    assert page.locator("#profiles svg").count() == 1 and page.locator("#calibration svg").count() == 1
+    assert "bc/loglik" in page.locator("#calibration table").inner_text()
+    assert "optimality gap" in page.locator("#summary").inner_text()
+    assert errors == [] and all(url.startswith(("file://", "data:")) for url in requests)
+    page.context.close()
