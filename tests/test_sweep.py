@@ -8,6 +8,7 @@ import multiprocessing
 import sqlite3
 import time
 
+import numpy as np
 import pytest
 from conftest import install_plugin
 from test_cli import cli
@@ -59,8 +60,9 @@ def test_finished_units_are_not_run_again(tmp_path):
     assert (summary.units, summary.skipped, summary.rows) == (2, 2, 0)
 
 
-def test_models_shared_across_goal_sets_are_trained_once(tmp_path):
+def test_models_shared_across_goal_sets_are_trained_once(tmp_path, monkeypatch):
     """GRAQL ignores demonstrations: the 4-goal task reuses the 2-goal task's tables for their shared goals."""
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path / "cache"))  # counts from an empty cache
     store = ResultsStore(tmp_path / "s.sqlite")
     spec = (RecognizerSpec("graql", {"episodes": 100}),)
     small = Request("GRAIL/MiniGrid-Optimal-v0", spec, (0,), ObservationSpec("subset", "ceil", (0.3,)))
@@ -237,13 +239,55 @@ def test_reproduce_bad_input_is_one_line(tmp_path, args, message):
 BUDGET_UNITS = (2 * 6 + 2 * 4 + 2 * 4 + 2 * 4 + 2 * 5 + 4 + 4 + 4) * 5
 
 
-@pytest.mark.parametrize("name, units", [("quick", 7 * 4 * 2 + 10 * 4 * 2 + 4 * 2 + 4 * 2),
+# Beyond the paper: 5 goal counts x 3 cheap and 2 adversarial methods x 5 seeds; zero-shot on 3 tasks x 10 seeds.
+GOALS_UNITS = 5 * 3 * 5 + 5 * 2 * 5 + 3 * 10
+
+
+@pytest.mark.parametrize("name, units", [("quick", 7 * 4 * 2 + 10 * 4 * 2 + 4 * 2 + 4 * 2 + 2),
                                          ("paper", 7 * 4 * 10 + 10 * 4 * 10 + 10 * 10 + 7 * 4 * 10 + 4 * 4 * 10
-                                          + BUDGET_UNITS)])
+                                          + BUDGET_UNITS + GOALS_UNITS)])
 def test_the_shipped_profiles_plan(tmp_path, name, units):
     with ResultsStore(tmp_path / "r.sqlite") as store:
         planned = [plan_request(r, store) for r in load_profile(name).requests()]
     assert sum(len(todo) for _, todo, _ in planned) == units
+
+
+SCALING = BUDGETS + """
+[config.gc-bc]
+n_batches = 100
+[[section]]
+name = "scaling"
+tasks = ["GRAIL/MiniGrid-Optimal-v0", "GRAIL/MiniGrid-Optimal-4Goals-v0"]
+recognizers = ["bc", "gc-bc"]
+observability = [0.3]
+vary = { tasks = "n_goals" }
+"""
+
+
+def test_a_scaling_study_reports_f1_and_fit_cost_against_the_goal_count(tmp_path):
+    profile = tmp_path / "scaling.toml"
+    profile.write_text(SCALING)
+    out = tmp_path / "out"
+    result = cli(["reproduce", "--profile", str(profile), "--out", str(out), "--no-site", "--no-progress"], tmp_path)
+    assert result.returncode == 0, result.stderr
+    curves = {c["recognizer"]: c for c in json.loads((out / "budgets.json").read_text())}
+    assert set(curves) == {"bc", "gc-bc"}
+    for curve in curves.values():
+        assert curve["param"] == "n_goals" and [p["value"] for p in curve["points"]] == [2, 4]
+        assert all(p["n_seeds"] == 2 for p in curve["points"])
+        sizes, costs = zip(*((p["value"], p["value"] * p["fit_seconds_per_goal"]) for p in curve["points"]))
+        assert curve["exponent"] == pytest.approx(np.log(costs[1] / costs[0]) / np.log(sizes[1] / sizes[0]))
+        assert "plateau" not in curve
+    text = (out / "BUDGETS.md").read_text()
+    assert "## bc: n_goals on MiniGrid-Optimal .. MiniGrid-Optimal-4Goals" in text and "Fit cost exponent: b =" in text
+    assert (out / "budgets.png").exists() and not (out / "TABLES.md").exists()
+
+
+def test_a_scaling_study_needs_two_tasks(tmp_path):
+    profile = tmp_path / "bad.toml"
+    profile.write_text(SCALING.replace('"GRAIL/MiniGrid-Optimal-v0", ', ""))
+    out = cli(["reproduce", "--profile", str(profile), "--out", str(tmp_path / "o")], tmp_path)
+    assert out.returncode == 2 and "varies its tasks; list two or more" in out.stderr
 
 
 def test_a_profile_section_with_an_unknown_mode_is_one_line(tmp_path):

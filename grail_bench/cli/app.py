@@ -14,6 +14,7 @@ from grail_bench.cli.inputs import (
     err_console,
     errors,
     fail,
+    mode_name,
     one_line_warnings,
     open_store,
     outputs,
@@ -32,6 +33,8 @@ DEFAULT_RECOGNIZERS = ["bc", "graql"]
 WORKERS_HELP = "Run units in parallel on this many processes (local) or CPUs (a new local Ray instance)."
 EXECUTOR_HELP = "serial, local (a process pool) or ray (default: local with --workers > 1, ray with --address)."
 ADDRESS_HELP = "A Ray cluster to run on: auto or HOST:PORT (implies --executor ray)."
+MODE_HELP = ("offline (the paper's protocol), online, open-set or zero-shot (a third of the goals never fitted; "
+             "goal-conditioned recognizers only). --online and --open-set are shortcuts.")
 STORE_HELP = "Results database (default: ~/.local/share/grail-bench/results.sqlite)."
 
 
@@ -104,6 +107,7 @@ def run(
                                 "accuracy, F1 area (no --observability)."),
     open_set: bool = typer.Option(False, "--open-set", help="Hold one goal out per seed (each in turn) and "
                                   "measure answering 'none of these' (tasks with 3 or more goals)."),
+    mode_: Optional[str] = typer.Option(None, "--mode", "-m", help=MODE_HELP),
 ) -> None:
     """Benchmark recognizers on one task; finished seeds in the store are reused."""
     from grail_bench.harness.api import collect, request
@@ -112,15 +116,13 @@ def run(
     from grail_bench.harness.sweep import run_sweep
     from grail_bench.task.observation import canonical_name
 
-    if online and open_set:
-        raise fail("choose one of --online and --open-set")
-    if online and observability is not None:
+    mode = mode_name(mode_, ("online", online), ("open-set", open_set))
+    if mode == "online" and observability is not None:
         raise fail("--online scores every prefix k = 1..T; it takes no --observability")
     if sampling is not None:
         if protocol is not None:
             raise fail("give --protocol only (--sampling is its deprecated alias)")
         err_console.print("warning: --sampling is deprecated; use --protocol", highlight=False)
-    mode = "online" if online else "open-set" if open_set else "offline"
     names = list(dict.fromkeys(recognizer or DEFAULT_RECOGNIZERS))
     with errors():
         outputs(files=[json_path])
@@ -170,6 +172,7 @@ def leaderboard_(
     ablation: bool = typer.Option(False, "--ablation", help="Compare scorers: F1 and scoring time per scorer."),
     online: bool = typer.Option(False, "--online", help="The online runs (`run --online`) instead."),
     open_set: bool = typer.Option(False, "--open-set", help="The open-set runs (`run --open-set`) instead."),
+    mode_: Optional[str] = typer.Option(None, "--mode", "-m", help="The runs of this mode (`run --mode NAME`) instead."),
     plot: Optional[Path] = typer.Option(
         None, "--plot", help="With --ablation or --online: also write a PNG plot here."),
     html: Optional[Path] = typer.Option(
@@ -195,14 +198,14 @@ def leaderboard_(
         rich_tables,
     )
 
-    if sum((ablation, online, open_set)) > 1:
-        raise fail("choose one of --ablation, --online and --open-set")
-    if plot is not None and not (ablation or online):
+    mode = MODES[mode_name(mode_, ("online", online), ("open-set", open_set))]
+    if ablation and mode.name != "offline":
+        raise fail("--ablation compares scorers under the paper's protocol; drop the mode")
+    if plot is not None and not (ablation or mode.name == "online"):
         raise fail("--plot needs --ablation or --online")
-    if (html is not None or profiles is not None) and (online or open_set or ablation):
-        raise fail("--html and --profiles report the paper's protocol (and the page every mode); drop --online, "
-                   "--open-set and --ablation")
-    mode = MODES["online" if online else "open-set" if open_set else "offline"]
+    if (html is not None or profiles is not None) and (mode.name != "offline" or ablation):
+        raise fail("--html and --profiles report the paper's protocol (and the page every mode); drop the mode "
+                   "and --ablation")
     samples = None if no_ceiling else ceiling_samples
     with errors():
         outputs(files=[markdown_path, plot], folders=[html, profiles])
@@ -213,7 +216,7 @@ def leaderboard_(
             fits = store.select(FitRow, **({"task": task} if task else {})) if mode.name == "offline" else []
             where = store.path
         if not selected[mode.name]:
-            hint = "" if mode.name == "offline" else f" --{mode.name}"
+            hint = "" if mode.name == "offline" else f" --mode {mode.name}"
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} yet; run "
                        f"`grail-bench run{hint}` first")
         if ablation:

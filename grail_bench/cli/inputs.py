@@ -86,6 +86,23 @@ def write_text(path: Path, text: str, what: str) -> None:
     say(f"{what} written to {path}")
 
 
+def mode_name(mode: Optional[str], *shortcuts: tuple[str, bool]) -> str:
+    """The mode a command runs or reports: ``--mode NAME`` or one of its shortcut flags (``--online``, ...).
+
+    Raises:
+        typer.Exit: Two modes were asked for, or the name is unknown.
+    """
+    from grail_bench.harness.modes import MODES
+
+    asked = [name for name, on in shortcuts if on] + ([mode] if mode is not None else [])
+    if len(set(asked)) > 1:
+        raise fail("choose one mode: " + ", ".join(f"--{n}" if n != mode else f"--mode {n}" for n in asked))
+    name = asked[0] if asked else "offline"
+    if name not in MODES:
+        raise fail(f"unknown mode {name!r}; choose one of {', '.join(MODES)}")
+    return name
+
+
 def value(raw: str) -> Any:
     """A command-line value: JSON when it parses (numbers, lists, booleans), else the string."""
     try:

@@ -56,6 +56,7 @@ class Planned:
         posterior: Per scorer, whether its scores give a posterior over goals.
         config: JSON of the fitted configuration (recognizer and task parameters).
         config_hash: Its hash, the store's key.
+        scores_unfitted: Whether it can score goals it was not fitted on (it has ``set_goals``).
     """
 
     spec: RecognizerSpec
@@ -64,6 +65,7 @@ class Planned:
     posterior: tuple[bool, ...]
     config: str
     config_hash: str
+    scores_unfitted: bool = False
 
     @property
     def name(self) -> str:
@@ -107,6 +109,7 @@ def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
         scorers=scorers, score_args=tuple(None if s == own else s for s in scorers),
         posterior=tuple(s in registered and get_scorer(s).posterior for s in scorers),
         config=json.dumps(config, sort_keys=True, default=str), config_hash=config_hash(config),
+        scores_unfitted=caps.has_set_goals,
     )
 
 

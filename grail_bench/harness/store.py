@@ -8,7 +8,8 @@ hash, seed and mode): ``results`` (offline, the paper's protocol), one
 observability, observation protocol); ``online`` (every prefix scored), one
 :class:`OnlineRow` per (task, recognizer, scorer, config hash, seed, protocol);
 ``open_set`` (a goal held out), one :class:`OpenSetRow` per (task, recognizer,
-scorer, config hash, seed, observability, protocol). Rows are written in one
+scorer, config hash, seed, observability, protocol); ``zero_shot`` (goals never
+fitted), one :class:`ZeroShotRow` per the same key. Rows are written in one
 transaction per fitted seed with ``INSERT OR IGNORE``, in WAL mode with a busy
 timeout, so an interrupted run keeps what it finished and concurrent writers
 lose nothing.
@@ -29,11 +30,11 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.paths import data_dir
 from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
-from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row
+from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
 
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
 __all__ = ["SCHEMA_VERSION", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
-           "default_store_path"]
+           "ZeroShotRow", "default_store_path"]
 
 
 class StoreError(UserError):

@@ -183,6 +183,8 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
     mode = get_mode(request.mode)
     mode.check(task, request.observation)
     planned = request.planned()
+    for p in planned:
+        mode.check_recognizer(p)
     params = json.dumps(dict(request.task_params), sort_keys=True)
     levels = request.observation.levels or (None,)  # an online row has no level
     units, skipped = [], 0

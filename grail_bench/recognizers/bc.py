@@ -8,7 +8,7 @@ from typing import Sequence
 import numpy as np
 from imitation.algorithms import bc
 from imitation.data import rollout
-from imitation.data.types import Trajectory
+from imitation.data.types import Trajectory, TransitionsMinimal
 from imitation.policies.base import FeedForward32Policy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
@@ -54,20 +54,39 @@ class BCRecognizer(PolicyRecognizer):
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
         transitions = rollout.flatten_trajectories([until_success(t) for t in demos])
-        batch_size = min(self.config["batch_size"], len(transitions))
         policy = self.new_policy(goal, env_factory)
-        observation_space, action_space = policy.observation_space, policy.action_space
-        logger, logged = recording_logger()
-        trainer = bc.BC(
-            observation_space=observation_space, action_space=action_space, demonstrations=transitions,
-            rng=np.random.default_rng(seed), policy=policy, batch_size=batch_size,
-            optimizer_kwargs={"lr": self.config["learning_rate"]}, ent_weight=self.config["ent_weight"],
-            device="cpu", custom_logger=logger,
-        )
-        with warnings.catch_warnings():
-            # imitation 1.0.1 logs a tensor that still requires grad on every batch.
-            warnings.filterwarnings("ignore", message="Converting a tensor with requires_grad", category=UserWarning)
-            # One logged batch per epoch (the loader drops the last, incomplete batch): the loss curve.
-            trainer.train(n_epochs=self.config["n_epochs"], progress_bar=False,
-                          log_interval=max(1, len(transitions) // batch_size))
-        return trainer.policy, {"loss": thin(logged.get("bc/loss", []))}
+        return train_bc(policy, transitions, seed, batch_size=self.config["batch_size"],
+                        learning_rate=self.config["learning_rate"], ent_weight=self.config["ent_weight"],
+                        n_epochs=self.config["n_epochs"])
+
+
+def train_bc(policy: ActorCriticPolicy, transitions: TransitionsMinimal, seed: int, *, batch_size: int,
+             learning_rate: float, ent_weight: float, n_epochs: int | None = None,
+             n_batches: int | None = None) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
+    """Train ``policy`` by behavioural cloning (imitation's ``bc.BC``) on ``transitions``.
+
+    Args:
+        policy: The policy to train, built for ``transitions``' observation space.
+        transitions: The (observation, action) pairs.
+        seed: Seeds imitation's random generator (torch's global seed orders the batches; the caller sets it).
+        batch_size: Capped at the number of transitions.
+        n_epochs, n_batches: The budget: passes over the data, or gradient steps (exactly one of them).
+
+    Returns:
+        The trained policy and its loss curve (``{"loss": [...]}``, one point per epoch or per 1 % of the
+        steps, thinned).
+    """
+    batch_size = min(batch_size, len(transitions))
+    logger, logged = recording_logger()
+    trainer = bc.BC(
+        observation_space=policy.observation_space, action_space=policy.action_space, demonstrations=transitions,
+        rng=np.random.default_rng(seed), policy=policy, batch_size=batch_size,
+        optimizer_kwargs={"lr": learning_rate}, ent_weight=ent_weight, device="cpu", custom_logger=logger,
+    )
+    # One logged batch per epoch (the loader drops the last, incomplete batch), or per 1 % of the steps.
+    interval = max(1, len(transitions) // batch_size) if n_batches is None else max(1, n_batches // 100)
+    with warnings.catch_warnings():
+        # imitation 1.0.1 logs a tensor that still requires grad on every batch.
+        warnings.filterwarnings("ignore", message="Converting a tensor with requires_grad", category=UserWarning)
+        trainer.train(n_epochs=n_epochs, n_batches=n_batches, progress_bar=False, log_interval=interval)
+    return trainer.policy, {"loss": thin(logged.get("bc/loss", []))}

@@ -23,6 +23,8 @@ capability             what it is                                               
                        prefix from one pass (online mode)
 ``diagnose``           ``(train, held_out, env_factory) -> FitDiagnostics``,         no diagnostics
                        evidence about each goal's fitted model
+``set_goals``          ``(goals) -> None``: score these candidate goals from now     only the goals it was fitted
+                       on, fitted or not (goal-conditioned models; zero-shot mode)   on
 =====================  ============================================================  =============================
 
 The harness never reads a recognizer directly: :func:`capabilities` reads
@@ -199,6 +201,7 @@ class Capabilities:
     takes_cache_key: bool
     has_prefix_scores: bool
     has_diagnostics: bool
+    has_set_goals: bool = False
 
     @property
     def name(self) -> str:
@@ -241,6 +244,17 @@ class Capabilities:
             return None
         return self.recognizer.score_prefixes(observed, scorer)
 
+    def set_goals(self, goals: Sequence[Goal]) -> None:
+        """Make the recognizer score ``goals`` from now on, fitted or not.
+
+        Raises:
+            RecognizerError: If it cannot score goals it was not fitted on.
+        """
+        if not self.has_set_goals:
+            raise RecognizerError(f"recognizer {self.name!r} scores only the goals it was fitted on (it has no "
+                                  "set_goals)")
+        self.recognizer.set_goals(list(goals))
+
     def diagnose(self, train: Demos, held_out: Demos, env_factory: EnvFactory) -> FitDiagnostics | None:
         """The recognizer's fit diagnostics, or None when it offers none."""
         if not self.has_diagnostics:
@@ -277,6 +291,7 @@ def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = 
         takes_cache_key=_accepts(recognizer.fit, "cache_key"),
         has_prefix_scores=callable(getattr(recognizer, "score_prefixes", None)),
         has_diagnostics=callable(getattr(recognizer, "diagnose", None)),
+        has_set_goals=callable(getattr(recognizer, "set_goals", None)),
     )
 
 

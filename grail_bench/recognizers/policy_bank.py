@@ -138,9 +138,7 @@ class PolicyBank:
 
     def action_probs(self, obs: np.ndarray) -> np.ndarray:
         """Softmax action probabilities, ``(K, T, A)``; discrete actions only."""
-        logits = self.forward(obs)
-        e = np.exp(logits - logits.max(axis=-1, keepdims=True))
-        return e / e.sum(axis=-1, keepdims=True)
+        return _softmax(self.forward(obs))
 
     def mean_std(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean action and its standard deviation per dimension, ``(K, T, D)`` each.
@@ -148,7 +146,17 @@ class PolicyBank:
         For squashed (SAC) policies the mean is ``tanh(mu)`` and the std is
         carried through the tanh to first order: ``(1 - tanh(mu)^2) * std``.
         """
-        latent = self._latent(obs)
+        return self._mean_std(self._latent(obs))
+
+    def outputs_of(self, inputs: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The policies on already encoded inputs ``(K or 1, T, F)``: ``(probs,)`` for discrete actions, else
+        ``(mean, std)`` (a goal-conditioned policy is one policy fed each goal's inputs)."""
+        latent = _apply(inputs, self.trunk)
+        if self.discrete:
+            return (_softmax(_apply(latent, self.head)),)
+        return self._mean_std(latent)
+
+    def _mean_std(self, latent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         mu = _apply(latent, self.head)
         if self.log_std_head is not None:
             std = np.exp(np.clip(_apply(latent, self.log_std_head), -20.0, 2.0))  # SB3's clamp
@@ -158,3 +166,8 @@ class PolicyBank:
             mean = np.tanh(mu)
             return mean, (1.0 - mean * mean) * std
         return mu, std
+
+
+def _softmax(logits: np.ndarray) -> np.ndarray:
+    e = np.exp(logits - logits.max(axis=-1, keepdims=True))
+    return e / e.sum(axis=-1, keepdims=True)

@@ -354,7 +354,8 @@ def budgets(curves: Sequence[dict[str, Any]]) -> Any:
             top.plot(x, [p["f1_mean"] for p in c["points"]], marker="o", color=f"C{i}", label=label)
             top.fill_between(x, np.clip([p["f1_ci95_low"] for p in c["points"]], 0, 1),
                              np.clip([p["f1_ci95_high"] for p in c["points"]], 0, 1), color=f"C{i}", alpha=0.2)
-            top.axvline(c["plateau"], color=f"C{i}", linestyle=":", linewidth=1)
+            if c.get("plateau") is not None:
+                top.axvline(c["plateau"], color=f"C{i}", linestyle=":", linewidth=1)
             bottom.plot(x, [p["fit_seconds_per_goal"] for p in c["points"]], marker="o", color=f"C{i}")
         top.set_title(f"{recognizer}: {param}", fontsize=9)
         top.set_ylim(0, 1.05)

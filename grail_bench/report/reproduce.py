@@ -9,8 +9,9 @@ with ``vary`` is a budget study: one recognizer hyperparameter (``vary =
 {param = "total_timesteps", values = [...]}``) or the training demonstrations
 per goal (``vary = {task_param = "n_train", values = [...], test = 3}``) takes
 each value in turn, optionally at its own ``observability`` levels and
-``seeds``; those sections write ``BUDGETS.md`` and ``budgets.png`` instead of
-joining the paper's tables. A section's ``config`` sets hyperparameters of all
+``seeds``; a scaling study (``vary = {tasks = "n_goals"}``) runs its tasks,
+one per goal count, and fits each method's fit-cost exponent. Those sections
+write ``BUDGETS.md`` and ``budgets.png`` instead of joining the paper's tables. A section's ``config`` sets hyperparameters of all
 its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant). The grid runs
 through :func:`grail_bench.harness.sweep.run_sweep` (resumable through the
 store), then :func:`write_outputs` renders everything (tables, figures, the web
@@ -35,12 +36,12 @@ from grail_bench.harness.modes import MODES, Row, get_mode
 from grail_bench.harness.planning import RecognizerSpec
 from grail_bench.harness.sweep import Request, SweepSummary
 from grail_bench.report import leaderboard, plots
-from grail_bench.report.boards import build_boards, calibration_rows, own_scorer_records
+from grail_bench.report.boards import build_boards, calibration_rows, own_scorer_records, short_name
 from grail_bench.report.html import write_site
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.report.summary import domain_summaries, profile_figure_data, profiles_markdown
 from grail_bench.report.text import budgets_markdown, calibration_markdown, markdown, mode_markdown
-from grail_bench.stats.verdict import plateau
+from grail_bench.stats.verdict import plateau, scaling_exponent
 from grail_bench.task import find_task, make_task
 from grail_bench.task.observation import ObservationSpec, parse_observability
 
@@ -52,9 +53,9 @@ class Vary:
     """A budget study: one parameter taking each of several values.
 
     Attributes:
-        param: A recognizer hyperparameter, or the task parameter ``n_train``.
-        values: The values, in increasing order.
-        of: ``"recognizer"`` or ``"task"``.
+        param: A recognizer hyperparameter, the task parameter ``n_train``, or ``n_goals`` (a scaling study).
+        values: The values, in increasing order (a scaling study's are its tasks' goal counts).
+        of: ``"recognizer"``, ``"task"`` or ``"tasks"`` (the section's tasks are the values).
         test: With ``n_train``, the test demonstrations kept per goal (``n_demos = n_train + test``).
     """
 
@@ -70,8 +71,13 @@ class Vary:
         Raises:
             UserError: Unless it names one parameter and at least two values.
         """
-        if not isinstance(raw, Mapping) or ("param" in raw) == ("task_param" in raw):
-            raise UserError(f"{where}: vary needs param (a recognizer's) or task_param (n_train), and values")
+        if not isinstance(raw, Mapping) or sum(k in raw for k in ("param", "task_param", "tasks")) != 1:
+            raise UserError(f"{where}: vary needs param (a recognizer's) or task_param (n_train), and values; "
+                            "or tasks = \"n_goals\"")
+        if "tasks" in raw:
+            if raw["tasks"] != "n_goals":
+                raise UserError(f"{where}: vary's tasks must be \"n_goals\" (the section's tasks by goal count)")
+            return cls("n_goals", (), "tasks")
         values = raw.get("values")
         if not isinstance(values, list) or len(values) < 2:
             raise UserError(f"{where}: vary needs at least two values")
@@ -115,7 +121,7 @@ class Section:
     def _variants(self, config: Mapping[str, Mapping[str, Any]]) -> list[tuple[dict[str, Any], list]]:
         """``(task parameters, [(recognizer, hyperparameters), ...])`` of each request per task."""
         base = [(r, {**config.get(r, {}), **self.config}) for r in self.recognizers]
-        if self.vary is None:
+        if self.vary is None or self.vary.of == "tasks":
             return [(dict(self.params), base)]
         if self.vary.of == "task":
             return [({**self.params, "n_train": v, "n_demos": v + self.vary.test}, base) for v in self.vary.values]
@@ -123,9 +129,17 @@ class Section:
 
     def value_of(self, record: Any) -> Any:
         """The studied parameter's value in a record of this section."""
+        if self.vary.of == "tasks":
+            return len(make_task(record.task).goals)
         if self.vary.of == "task":
             return record.task_params.get(self.vary.param)
         return record.recognizer_config.get(self.vary.param)
+
+    def label(self, task: str) -> str:
+        """What one curve of this study is over: its task, or a scaling study's tasks."""
+        if self.vary is not None and self.vary.of == "tasks":
+            return f"{short_name(self.tasks[0])} .. {short_name(self.tasks[-1])}"
+        return task
 
 
 @dataclass(frozen=True)
@@ -191,6 +205,8 @@ def load_profile(name_or_path: str) -> Profile:
     if seeds < 1 or not sections:
         raise UserError(f"profile {name_or_path}: needs seeds >= 1 and at least one [[section]]")
     for section in sections:
+        if section.vary is not None and section.vary.of == "tasks" and len(section.tasks) < 2:
+            raise UserError(f"profile {name_or_path}: section {section.name!r} varies its tasks; list two or more")
         if section.mode not in MODES:
             raise UserError(f"profile {name_or_path}: section {section.name!r} has mode {section.mode!r}; "
                             f"choose one of {', '.join(MODES)}")
@@ -268,22 +284,33 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
 
 
 def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Request]]]) -> list[dict[str, Any]]:
-    """Per study section, task and recognizer: the studied values with F1 over seeds and fit seconds per goal."""
+    """Per study section, task and recognizer: the studied values with F1 over seeds and fit seconds per goal.
+
+    A budget study also gets its plateau; a scaling study (``n_goals``) the exponent of the whole fit's
+    seconds against the goal count instead.
+    """
     out = []
     for section, requests in studies:
         records = MODES["offline"].aggregate([r for r in _owned(rows, requests) if isinstance(r, MODES["offline"].row)])
         groups: dict[tuple[str, str, str], list[Any]] = {}
         for r in own_scorer_records(records):
-            groups.setdefault((r.task, r.recognizer, r.protocol), []).append(r)
+            groups.setdefault((section.label(r.task), r.recognizer, r.protocol), []).append(r)
         for (task, recognizer, protocol), group in sorted(groups.items()):
             for level in sorted({r.observability for r in group}):
-                points = sorted((section.value_of(r), r) for r in group if r.observability == level)
-                out.append({"section": section.name, "param": section.vary.param, "task": task,
-                            "recognizer": recognizer, "protocol": protocol, "observability": level,
-                            "points": [{"value": v, "n_seeds": r.n_seeds, "f1_mean": r.f1_mean,
-                                        "f1_ci95_low": r.f1_ci95_low, "f1_ci95_high": r.f1_ci95_high,
-                                        "fit_seconds_per_goal": r.fit_seconds_per_goal} for v, r in points],
-                            "plateau": plateau([(v, r.f1_mean, r.f1_ci95_low) for v, r in points])})
+                points = sorted(((section.value_of(r), r) for r in group if r.observability == level),
+                                key=lambda vr: vr[0])
+                curve = {"section": section.name, "param": section.vary.param, "task": task,
+                         "recognizer": recognizer, "protocol": protocol, "observability": level,
+                         "points": [{"value": v, "n_seeds": r.n_seeds, "f1_mean": r.f1_mean,
+                                     "f1_ci95_low": r.f1_ci95_low, "f1_ci95_high": r.f1_ci95_high,
+                                     "fit_seconds_per_goal": r.fit_seconds_per_goal} for v, r in points]}
+                if section.vary.of == "tasks":
+                    sizes = [v for v, _ in points]
+                    costs = [v * r.fit_seconds_per_goal for v, r in points]
+                    curve["exponent"] = scaling_exponent(sizes, costs) if len(set(sizes)) > 1 else None
+                else:
+                    curve["plateau"] = plateau([(v, r.f1_mean, r.f1_ci95_low) for v, r in points])
+                out.append(curve)
     return out
 
 

@@ -314,14 +314,19 @@ def budgets_markdown(curves: Sequence[dict[str, Any]], title: str) -> str:
              "F1 (mean over seeds, [95 % t-interval]) of each recognizer under its own scorer at one observability",
              "level, against one training budget or the training demonstrations per goal, with the fit's seconds",
              "per goal. Plateau: the smallest value whose mean F1 reaches the 95 % interval of the best value's",
-             "(the rule that picks a default budget).", ""]
+             "(the rule that picks a default budget). A scaling study (n_goals) runs tasks of growing goal sets",
+             "instead; its exponent b is the log-log slope of the whole fit's seconds (s/goal x goals) against",
+             "the goal count: 1 is linear (one model per goal), 0 flat.", ""]
     for c in curves:
         lines += [f"## {c['recognizer']}: {c['param']} on {c['task'].removeprefix('GRAIL/')} "
-                  f"({c['protocol']}, {c['observability']:.0%} observed)", "",
-                  f"Plateau: {c['param']} = {c['plateau']}.", "",
-                  f"| {c['param']} | seeds | F1 | 95 % interval | fit s/goal |", "|---|---|---|---|---|"]
+                  f"({c['protocol']}, {c['observability']:.0%} observed)", ""]
+        if "exponent" in c:
+            lines += [f"Fit cost exponent: b = {_num(c['exponent'])}.", ""]
+        else:
+            lines += [f"Plateau: {c['param']} = {c['plateau']}.", ""]
+        lines += [f"| {c['param']} | seeds | F1 | 95 % interval | fit s/goal |", "|---|---|---|---|---|"]
         for p in c["points"]:
-            mark = " (plateau)" if p["value"] == c["plateau"] else ""
+            mark = " (plateau)" if p["value"] == c.get("plateau") else ""
             lines.append(f"| {p['value']}{mark} | {p['n_seeds']} | {p['f1_mean']:.2f} | "
                          f"[{max(0.0, p['f1_ci95_low']):.2f}, {min(1.0, p['f1_ci95_high']):.2f}] | "
                          f"{p['fit_seconds_per_goal']:.2f} |")

@@ -42,11 +42,21 @@ def classification(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int)
     the metrics imports no scikit-learn.
     """
     yt, yp = np.asarray(y_true, dtype=np.int64), np.asarray(y_pred, dtype=np.int64)
-    tp = np.bincount(yt[yt == yp], minlength=n_classes).astype(float)
-    true = np.bincount(yt, minlength=n_classes).astype(float)
-    pred = np.bincount(yp, minlength=n_classes).astype(float)
+    tp, true, pred = _counts(yt, yp, n_classes)
     return {"accuracy": float(np.mean(yt == yp)), "precision": float(np.mean(_safe_divide(tp, pred))),
             "recall": float(np.mean(_safe_divide(tp, true))), "f1": float(np.mean(_safe_divide(2 * tp, true + pred)))}
+
+
+def per_class_f1(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> np.ndarray:
+    """``(n_classes,)`` F1 of each class (0 for a class never true nor predicted); their mean is the macro F1."""
+    tp, true, pred = _counts(np.asarray(y_true, dtype=np.int64), np.asarray(y_pred, dtype=np.int64), n_classes)
+    return _safe_divide(2 * tp, true + pred)
+
+
+def _counts(yt: np.ndarray, yp: np.ndarray, n_classes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per class: true positives, true count, predicted count."""
+    return (np.bincount(yt[yt == yp], minlength=n_classes).astype(float),
+            np.bincount(yt, minlength=n_classes).astype(float), np.bincount(yp, minlength=n_classes).astype(float))
 
 
 def confusion(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> np.ndarray:

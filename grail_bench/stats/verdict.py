@@ -87,3 +87,15 @@ def plateau(points: Sequence[tuple[float, float, float]]) -> float:
         raise ValueError("a plateau needs at least one budget")
     best = max(points, key=lambda p: (p[1], -p[0]))
     return min(budget for budget, mean, _ in points if mean >= best[2] - 1e-12)
+
+
+def scaling_exponent(sizes: Sequence[float], costs: Sequence[float]) -> float:
+    """The exponent ``b`` of ``cost ~ a * size**b``: the least-squares slope in log-log space.
+
+    Raises:
+        ValueError: With fewer than two distinct sizes or a non-positive value.
+    """
+    x, y = np.asarray(sizes, dtype=float), np.asarray(costs, dtype=float)
+    if len(set(x.tolist())) < 2 or (x <= 0).any() or (y <= 0).any():
+        raise ValueError("a scaling exponent needs two or more distinct sizes and positive costs")
+    return float(np.polyfit(np.log(x), np.log(y), 1)[0])

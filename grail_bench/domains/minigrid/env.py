@@ -95,6 +95,12 @@ class GRMiniGridEnv(MiniGridEnv):
         return np.array([self.agent_pos[0], self.agent_pos[1], self.agent_dir], dtype=np.int64)
 
     @property
+    def goal_in_state(self) -> np.ndarray:
+        """The goal in the state's coordinates: it is the first two, ``(x, y)`` (goal-conditioned recognizers
+        read it)."""
+        return np.asarray(self.goal, dtype=np.float64)
+
+    @property
     def state(self) -> State:
         """Current ``(x, y, direction)`` as a tuple."""
         return int(self.agent_pos[0]), int(self.agent_pos[1]), int(self.agent_dir)

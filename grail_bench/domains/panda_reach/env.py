@@ -108,6 +108,12 @@ class GRPandaReachEnv(Env):
         """Current end-effector position."""
         return np.asarray(self._env.robot.get_ee_position(), dtype=np.float64)
 
+    @property
+    def goal_in_state(self) -> np.ndarray:
+        """The goal in the state's coordinates: the state begins with the end effector's position
+        (goal-conditioned recognizers read it)."""
+        return np.asarray(self.goal, dtype=np.float64)
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         obs, _ = self._env.reset(seed=seed, options=options)

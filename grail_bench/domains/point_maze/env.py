@@ -68,6 +68,12 @@ class GRPointMazeEnv(Env):
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self._steps, self._reached = 0, False
 
+    @property
+    def goal_in_state(self) -> np.ndarray:
+        """The goal cell's centre in the state's coordinates: the state begins with the ball's ``(x, y)``
+        (goal-conditioned recognizers read it)."""
+        return np.asarray(self.goal_xy, dtype=np.float64)
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         obs, _ = self._env.reset(seed=seed, options=self._options)

@@ -2,7 +2,8 @@
 
 * ``offline`` (:mod:`.offline`): the paper's protocol, each test demonstration observed once per level;
 * ``online`` (:mod:`.online`): every prefix of every test observation scored;
-* ``open-set`` (:mod:`.open_set`): one goal held out of the fit per seed, to be answered "none of these".
+* ``open-set`` (:mod:`.open_set`): one goal held out of the fit per seed, to be answered "none of these";
+* ``zero-shot`` (:mod:`.zero_shot`): a third of the goals held out of the fit, to be recognised all the same.
 
 A new mode is one module defining a :class:`~.base.Mode` and one entry here.
 """
@@ -10,13 +11,14 @@ A new mode is one module defining a :class:`~.base.Mode` and one entry here.
 from __future__ import annotations
 
 from grail_bench.core.errors import UserError
-from grail_bench.harness.modes import offline, online, open_set
+from grail_bench.harness.modes import offline, online, open_set, zero_shot
 from grail_bench.harness.modes.base import Column, Mode, Record, Run, SeedRun
 
-MODES: dict[str, Mode] = {m.name: m for m in (offline.MODE, online.MODE, open_set.MODE)}
+MODES: dict[str, Mode] = {m.name: m for m in (offline.MODE, online.MODE, open_set.MODE, zero_shot.MODE)}
 
 ResultRow, OnlineRow, OpenSetRow = offline.ResultRow, online.OnlineRow, open_set.OpenSetRow
-Row = ResultRow | OnlineRow | OpenSetRow
+ZeroShotRow = zero_shot.ZeroShotRow
+Row = ResultRow | OnlineRow | OpenSetRow | ZeroShotRow
 
 
 def get_mode(name: str) -> Mode:
@@ -40,4 +42,4 @@ def mode_of(row_type: type) -> Mode:
 
 
 __all__ = ["MODES", "Column", "Mode", "OnlineRow", "OpenSetRow", "Record", "ResultRow", "Row", "Run", "SeedRun",
-           "get_mode", "mode_of"]
+           "ZeroShotRow", "get_mode", "mode_of"]

@@ -125,7 +125,8 @@ class Mode:
         intro: One paragraph saying what the table shows.
         takes_levels: Whether units are scored at observability levels (online: every prefix instead).
         min_goals: Fewest candidate goals a task needs.
-        held_out_goals: Goals a unit leaves out of the fit (open set: one).
+        held_out: Goals a unit leaves out of the fit, given the task's number of goals (open set: one).
+        scores_unfitted: Whether the recognizer must score goals it was not fitted on (``set_goals``).
     """
 
     name: str
@@ -139,7 +140,8 @@ class Mode:
     intro: str
     takes_levels: bool = True
     min_goals: int = 2
-    held_out_goals: int = 0
+    held_out: Callable[[int], int] = lambda n_goals: 0
+    scores_unfitted: bool = False
 
     def check(self, task: GRTask, observation: ObservationSpec) -> None:
         """Refuse a task or observation this mode cannot run.
@@ -152,9 +154,19 @@ class Mode:
         if not self.takes_levels and observation.levels:
             raise UserError(f"{self.name} mode scores every prefix; it takes no observability levels")
         if len(task.goals) < self.min_goals:
-            raise UserError(f"{self.name} mode holds {self.held_out_goals} goal(s) out and needs at least "
-                            f"{self.min_goals} candidate goals; {task.id} has {len(task.goals)}")
+            raise UserError(f"{self.name} mode holds goals out of the fit and needs at least {self.min_goals} "
+                            f"candidate goals; {task.id} has {len(task.goals)}")
+
+    def check_recognizer(self, planned: Planned) -> None:
+        """Refuse a recognizer this mode cannot run.
+
+        Raises:
+            UserError: In one line, saying why.
+        """
+        if self.scores_unfitted and not planned.scores_unfitted:
+            raise UserError(f"{self.name} mode scores goals without demonstrations; recognizer {planned.name!r} "
+                            "scores only the goals it was fitted on (it has no set_goals, e.g. use gc-bc)")
 
     def goals_fitted(self, task: GRTask) -> int:
-        """Goal models one unit of this mode fits on ``task``."""
-        return len(task.goals) - self.held_out_goals
+        """Goals one unit of this mode fits on ``task``."""
+        return len(task.goals) - self.held_out(len(task.goals))

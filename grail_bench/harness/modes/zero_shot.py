@@ -1,0 +1,160 @@
+"""Zero-shot goals: some candidate goals have no training demonstrations at all.
+
+Per seed, a third of the goals (at least one: ``K // 3``) are held out of the
+fit, drawn from the seed's own stream, so that across seeds different goals
+are held out. The recognizer is fitted on the training demonstrations of the
+other goals only, then told the full candidate set (``set_goals``) and asked
+to recognise test observations of every goal, exactly as offline. Only a
+recognizer that can score goals it was never fitted on (a goal-conditioned
+one) can run; per-goal methods are refused before any work.
+
+Stored per level and scorer: macro F1 and accuracy over all ``K`` goals, and
+separately the mean per-class F1 and the accuracy on the held-out goals and on
+the trained ones. Chance is ``1 / K``.
+"""
+
+from __future__ import annotations
+
+import json
+import zlib
+from dataclasses import dataclass
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+from grail_bench.core.trajectory import Goal
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, interval
+from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.stats import metrics
+
+
+@dataclass(frozen=True)
+class ZeroShotRow(Run):
+    """Recognition of one recognizer on one task, seed and level with some goals never fitted."""
+
+    observability: float
+    protocol: str
+    held_out: str  # JSON list of the goals without training demonstrations
+    n_goals: int
+    f1: float  # macro F1 over all goals
+    accuracy: float
+    f1_held_out: float  # mean per-class F1 of the held-out goals
+    f1_trained: float  # mean per-class F1 of the goals fitted on
+    accuracy_held_out: float  # share of the held-out goals' observations recognised
+    accuracy_trained: float
+    n_observations: int
+    fit_seconds_per_goal: float
+    config: str
+    versions: str
+    provenance: str | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class ZeroShotRecord(Record):
+    """One configuration's zero-shot runs at one level across seeds."""
+
+    observability: float
+    n_goals: int
+    held_out: list[list[list[float]]]
+    f1_mean: float
+    f1_ci95_low: float
+    f1_ci95_high: float
+    f1_held_out_mean: float
+    f1_held_out_ci95_low: float
+    f1_held_out_ci95_high: float
+    f1_trained_mean: float
+    accuracy_mean: float
+    accuracy_held_out_mean: float
+    accuracy_trained_mean: float
+
+
+def n_held_out(n_goals: int) -> int:
+    """Goals held out of the fit: a third, at least one."""
+    return max(1, n_goals // 3)
+
+
+def held_out_goals(goals: Sequence[Goal], seed: int) -> list[Goal]:
+    """The goals seed ``seed`` holds out (its own stream; the same whatever order the goals are listed in)."""
+    ordered = sorted(tuple(g) for g in goals)
+    rng = np.random.default_rng([int(seed), zlib.crc32(b"zero-shot")])
+    return [ordered[i] for i in sorted(rng.choice(len(ordered), size=n_held_out(len(ordered)), replace=False))]
+
+
+def run(job: SeedRun) -> tuple[list[ZeroShotRow], Fitted]:
+    """Fit on the goals not held out, give the recognizer every goal, and recognise test observations of all.
+
+    Returns:
+        One row per level and scorer, and the fitted recognizer.
+    """
+    task, planned, spec, seed = job.task, job.planned, job.observation, job.seed
+    hidden = held_out_goals(task.goals, seed)
+    train, test = task.split(job.demos)
+    fitted = fit_recognizer(task, planned, seed, {g: d for g, d in train.items() if g not in hidden}, test)
+    fitted.recognizer.set_goals(task.goals)
+    is_hidden = np.array([g in hidden for g in task.goals])
+    labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
+    rows = []
+    for level in spec.levels:
+        rng = spec.rng(seed, level, "zero-shot")
+        order = rng.permutation(len(labelled))
+        observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
+        for scorer, score_arg in zip(planned.scorers, planned.score_args):
+            y_true = np.array([label for label, _ in observations])
+            y_pred = np.array([metrics.predict(check_scores(planned.name, fitted.recognizer.score(o, score_arg),
+                                                            task.goals))[0] for _, o in observations])
+            per_class = metrics.per_class_f1(y_true, y_pred, len(task.goals))
+            on_hidden = is_hidden[y_true]
+            rows.append(ZeroShotRow(
+                task=task.id, recognizer=planned.name, scorer=scorer, config_hash=planned.config_hash, seed=seed,
+                observability=level, protocol=spec.label, held_out=json.dumps([list(g) for g in hidden]),
+                n_goals=len(task.goals), f1=float(per_class.mean()), accuracy=float(np.mean(y_true == y_pred)),
+                f1_held_out=float(per_class[is_hidden].mean()), f1_trained=float(per_class[~is_hidden].mean()),
+                accuracy_held_out=float(np.mean(y_true[on_hidden] == y_pred[on_hidden])),
+                accuracy_trained=float(np.mean(y_true[~on_hidden] == y_pred[~on_hidden])),
+                n_observations=len(observations), fit_seconds_per_goal=fitted.seconds_per_goal,
+                config=planned.config, versions=job.versions,
+            ))
+    return rows, fitted
+
+
+def aggregate(rows: Iterable[ZeroShotRow]) -> list[ZeroShotRecord]:
+    """Across-seed zero-shot records, one per (task, recognizer, scorer, configuration, protocol, level)."""
+    groups: dict[tuple, list[ZeroShotRow]] = {}
+    for r in rows:
+        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability), []).append(r)
+    records = []
+    for (task, rec, scorer, chash, protocol, level), group in sorted(groups.items()):
+        group.sort(key=lambda r: r.seed)
+        fields: dict[str, Any] = {}
+        for key in ("f1", "f1_held_out"):
+            fields |= metrics.summary_fields(key, [getattr(r, key) for r in group])
+        for key in ("f1_trained", "accuracy", "accuracy_held_out", "accuracy_trained"):
+            fields[f"{key}_mean"] = float(np.mean([getattr(r, key) for r in group]))
+        records.append(ZeroShotRecord(
+            task=task, recognizer=rec, scorer=scorer, protocol=protocol, config_hash=chash, n_seeds=len(group),
+            seeds=[r.seed for r in group], fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
+            task_params=task_params(group[0].config), recognizer_config=recognizer_config(group[0].config),
+            observability=level, n_goals=group[0].n_goals, held_out=[json.loads(r.held_out) for r in group],
+            **fields,
+        ))
+    return records
+
+
+COLUMNS = LEAD + (Column("obs", lambda r: f"{r.observability:.0%}", lambda r: r.observability),) + WHO + (
+    Column("F1 (all goals)", interval("f1"), lambda r: r.f1_mean),
+    Column("F1 held-out goals", interval("f1_held_out"), lambda r: r.f1_held_out_mean),
+    Column("F1 trained goals", lambda r: f"{r.f1_trained_mean:.2f}", lambda r: r.f1_trained_mean),
+    Column("accuracy held-out", lambda r: f"{r.accuracy_held_out_mean:.2f}", lambda r: r.accuracy_held_out_mean),
+    Column("chance", lambda r: f"{1 / r.n_goals:.2f}", lambda r: 1 / r.n_goals),
+)
+
+MODE = Mode(
+    name="zero-shot", row=ZeroShotRow, table="zero_shot",
+    key=("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol"),
+    run=run, aggregate=aggregate, columns=COLUMNS,
+    title="zero-shot goals (a third of the goals never fitted)",
+    intro=("Mean over seeds [95 % interval]. Per seed, a third of the goals have no training demonstrations; "
+           "the recognizer is fitted on the others and then scores all of them. F1 per class, averaged over "
+           "the held-out goals and over the trained ones; chance is 1/K."),
+    min_goals=3, held_out=n_held_out, scores_unfitted=True,
+)
