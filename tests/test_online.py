@@ -189,7 +189,7 @@ def test_online_takes_no_levels():
 
 @pytest.mark.parametrize("args, message", [
     (["--online", "-o", "0.1,0.3"], "--online scores every prefix"),
-    (["--online", "--open-set"], "choose one of --online and --open-set"),
+    (["--online", "--open-set"], "choose one mode: --online, --open-set"),
     (["--open-set", "--task", "GRAIL/MiniGrid-Biased-v0"], "needs at least 3 candidate goals"),
 ])
 def test_bad_combinations_are_one_line_and_exit_2(tmp_path, args, message):

@@ -16,7 +16,8 @@ PANDA_IDS = [t for t in grail_bench.task_ids() if t.startswith("GRAIL/PandaReach
 
 def test_ids_and_goals():
     regimes = ("Optimal", "Gaussian-0.1", "Gaussian-0.3", "Uniform-0.1", "Uniform-0.3")
-    assert set(PANDA_IDS) == {f"GRAIL/PandaReach-{s}{r}-v0" for r in regimes for s in ("", "Aligned-")}
+    many = {f"GRAIL/PandaReach-Gaussian-0.1-{k}Goals-v0" for k in (8, 12)}
+    assert set(PANDA_IDS) == {f"GRAIL/PandaReach-{s}{r}-v0" for r in regimes for s in ("", "Aligned-")} | many
     task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0")
     assert task.goals == GOALS and (task.n_demos, task.n_train, task.observability) == (200, 150, (0.02,))
     dists = [np.linalg.norm(np.subtract(a, b)) for i, a in enumerate(GOALS) for b in GOALS[i + 1:]]

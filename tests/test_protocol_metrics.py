@@ -78,6 +78,9 @@ def test_classification_equals_scikit_learn_to_the_last_bit(rng):
         expected = {"accuracy": accuracy_score(y_true, y_pred), "precision": p, "recall": r, "f1": f}
         assert metrics.classification(y_true, y_pred, n) == {k: float(v) for k, v in expected.items()}
         assert metrics.macro_f1(y_true, y_pred, n) == float(f)
+        per_class = precision_recall_fscore_support(y_true, y_pred, labels=list(range(n)), average=None,
+                                                    zero_division=0)[2]
+        assert metrics.per_class_f1(y_true, y_pred, n).tolist() == per_class.tolist()
 
 
 def test_summarize_t_interval():

@@ -9,6 +9,7 @@ import sqlite3
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -46,6 +47,18 @@ def cluster(tmp_path):
             shutil.rmtree(root, ignore_errors=True)
 
 
+def _live_nodes(address: str, env: dict[str, str], wait: float = 60.0) -> int:
+    """How many nodes `ray status` lists, polling while the cluster's services start (up to `wait` seconds)."""
+    deadline = time.monotonic() + wait
+    while True:
+        status = subprocess.run([str(BIN / "ray"), "status", f"--address={address}"], env=env, capture_output=True,
+                                text=True, timeout=120)
+        nodes = status.stdout.count(" node_") if status.returncode == 0 else 0
+        if nodes >= 2 or time.monotonic() > deadline:
+            return nodes
+        time.sleep(2)
+
+
 def _rows(path: Path) -> list[tuple]:
     conn = sqlite3.connect(path)
     names = [r[1] for r in conn.execute("PRAGMA table_info(results)")]
@@ -56,9 +69,7 @@ def _rows(path: Path) -> list[tuple]:
 @pytest.mark.slow
 def test_a_sweep_on_a_two_node_cluster_stores_the_serial_rows(cluster, tmp_path):
     address, env = cluster
-    status = subprocess.run([str(BIN / "ray"), "status", f"--address={address}"], env=env, capture_output=True,
-                            text=True, timeout=120)
-    assert status.returncode == 0 and status.stdout.count(" node_") == 2, status.stdout  # two live nodes
+    assert _live_nodes(address, env) == 2
     args = ["run", "-t", "GRAIL/MiniGrid-Optimal-4Goals-v0", "-r", "bc", "-r", "graql", "--set", "bc.n_epochs=2",
             "--set", "graql.episodes=100", "--seeds", "3", "--no-progress"]
     for name, extra in (("ray", ["--executor", "ray", "--address", address]), ("serial", [])):

@@ -89,7 +89,8 @@ def run(job: SeedRun) -> tuple[list[ZeroShotRow], Fitted]:
     task, planned, spec, seed = job.task, job.planned, job.observation, job.seed
     hidden = held_out_goals(task.goals, seed)
     train, test = task.split(job.demos)
-    fitted = fit_recognizer(task, planned, seed, {g: d for g, d in train.items() if g not in hidden}, test)
+    known = [g for g in task.goals if g not in hidden]
+    fitted = fit_recognizer(task, planned, seed, {g: train[g] for g in known}, {g: test[g] for g in known})
     fitted.recognizer.set_goals(task.goals)
     is_hidden = np.array([g in hidden for g in task.goals])
     labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
