@@ -147,7 +147,8 @@ def test_bc_beats_chance_end_to_end():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name, config", [("gail", {"total_timesteps": 1024}), ("airl", {"total_timesteps": 1024}),
-                                          ("draco", {"sac_steps": 600})])
+                                          ("draco", {"ppo_steps": 1024}),
+                                          ("draco", {"algorithm": "sac", "sac_steps": 600})])
 def test_every_policy_recognizer_runs(name, config):
     (record,) = evaluate("GRAIL/PointMaze-Biased-v0", [(name, config)], seeds=1, observability=[0.5],
                          task_params={"n_demos": 3, "n_train": 2})
