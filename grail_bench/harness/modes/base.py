@@ -14,7 +14,10 @@ from typing import Any, Callable, Iterable, Sequence
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Demos
-from grail_bench.harness.planning import Fitted, Planned
+import numpy as np
+
+from grail_bench.harness.planning import Fitted, Planned, recognizer_config, task_params
+from grail_bench.stats import metrics
 from grail_bench.task import GRTask
 from grail_bench.task.observation import ObservationSpec
 
@@ -56,6 +59,42 @@ class Record:
     def to_dict(self) -> dict[str, Any]:
         """The record as JSON-able plain data (the ``--json`` format)."""
         return asdict(self)
+
+
+def cells(rows: Iterable[Any], by_level: bool = True) -> list[list[Any]]:
+    """Rows grouped per cell: (task, recognizer, scorer, configuration, protocol[, observability]), sorted.
+
+    Each group is in seed order; groups are sorted by their key.
+    """
+    groups: dict[tuple, list[Any]] = {}
+    for r in rows:
+        key = (r.task, r.recognizer, r.scorer, r.config_hash, r.protocol) + ((r.observability,) if by_level else ())
+        groups.setdefault(key, []).append(r)
+    return [sorted(group, key=lambda r: r.seed) for _, group in sorted(groups.items())]
+
+
+def record_fields(group: Sequence[Any], intervals: Sequence[str] = (), means: Sequence[str] = ()) -> dict[str, Any]:
+    """The :class:`Record` fields of one cell's rows, plus ``{key}_mean`` and 95 % intervals of row metrics.
+
+    Args:
+        group: One cell's rows (see :func:`cells`).
+        intervals: Row metrics summarised as mean and 95 % t-interval across seeds.
+        means: Row metrics summarised as their mean only.
+    """
+    first = group[0]
+    fields: dict[str, Any] = dict(
+        task=first.task, recognizer=first.recognizer, scorer=first.scorer, protocol=first.protocol,
+        config_hash=first.config_hash, n_seeds=len(group), seeds=[r.seed for r in group],
+        fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
+        task_params=task_params(first.config), recognizer_config=recognizer_config(first.config),
+    )
+    if hasattr(first, "observability"):
+        fields["observability"] = first.observability
+    for key in intervals:
+        fields |= metrics.summary_fields(key, [getattr(r, key) for r in group])
+    for key in means:
+        fields[f"{key}_mean"] = float(np.mean([getattr(r, key) for r in group]))
+    return fields
 
 
 @dataclass(frozen=True)

@@ -17,8 +17,8 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun
-from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, record_fields
+from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.stats import metrics, robust
 
 #: A goal is in the set-valued answer when its score is within this share of the scores' range of the best.
@@ -163,25 +163,13 @@ def _calibration(group: list[ResultRow]) -> dict[str, Any]:
 
 def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
     """Across-seed records, one per configuration and level, sorted by task, recognizer, scorer, protocol, level."""
-    groups: dict[tuple, list[ResultRow]] = {}
-    for r in rows:
-        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability), []).append(r)
     records = []
-    for (task, rec, scorer, chash, protocol, level), group in groups.items():
-        group.sort(key=lambda r: r.seed)
-        f1 = metrics.summarize([r.f1 for r in group])
+    for group in cells(rows):
+        f1 = [r.f1 for r in group]
         n_obs = sum(r.n_observations for r in group)
         records.append(OfflineRecord(
-            task=task, recognizer=rec, scorer=scorer, protocol=protocol, config_hash=chash, n_seeds=len(group),
-            seeds=[r.seed for r in group],
-            fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
-            task_params=task_params(group[0].config), recognizer_config=recognizer_config(group[0].config),
-            observability=level, f1_mean=f1["mean"], f1_std=f1["std"], f1_ci95_low=f1["ci_low"],
-            f1_ci95_high=f1["ci_high"], f1_iqm=robust.iqm([r.f1 for r in group]),
-            f1_values=tuple(r.f1 for r in group),
-            accuracy_mean=float(np.mean([r.accuracy for r in group])),
-            precision_mean=float(np.mean([r.precision for r in group])),
-            recall_mean=float(np.mean([r.recall for r in group])),
+            **record_fields(group, ("f1",), ("accuracy", "precision", "recall")),
+            f1_std=metrics.summarize(f1)["std"], f1_iqm=robust.iqm(f1), f1_values=tuple(f1),
             score_us_per_observation=float(np.mean([r.score_us_per_observation for r in group])),
             tie_rate=sum(r.n_ties for r in group) / n_obs if n_obs else 0.0,
             brier_mean=_mean_or_none([r.brier for r in group]), nll_mean=_mean_or_none([r.nll for r in group]),

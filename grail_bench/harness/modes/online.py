@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from grail_bench.core.trajectory import Goal
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, interval
-from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, record_fields, interval
+from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.recognizers.contract import Capabilities, RecognizerError
 from grail_bench.stats import metrics
 
@@ -227,15 +227,9 @@ def aggregate(rows: Iterable[OnlineRow]) -> list[OnlineRecord]:
     accuracy and F1 area, the share never converging, and the mean accuracy
     and F1 curves with their per-fraction 95 % intervals (the plot's bands).
     """
-    groups: dict[tuple, list[OnlineRow]] = {}
-    for r in rows:
-        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol), []).append(r)
     records = []
-    for (task, rec, scorer, chash, protocol), group in sorted(groups.items()):
-        group.sort(key=lambda r: r.seed)
-        fields: dict[str, Any] = {}
-        for key in ("convergence", "step_accuracy", "f1_auc"):
-            fields |= metrics.summary_fields(key, [getattr(r, key) for r in group])
+    for group in cells(rows, by_level=False):
+        fields = record_fields(group, ("convergence", "step_accuracy", "f1_auc"), ("never",))
         parsed = [json.loads(r.curve) for r in group]
         for key in ("accuracy", "f1"):
             per_fraction = [metrics.summarize(v) for v in zip(*(c[key] for c in parsed))]
@@ -243,10 +237,7 @@ def aggregate(rows: Iterable[OnlineRow]) -> list[OnlineRecord]:
             fields[f"{key}_curve_low"] = [s["ci_low"] for s in per_fraction]
             fields[f"{key}_curve_high"] = [s["ci_high"] for s in per_fraction]
         records.append(OnlineRecord(
-            task=task, recognizer=rec, scorer=scorer, protocol=protocol, config_hash=chash, n_seeds=len(group),
-            seeds=[r.seed for r in group], fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
-            task_params=task_params(group[0].config), recognizer_config=recognizer_config(group[0].config),
-            never_mean=float(np.mean([r.never for r in group])), fractions=parsed[0]["fractions"],
+            fractions=parsed[0]["fractions"],
             score_us_per_prefix=float(np.mean([r.score_us_per_prefix for r in group])), **fields,
         ))
     return records

@@ -28,8 +28,8 @@ import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Demos, Goal
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, interval
-from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, record_fields, interval
+from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.recognizers.contract import Capabilities
 from grail_bench.stats import metrics
 from grail_bench.task.observation import ObservationSpec
@@ -172,24 +172,9 @@ def run(job: SeedRun) -> tuple[list[OpenSetRow], Fitted]:
 
 def aggregate(rows: Iterable[OpenSetRow]) -> list[OpenSetRecord]:
     """Across-seed open-set records, one per (task, recognizer, scorer, configuration, protocol, level)."""
-    groups: dict[tuple, list[OpenSetRow]] = {}
-    for r in rows:
-        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability), []).append(r)
-    records = []
-    for (task, rec, scorer, chash, protocol, level), group in sorted(groups.items()):
-        group.sort(key=lambda r: r.seed)
-        fields: dict[str, Any] = {}
-        for key in ("auroc", "f1"):
-            fields |= metrics.summary_fields(key, [getattr(r, key) for r in group])
-        for key in ("accuracy", "unknown_recall", "false_alarm"):
-            fields[f"{key}_mean"] = float(np.mean([getattr(r, key) for r in group]))
-        records.append(OpenSetRecord(
-            task=task, recognizer=rec, scorer=scorer, protocol=protocol, config_hash=chash, n_seeds=len(group),
-            seeds=[r.seed for r in group], fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
-            task_params=task_params(group[0].config), recognizer_config=recognizer_config(group[0].config),
-            observability=level, held_out=[json.loads(r.held_out) for r in group], **fields,
-        ))
-    return records
+    return [OpenSetRecord(held_out=[json.loads(r.held_out) for r in group],
+                          **record_fields(group, ("auroc", "f1"), ("accuracy", "unknown_recall", "false_alarm")))
+            for group in cells(rows)]
 
 
 COLUMNS = LEAD + (Column("obs", lambda r: f"{r.observability:.0%}", lambda r: r.observability),) + WHO + (

@@ -18,13 +18,13 @@ from __future__ import annotations
 import json
 import zlib
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Iterable, Sequence
 
 import numpy as np
 
 from grail_bench.core.trajectory import Goal
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, interval
-from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer, recognizer_config, task_params
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, record_fields, interval
+from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.stats import metrics
 
 
@@ -120,25 +120,10 @@ def run(job: SeedRun) -> tuple[list[ZeroShotRow], Fitted]:
 
 def aggregate(rows: Iterable[ZeroShotRow]) -> list[ZeroShotRecord]:
     """Across-seed zero-shot records, one per (task, recognizer, scorer, configuration, protocol, level)."""
-    groups: dict[tuple, list[ZeroShotRow]] = {}
-    for r in rows:
-        groups.setdefault((r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability), []).append(r)
-    records = []
-    for (task, rec, scorer, chash, protocol, level), group in sorted(groups.items()):
-        group.sort(key=lambda r: r.seed)
-        fields: dict[str, Any] = {}
-        for key in ("f1", "f1_held_out"):
-            fields |= metrics.summary_fields(key, [getattr(r, key) for r in group])
-        for key in ("f1_trained", "accuracy", "accuracy_held_out", "accuracy_trained"):
-            fields[f"{key}_mean"] = float(np.mean([getattr(r, key) for r in group]))
-        records.append(ZeroShotRecord(
-            task=task, recognizer=rec, scorer=scorer, protocol=protocol, config_hash=chash, n_seeds=len(group),
-            seeds=[r.seed for r in group], fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
-            task_params=task_params(group[0].config), recognizer_config=recognizer_config(group[0].config),
-            observability=level, n_goals=group[0].n_goals, held_out=[json.loads(r.held_out) for r in group],
-            **fields,
-        ))
-    return records
+    means = ("f1_trained", "accuracy", "accuracy_held_out", "accuracy_trained")
+    return [ZeroShotRecord(n_goals=group[0].n_goals, held_out=[json.loads(r.held_out) for r in group],
+                           **record_fields(group, ("f1", "f1_held_out"), means))
+            for group in cells(rows)]
 
 
 COLUMNS = LEAD + (Column("obs", lambda r: f"{r.observability:.0%}", lambda r: r.observability),) + WHO + (
