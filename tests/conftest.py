@@ -56,7 +56,7 @@ FAST = {
     "graql": {"episodes": 200},
     "gail": {"total_timesteps": 512, "n_envs": 4, "n_steps": 64, "n_epochs": 2},
     "airl": {"total_timesteps": 512, "n_envs": 4, "n_steps": 64, "n_epochs": 2},
-    "draco": {"ppo_steps": 1024, "sac_steps": 300},
+    "draco": {"ppo_steps": 1024},
 }
 
 

@@ -95,6 +95,7 @@ def test_internal_errors_show_their_traceback(tmp_path):
          "cannot enumerate"),
         (["run", "-r", "bc", "--set", "bc.n_epochz=3"], "n_epochz"),
         (["run", "-r", "bc", "--set", "graql.episodes=3"], "not being run"),
+        (["run", "-r", "draco", "--set", "draco.sac_steps=300"], "sac_steps applies to algorithm=sac"),
         (["list", "goals"], "cannot list"),
         (["run", "-r", "bc", "--param", "colour=3"], "cannot apply parameter 'colour'"),
         (["run", "-r", "bc", "--param", "n_train=20"], "n_train: must be smaller than n_demos (10)"),

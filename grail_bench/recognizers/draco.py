@@ -16,6 +16,7 @@ from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.stats.metrics import thin
 
 ALGORITHMS = ("ppo", "sac")
+STEPS = {"ppo": 100_000, "sac": 15_000}  # default steps per goal of each algorithm
 
 
 class DRACORecognizer(PolicyRecognizer):
@@ -28,8 +29,9 @@ class DRACORecognizer(PolicyRecognizer):
         algorithm: ``"ppo"`` (the paper's: "trains each goal-directed policy via PPO", on discrete and
             continuous actions alike) or ``"sac"`` (continuous actions only; kept as a named configuration,
             ``--set draco.algorithm=sac``).
-        sac_steps: SAC steps per goal.
-        ppo_steps: PPO steps per goal, over 8 env copies.
+        sac_steps: SAC steps per goal (default 15 000).
+        ppo_steps: PPO steps per goal, over 8 env copies (default 100 000). Setting the budget of the
+            algorithm not chosen is an error: it would train the chosen one at its full default budget.
         net_arch: Hidden layers of the policy.
         scorer: Default ``"wasserstein"`` (DRACO's).
     """
@@ -39,10 +41,17 @@ class DRACORecognizer(PolicyRecognizer):
     default_scorer = "wasserstein"
     uses_demos = False
 
-    def __init__(self, *, algorithm: str = "ppo", sac_steps: int = 15_000, ppo_steps: int = 100_000,
+    def __init__(self, *, algorithm: str = "ppo", sac_steps: int | None = None, ppo_steps: int | None = None,
                  net_arch: Sequence[int] = (64, 64), scorer: str | None = None) -> None:
         if algorithm not in ALGORITHMS:
             raise UserError(f"draco: algorithm must be one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
+        given = {"ppo": ppo_steps, "sac": sac_steps}
+        for other, steps in given.items():
+            # A stored configuration repeats the other algorithm's default, which stays accepted.
+            if other != algorithm and steps is not None and steps != STEPS[other]:
+                raise UserError(f"draco: {other}_steps applies to algorithm={other}; with algorithm={algorithm} "
+                                f"set {algorithm}_steps")
+        sac_steps, ppo_steps = (STEPS[a] if given[a] is None else given[a] for a in ("sac", "ppo"))
         if sac_steps < 1 or ppo_steps < 1:
             raise UserError("draco: step budgets must be positive")
         super().__init__(scorer, algorithm=algorithm, sac_steps=sac_steps, ppo_steps=ppo_steps,

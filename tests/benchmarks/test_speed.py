@@ -156,7 +156,7 @@ def test_panda_env_step(benchmark):
     benchmark(step)
 
 
-@pytest.mark.parametrize("name, config", [("bc", {"n_epochs": 5}), ("draco", {"sac_steps": 300})])
+@pytest.mark.parametrize("name, config", [("bc", {"n_epochs": 5}), ("draco", {"ppo_steps": 1024})])
 def test_panda_score_2_percent_4_goals(benchmark, panda, name, config):
     from grail_bench.task.observation import observe
 
