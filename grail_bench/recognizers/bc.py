@@ -29,7 +29,7 @@ class BCRecognizer(PolicyRecognizer):
     Args:
         n_epochs: Passes over the demonstrations (the paper states none). 100 is the plateau of the
             budget study (README, "Training budgets"): the smallest budget whose F1 reaches the best
-            budget's 95 % interval on both MiniGrid 6-goal tasks (about 2 s per goal there; 25, the
+            budget's 95 % interval on both MiniGrid 6-goal tasks (2-6 s per goal there; 25, the
             earlier default, left MiniGrid-Optimal-6Goals 0.21 F1 lower).
         batch_size: Paper: 8.
         learning_rate: Paper: 1e-3 (Adam).

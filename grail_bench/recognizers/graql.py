@@ -47,7 +47,7 @@ class GRAQLRecognizer(ScoredRecognizer):
     are the plateau of the budget study (README, "Training budgets"): 15000 is
     the smallest budget whose F1 reaches the best budget's 95 % interval on
     both 6-goal tasks (5000, the earlier default, reached it on the optimal
-    task only; ~6.5 s per goal). At 5000 episodes the greedy policy already
+    task only; about 10 s per goal). At 5000 episodes the greedy policy already
     reaches every goal on a shortest path; a discount of 0.95-0.99 or a smaller
     learning rate left some goals unreached.
 
