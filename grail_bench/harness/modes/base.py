@@ -12,10 +12,10 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any, Callable, Iterable, Sequence
 
-from grail_bench.core.errors import UserError
-from grail_bench.core.trajectory import Demos
 import numpy as np
 
+from grail_bench.core.errors import UserError
+from grail_bench.core.trajectory import Demos
 from grail_bench.harness.planning import Fitted, Planned, recognizer_config, task_params
 from grail_bench.stats import metrics
 from grail_bench.task import GRTask

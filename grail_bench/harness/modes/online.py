@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from grail_bench.core.trajectory import Goal
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, record_fields, interval
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, interval, record_fields
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.recognizers.contract import Capabilities, RecognizerError
 from grail_bench.stats import metrics

@@ -28,7 +28,7 @@ import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Demos, Goal
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, record_fields, interval
+from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, interval, record_fields
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.recognizers.contract import Capabilities
 from grail_bench.stats import metrics
