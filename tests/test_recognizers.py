@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 import torch
 from conftest import FAST
+from gymnasium import spaces
 from imitation.data.types import Trajectory
+from stable_baselines3.common.policies import ActorCriticPolicy
 
 import grail_bench
 from grail_bench.recognizers import Recognizer, UnknownRecognizerError, available_recognizers, make_recognizer
@@ -98,6 +100,22 @@ def test_policy_bank_looks_up_discrete_observations_as_the_one_hot_product():
     np.testing.assert_allclose(bank._latent(obs), one_hot_product, rtol=1e-6, atol=1e-6)
 
 
+@pytest.mark.parametrize(("space", "n_states"), [(spaces.MultiDiscrete([9, 9, 4]), 324), (spaces.Discrete(7, start=2), 7)])
+def test_policy_bank_table_of_every_state_equals_the_forward_pass(space, n_states, monkeypatch):
+    from grail_bench.recognizers import policy_bank
+
+    torch.manual_seed(0)
+    policies = [ActorCriticPolicy(space, spaces.Discrete(4), lambda _: 1e-3) for _ in range(3)]
+    obs = np.stack([space.sample() for _ in range(50)])
+    tabled = policy_bank.PolicyBank(policies)
+    looked_up = tabled.action_probs(obs)
+    assert tabled._tables["probs"].shape == (3, n_states, 4)
+    monkeypatch.setattr(policy_bank, "TABLE_STATES", 0)
+    direct = policy_bank.PolicyBank(policies)
+    np.testing.assert_allclose(looked_up, direct.action_probs(obs), rtol=1e-6, atol=1e-7)
+    assert not direct._tables  # above the size limit, nothing is tabled
+
+
 def test_bc_separates_biased_routes():
     rec = make_recognizer("bc")
     rec.fit(TRAIN, TASK.make_env, seed=0)
@@ -124,9 +142,9 @@ def test_graql_learns_to_reach_goals():
 
 def test_graql_unvisited_states_get_uniform_policy():
     rec = fitted("graql")
-    rec.visited[:] = False
-    probs = rec.outputs_at(TEST[(7, 1)][0].obs[:4]).probs
-    np.testing.assert_allclose(probs, 0.25)
+    np.testing.assert_allclose(rec._softmax_policy(rec.q, np.zeros_like(rec.visited)), 0.25)
+    visited_probs = rec.outputs_at(TEST[(7, 1)][0].obs[:4]).probs  # states its training walked through
+    assert not np.allclose(visited_probs, 0.25)
 
 
 def test_registry_errors():

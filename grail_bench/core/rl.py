@@ -13,7 +13,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
-from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
 from stable_baselines3.sac.policies import SACPolicy
 
 from grail_bench.core.cache import cached_state_dict
@@ -28,10 +28,23 @@ def make_sac(env: gym.Env, net_arch: Sequence[int], seed: int = 0) -> SAC:
                **SAC_DEFAULTS)
 
 
-def make_ppo(env_fn: Callable[[], gym.Env], net_arch: Sequence[int], seed: int = 0, n_envs: int = 8) -> PPO:
-    """SB3 PPO on ``n_envs`` copies of an env (monitored, so its episode returns can be read)."""
-    venv = VecMonitor(DummyVecEnv([env_fn for _ in range(n_envs)]))
+def vec_env(env_fn: Callable[[], gym.Env], n_envs: int, seed: int = 0) -> VecEnv:
+    """``n_envs`` copies of ``env_fn()``'s env for an SB3 learner, monitored (its episode returns can be read).
+
+    An env that offers a vectorised twin (a ``vector_copies(n)`` method, as MiniGrid's does) is stepped as one
+    array operation; any other, or one wrapped, one copy after another in SB3's ``DummyVecEnv``.
+    """
+    first = env_fn()
+    twin = getattr(first, "vector_copies", None) if first is first.unwrapped else None
+    venv = twin(n_envs) if twin is not None else DummyVecEnv([lambda: first] + [env_fn] * (n_envs - 1))
+    venv = VecMonitor(venv)
     venv.seed(seed)
+    return venv
+
+
+def make_ppo(env_fn: Callable[[], gym.Env], net_arch: Sequence[int], seed: int = 0, n_envs: int = 8) -> PPO:
+    """SB3 PPO on ``n_envs`` copies of an env (:func:`vec_env`)."""
+    venv = vec_env(env_fn, n_envs, seed)
     return PPO("MlpPolicy", venv, policy_kwargs={"net_arch": list(net_arch)}, n_steps=128, batch_size=64,
                seed=seed, verbose=0, device="cpu")
 

@@ -85,6 +85,7 @@ class GRAQLRecognizer(ScoredRecognizer):
             self.config["max_episode_steps"] = max_episode_steps
         self.q: np.ndarray | None = None  # (K, S, A)
         self.visited: np.ndarray | None = None  # (K, S)
+        self.probs: np.ndarray | None = None  # (K, S, A), the policy scoring reads, computed once per fit
         self.observation_space: spaces.Space | None = None
         self.action_space: spaces.Space | None = None
 
@@ -123,6 +124,7 @@ class GRAQLRecognizer(ScoredRecognizer):
             reused += hit
         self.goals = list(demos)
         self.q, self.visited, self.curves = np.stack(tables), np.stack(visits), curves
+        self.probs = self._softmax_policy(self.q, self.visited)
         return FitReport(train_seconds=seconds, trained=len(tables) - reused, reused=reused)
 
     def _train(self, env: Any, seed: int) -> tuple[dict[str, np.ndarray], dict[str, list[float]]]:
@@ -169,9 +171,10 @@ class GRAQLRecognizer(ScoredRecognizer):
             returns.append(episode_return)
         return q, visited, thin(returns)
 
-    def _probs_at(self, idx: np.ndarray) -> np.ndarray:
-        probs = softmax(self.q[:, idx, :] / self.config["temperature"], axis=-1)
-        probs[~self.visited[:, idx]] = 1.0 / probs.shape[-1]
+    def _softmax_policy(self, q: np.ndarray, visited: np.ndarray) -> np.ndarray:
+        """Boltzmann policy of every state, ``(K, S, A)``; uniform in states never visited in training."""
+        probs = softmax(q / self.config["temperature"], axis=-1)
+        probs[~visited] = 1.0 / probs.shape[-1]
         return probs
 
     def exposes(self, action_space: Any) -> frozenset[str]:
@@ -179,4 +182,4 @@ class GRAQLRecognizer(ScoredRecognizer):
 
     def outputs_at(self, states: np.ndarray) -> PolicyOutput:
         idx = state_index(states, self.observation_space)
-        return PolicyOutput(probs=self._probs_at(idx), q=self.q[:, idx, :])
+        return PolicyOutput(probs=self.probs[:, idx], q=self.q[:, idx])

@@ -7,12 +7,15 @@ these small MLPs, so the actor weights of the K SB3 policies are stacked into
 For discrete observations (one-hot encoded by SB3) the first layer is a
 lookup: the product of a one-hot vector with the weights is the sum of the
 weight rows it selects, so those rows are gathered instead of multiplying by
-the mostly-zero one-hot matrix (equal up to float rounding).
+the mostly-zero one-hot matrix (equal up to float rounding). And when a
+discrete observation space is small (MiniGrid's room has 324 states), the
+outputs on every state are computed once, on first use, and scoring looks them
+up: the same forward pass, paid once per fit instead of once per observation.
 """
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 from gymnasium import spaces
@@ -20,6 +23,9 @@ from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
 from stable_baselines3.common.torch_layers import FlattenExtractor
 from stable_baselines3.sac.policies import SACPolicy
 from torch import nn
+
+#: Discrete observation spaces with at most this many states get a table of the outputs on every state.
+TABLE_STATES = 4096
 
 _ACTIVATIONS = {nn.Tanh: np.tanh, nn.ReLU: lambda x: np.maximum(x, 0.0), nn.Identity: lambda x: x}
 
@@ -50,6 +56,20 @@ def _one_hot_offsets(space: spaces.Space) -> np.ndarray | None:
         return np.concatenate([[0], np.cumsum(space.nvec)[:-1]]).astype(np.int64)
     if isinstance(space, spaces.Discrete):
         return np.array([-int(space.start)], dtype=np.int64)
+    return None
+
+
+def _state_index(space: spaces.Space) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]] | None:
+    """Every state of a small discrete space, ``(S, ...)``, and the map from states to their rows; else None."""
+    if isinstance(space, spaces.MultiDiscrete) and space.nvec.ndim == 1:
+        if np.prod(space.nvec.astype(np.float64)) > TABLE_STATES:
+            return None
+        states = np.stack(np.unravel_index(np.arange(int(np.prod(space.nvec))), space.nvec), axis=1)
+        strides = np.array([int(np.prod(space.nvec[i + 1:])) for i in range(len(space.nvec))], dtype=np.int64)
+        return states, lambda obs: np.asarray(obs, dtype=np.int64).reshape(len(obs), -1) @ strides
+    if isinstance(space, spaces.Discrete) and space.n <= TABLE_STATES:
+        start = int(space.start)
+        return (np.arange(int(space.n)) + start)[:, None], lambda obs: np.asarray(obs, dtype=np.int64).reshape(-1) - start
     return None
 
 
@@ -119,6 +139,18 @@ class PolicyBank:
             weights, biases, activation = self.trunk[0]
             self._rows = np.ascontiguousarray(weights.transpose(1, 0, 2))  # (in, K, out): one row per code
             self._first = (biases, activation)
+        self._index = _state_index(self.observation_space)
+        self._tables: dict[str, np.ndarray | tuple[np.ndarray, ...]] = {}
+
+    def _tabled(self, name: str, compute: Callable[[np.ndarray], Any], obs: np.ndarray) -> Any:
+        """``compute(obs)``, looked up in a table of ``compute`` on every state when the space is small."""
+        if self._index is None:
+            return compute(obs)
+        states, rows_of = self._index
+        if name not in self._tables:
+            self._tables[name] = compute(states)
+        table, rows = self._tables[name], rows_of(obs)
+        return tuple(t[:, rows] for t in table) if isinstance(table, tuple) else table[:, rows]
 
     def __len__(self) -> int:
         return self.head[0][0].shape[0]
@@ -133,12 +165,15 @@ class PolicyBank:
 
     def forward(self, obs: np.ndarray) -> np.ndarray:
         """Action logits (discrete) or deterministic actions (continuous), ``(K, T, A)``."""
+        return self._tabled("forward", self._forward, obs)
+
+    def _forward(self, obs: np.ndarray) -> np.ndarray:
         out = _apply(self._latent(obs), self.head)
         return np.tanh(out) if self.squash else out
 
     def action_probs(self, obs: np.ndarray) -> np.ndarray:
         """Softmax action probabilities, ``(K, T, A)``; discrete actions only."""
-        return _softmax(self.forward(obs))
+        return self._tabled("probs", lambda x: _softmax(self._forward(x)), obs)
 
     def mean_std(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean action and its standard deviation per dimension, ``(K, T, D)`` each.
@@ -146,7 +181,7 @@ class PolicyBank:
         For squashed (SAC) policies the mean is ``tanh(mu)`` and the std is
         carried through the tanh to first order: ``(1 - tanh(mu)^2) * std``.
         """
-        return self._mean_std(self._latent(obs))
+        return self._tabled("mean_std", lambda x: self._mean_std(self._latent(x)), obs)
 
     def outputs_of(self, inputs: np.ndarray) -> tuple[np.ndarray, ...]:
         """The policies on already encoded inputs ``(K or 1, T, F)``: ``(probs,)`` for discrete actions, else

@@ -216,35 +216,42 @@ def mse_probs_steps(probs: np.ndarray, actions: np.ndarray) -> np.ndarray:
     """:func:`mse_steps` of action probabilities against one-hot observed actions, without building them:
     ``sum_a (p_a - [a = y])^2 = sum_a p_a^2 - 2 p_y + 1``; ``(K, T)``."""
     picked = probs[:, np.arange(len(actions)), actions]
-    return -(np.einsum("kta,kta->kt", probs, probs) - 2.0 * picked + 1.0) / probs.shape[-1]
+    squared = np.einsum("kta,kta->kt", probs, probs)
+    squared -= 2.0 * picked  # in place: this runs once per scored observation
+    squared += 1.0
+    return np.divide(squared, -probs.shape[-1], out=squared)
 
 
 def _mse(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
     if out.probs is not None:
-        return mse_probs_steps(out.probs, actions.astype(np.int64))
+        return mse_probs_steps(out.probs, np.asarray(actions, dtype=np.int64))
     return mse_steps(out.mean, actions.reshape(len(actions), -1).astype(out.mean.dtype))
 
 
 def _wasserstein(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
     if out.probs is not None:
-        return wasserstein_discrete_steps(out.probs, actions.astype(np.int64))
+        return wasserstein_discrete_steps(out.probs, np.asarray(actions, dtype=np.int64))
     return wasserstein_gaussian_steps(out.mean, out.std, actions.reshape(len(actions), -1))
 
 
 def _kl(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
-    return kl_steps(out.probs, actions.astype(np.int64))
+    return kl_steps(out.probs, np.asarray(actions, dtype=np.int64))
 
 
 def _loglik(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
     if out.probs is not None:
-        return loglik_discrete_steps(out.probs, actions.astype(np.int64))
+        return loglik_discrete_steps(out.probs, np.asarray(actions, dtype=np.int64))
     return loglik_gaussian_steps(out.mean, out.std, actions.reshape(len(actions), -1))
 
 
 def _builtin(name: str, steps: Callable[[PolicyOutput, np.ndarray], np.ndarray], needs: tuple[frozenset[str], ...],
              description: str, posterior: bool = False) -> Scorer:
     """A built-in scorer: the mean over steps of its per-step scores."""
-    return Scorer(name, lambda out, actions: steps(out, actions).mean(axis=1), needs, description, posterior, steps)
+    def mean_over_steps(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+        per_step = steps(out, actions)
+        return per_step.sum(axis=1) / per_step.shape[1]  # what .mean(axis=1) computes, without its overhead
+
+    return Scorer(name, mean_over_steps, needs, description, posterior, steps)
 
 
 _PROBS, _GAUSS = frozenset({"probs"}), frozenset({"mean", "std"})

@@ -203,7 +203,8 @@ def test_point_maze_demonstrations(benchmark):
 
 @pytest.mark.parametrize("name", ["gail", "airl"])
 def test_adversarial_fit_one_goal_minigrid(benchmark, name):
-    """Default budget (40 000 generator steps); targets: GAIL <= 30 s, AIRL <= 60 s per goal."""
+    """Default budget (40 000 generator steps); targets: GAIL <= 30 s, AIRL <= 60 s per goal. Generator steps
+    per second are stored as extra info."""
     rec = make_recognizer(name)
     goal = TASK.goals[0]
 
@@ -212,3 +213,21 @@ def test_adversarial_fit_one_goal_minigrid(benchmark, name):
             rec.train_policy(goal, TRAIN[goal], TASK.make_env, 0)
 
     benchmark.pedantic(fit, rounds=1, iterations=1)
+    benchmark.extra_info["generator_steps_per_second"] = rec.config["total_timesteps"] / benchmark.stats.stats.median
+
+
+@pytest.mark.parametrize("kind", ["vectorised", "copies"])
+def test_minigrid_8_envs_step(benchmark, kind):
+    """One step of 8 copies of a goal's room, as PPO collects rollouts: the numpy-vectorised env against SB3's
+    DummyVecEnv over single envs (env steps per second stored as extra info)."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from grail_bench.domains.minigrid.vector import MiniGridVecEnv
+
+    env_fn = lambda: TASK.make_env(GOAL)  # noqa: E731
+    venv = MiniGridVecEnv(env_fn(), 8) if kind == "vectorised" else DummyVecEnv([env_fn] * 8)
+    venv.reset()
+    actions = np.random.default_rng(0).integers(0, 4, size=(1024, 8))
+    count = iter(range(10**9))
+    benchmark(lambda: venv.step(actions[next(count) % 1024]))
+    benchmark.extra_info["env_steps_per_second"] = 8 / benchmark.stats.stats.median

@@ -100,6 +100,12 @@ class GRMiniGridEnv(MiniGridEnv):
         read it)."""
         return np.asarray(self.goal, dtype=np.float64)
 
+    def vector_copies(self, n_envs: int):
+        """``n_envs`` copies of this env stepped at once in numpy (an SB3 ``VecEnv``, same transitions)."""
+        from grail_bench.domains.minigrid.vector import MiniGridVecEnv
+
+        return MiniGridVecEnv(self, n_envs)
+
     @property
     def state(self) -> State:
         """Current ``(x, y, direction)`` as a tuple."""

@@ -1,0 +1,44 @@
+"""GAIL and AIRL training: the suite's speed-ups change no trained weight, and their settings are checked."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+import grail_bench
+from grail_bench.core.errors import UserError
+from grail_bench.recognizers import adversarial, make_recognizer
+
+TASK = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0")
+TRAIN, _ = TASK.split(TASK.generate_demos(seed=0))
+
+
+def fit(name: str) -> dict[str, torch.Tensor]:
+    goal = TASK.goals[0]
+    torch.manual_seed(3)
+    return make_recognizer(name, total_timesteps=2048).train_policy(goal, TRAIN[goal], TASK.make_env, seed=3)[0].state_dict()
+
+
+class PerStepRewards(adversarial._RolloutRewards):
+    """imitation's own way: the learned reward of every step as it is taken."""
+
+    def __call__(self, *transitions: np.ndarray) -> np.ndarray:
+        return self.reward_fn(*transitions)
+
+    def collect(self) -> np.ndarray:
+        return np.float32(0.0)
+
+
+@pytest.mark.parametrize("name", ["gail", "airl"])
+def test_rollout_rewards_in_one_call_train_the_same_weights(name, monkeypatch):
+    batched = fit(name)
+    monkeypatch.setattr(adversarial, "_RolloutRewards", PerStepRewards)
+    per_step = fit(name)
+    for key in per_step:
+        torch.testing.assert_close(batched[key], per_step[key], rtol=0, atol=0)
+
+
+def test_update_is_validated():
+    with pytest.raises(UserError, match="update must be one of numpy, torch"):
+        make_recognizer("gail", update="jax")
