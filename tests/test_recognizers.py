@@ -128,7 +128,7 @@ def test_bc_separates_biased_routes():
 def test_graql_learns_to_reach_goals():
     rec = make_recognizer("graql")
     rec.fit(TRAIN, TASK.make_env, seed=0)
-    from grail_bench.recognizers.graql import state_index
+    from grail_bench.core.spaces import state_index
 
     for k, goal in enumerate(TASK.goals):
         env = TASK.make_env(goal)

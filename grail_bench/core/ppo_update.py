@@ -11,8 +11,8 @@ update written out in numpy on one flat parameter vector: the clipped
 surrogate with per-minibatch advantage normalisation, the value and entropy
 terms, the global gradient-norm clip and Adam with the policy optimizer's
 own settings. It agrees with SB3's ``train()`` to float32 rounding (tested on
-a full round); policies it cannot mirror (continuous actions, shared or
-custom networks, value clipping, a KL target, SDE) fall back to SB3's.
+a full round); policies it cannot mirror (continuous actions, custom
+networks or extractors, value clipping, a KL target, SDE) fall back to SB3's.
 """
 
 from __future__ import annotations
@@ -27,31 +27,18 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.torch_layers import FlattenExtractor
 from torch import nn
 
+from grail_bench.core.spaces import preprocess
+
 _ACTIVATIONS = {nn.Tanh: (np.tanh, lambda y: 1.0 - y * y), nn.ReLU: (lambda x: np.maximum(x, 0.0), lambda y: y > 0)}
-
-
-def _features(obs: np.ndarray, space: spaces.Space) -> np.ndarray:
-    """SB3's ``preprocess_obs`` for flat spaces (one-hot codes for discrete ones), float32."""
-    if isinstance(space, spaces.MultiDiscrete):
-        codes = obs.astype(np.int64) + np.concatenate([[0], np.cumsum(space.nvec)[:-1]])
-        out = np.zeros((len(obs), int(space.nvec.sum())), dtype=np.float32)
-        out[np.arange(len(obs))[:, None], codes] = 1.0
-        return out
-    if isinstance(space, spaces.Discrete):
-        out = np.zeros((len(obs), int(space.n)), dtype=np.float32)
-        out[np.arange(len(obs)), obs.astype(np.int64).reshape(-1)] = 1.0
-        return out
-    return obs.reshape(len(obs), -1).astype(np.float32)
 
 
 class _FlatMLPs:
     """The actor and critic of an ``ActorCriticPolicy`` as views into one flat float32 vector (and its grads)."""
 
     def __init__(self, policy: ActorCriticPolicy) -> None:
-        self.policy = policy
-        self.modules = [*policy.mlp_extractor.policy_net, policy.action_net, *policy.mlp_extractor.value_net,
-                        policy.value_net]
-        self.params = [p for m in self.modules for p in m.parameters()]
+        actor = [*policy.mlp_extractor.policy_net, policy.action_net]
+        critic = [*policy.mlp_extractor.value_net, policy.value_net]
+        self.params = [p for m in actor + critic for p in m.parameters()]
         sizes = [p.numel() for p in self.params]
         self.flat = np.zeros(sum(sizes), dtype=np.float32)
         self.grad = np.zeros_like(self.flat)
@@ -62,8 +49,7 @@ class _FlatMLPs:
             grads.append(self.grad[start:start + n].reshape(p.shape))
             start += n
         pairs = iter(zip(views, grads))
-        self.actor = self._layers(list(policy.mlp_extractor.policy_net) + [policy.action_net], pairs)
-        self.critic = self._layers(list(policy.mlp_extractor.value_net) + [policy.value_net], pairs)
+        self.actor, self.critic = self._layers(actor, pairs), self._layers(critic, pairs)
 
     @staticmethod
     def _layers(modules: list[nn.Module], pairs: Any) -> list[tuple]:
@@ -118,7 +104,8 @@ def mirrorable(model: PPO) -> bool:
         return False
     group = policy.optimizer.param_groups[0]
     layers = [*policy.mlp_extractor.policy_net, *policy.mlp_extractor.value_net]
-    return (isinstance(policy.features_extractor, FlattenExtractor) and policy.share_features_extractor
+    flat_space = isinstance(model.observation_space, (spaces.Box, spaces.Discrete, spaces.MultiDiscrete))
+    return (flat_space and isinstance(policy.features_extractor, FlattenExtractor) and policy.share_features_extractor
             and not model.use_sde and model.clip_range_vf is None and model.target_kl is None
             and model.normalize_advantage and type(policy.optimizer) is torch.optim.Adam
             and not (group.get("amsgrad") or group.get("maximize") or group.get("weight_decay"))
@@ -152,7 +139,7 @@ class NumpyPPO(PPO):
             return arr.swapaxes(0, 1).reshape(arr.shape[0] * arr.shape[1], *arr.shape[2:])
 
         n = buffer.buffer_size * buffer.n_envs
-        features = _features(flat("observations"), self.observation_space)
+        features = preprocess(flat("observations"), self.observation_space)
         actions = flat("actions").reshape(n).astype(np.int64)
         old_log_prob, advantages, returns = flat("log_probs"), flat("advantages"), flat("returns")
         for _ in range(self.n_epochs):

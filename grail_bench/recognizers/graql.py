@@ -13,6 +13,7 @@ from scipy.special import softmax
 from grail_bench.core.cache import cached
 from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import goal_seed
+from grail_bench.core.spaces import n_states, state_index
 from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.contract import FitReport
 from grail_bench.recognizers.scored import ScoredRecognizer
@@ -20,17 +21,6 @@ from grail_bench.recognizers.scoring import PolicyOutput
 from grail_bench.stats.metrics import thin
 
 _CHUNK = 4096  # exploration draws made at a time
-
-
-def state_index(obs: np.ndarray, space: spaces.Space) -> np.ndarray:
-    """Flat table index of discrete observations, ``(T, ...) -> (T,)``."""
-    if isinstance(space, spaces.MultiDiscrete):
-        return np.ravel_multi_index(tuple(np.asarray(obs, dtype=np.int64).T), tuple(space.nvec))
-    return np.asarray(obs, dtype=np.int64).reshape(-1) - int(space.start)
-
-
-def n_states(space: spaces.Space) -> int:
-    return int(np.prod(space.nvec)) if isinstance(space, spaces.MultiDiscrete) else int(space.n)
 
 
 class GRAQLRecognizer(ScoredRecognizer):

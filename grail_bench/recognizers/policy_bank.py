@@ -24,30 +24,12 @@ from stable_baselines3.common.torch_layers import FlattenExtractor
 from stable_baselines3.sac.policies import SACPolicy
 from torch import nn
 
+from grail_bench.core.spaces import all_states, n_states, preprocess, state_index
+
 #: Discrete observation spaces with at most this many states get a table of the outputs on every state.
 TABLE_STATES = 4096
 
 _ACTIVATIONS = {nn.Tanh: np.tanh, nn.ReLU: lambda x: np.maximum(x, 0.0), nn.Identity: lambda x: x}
-
-
-def preprocess(obs: np.ndarray, space: spaces.Space) -> np.ndarray:
-    """Numpy twin of SB3's ``preprocess_obs`` for flat spaces.
-
-    ``Discrete`` and ``MultiDiscrete`` observations become (concatenated)
-    one-hot vectors; ``Box`` observations are flattened floats.
-    """
-    if isinstance(space, spaces.MultiDiscrete):
-        offsets = np.concatenate([[0], np.cumsum(space.nvec)[:-1]])
-        out = np.zeros((len(obs), int(space.nvec.sum())), dtype=np.float32)
-        out[np.arange(len(obs))[:, None], obs.astype(np.int64) + offsets] = 1.0
-        return out
-    if isinstance(space, spaces.Discrete):
-        out = np.zeros((len(obs), int(space.n)), dtype=np.float32)
-        out[np.arange(len(obs)), obs.astype(np.int64).reshape(-1) - int(space.start)] = 1.0
-        return out
-    if isinstance(space, spaces.Box):
-        return obs.reshape(len(obs), -1).astype(np.float32)
-    raise TypeError(f"unsupported observation space {space}")
 
 
 def _one_hot_offsets(space: spaces.Space) -> np.ndarray | None:
@@ -60,17 +42,11 @@ def _one_hot_offsets(space: spaces.Space) -> np.ndarray | None:
 
 
 def _state_index(space: spaces.Space) -> tuple[np.ndarray, Callable[[np.ndarray], np.ndarray]] | None:
-    """Every state of a small discrete space, ``(S, ...)``, and the map from states to their rows; else None."""
-    if isinstance(space, spaces.MultiDiscrete) and space.nvec.ndim == 1:
-        if np.prod(space.nvec.astype(np.float64)) > TABLE_STATES:
-            return None
-        states = np.stack(np.unravel_index(np.arange(int(np.prod(space.nvec))), space.nvec), axis=1)
-        strides = np.array([int(np.prod(space.nvec[i + 1:])) for i in range(len(space.nvec))], dtype=np.int64)
-        return states, lambda obs: np.asarray(obs, dtype=np.int64).reshape(len(obs), -1) @ strides
-    if isinstance(space, spaces.Discrete) and space.n <= TABLE_STATES:
-        start = int(space.start)
-        return (np.arange(int(space.n)) + start)[:, None], lambda obs: np.asarray(obs, dtype=np.int64).reshape(-1) - start
-    return None
+    """Every state of a small discrete space and the map from states to their rows (else None)."""
+    discrete = isinstance(space, spaces.Discrete) or (isinstance(space, spaces.MultiDiscrete) and space.nvec.ndim == 1)
+    if not discrete or n_states(space) > TABLE_STATES:
+        return None
+    return all_states(space), lambda obs: state_index(obs, space)
 
 
 def _stack(modules_per_policy: list[list[nn.Module]]) -> list[tuple[np.ndarray, np.ndarray, Callable]]:

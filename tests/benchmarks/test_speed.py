@@ -1,8 +1,9 @@
 """Speed targets (``make bench``): medians are what the README and notes report.
 
 Targets (2-core CPU): BC-GRAIL scores a 30-step observation against 6 goals in
-<= 100 us and fits a goal in <= 1 s; GRAQL fits a goal in <= 10 s and scores
-in <= 100 us. Online mode scores all 30 prefixes of that observation in at
+<= 30 us and fits a goal in <= 1 s; GRAQL fits a goal in <= 10 s and scores
+in <= 100 us; GAIL and AIRL train at 3x the generator steps per second of
+SB3's torch update with per-step rewards (24.5 s per goal at 40 000 steps). Online mode scores all 30 prefixes of that observation in at
 most twice the time of one full score (compare each ``all_prefixes`` median
 with its ``score`` one). One Monte Carlo level of a Bayes ceiling takes <= 10 s.
 """
