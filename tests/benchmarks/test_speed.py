@@ -204,8 +204,8 @@ def test_point_maze_demonstrations(benchmark):
 
 @pytest.mark.parametrize("name", ["gail", "airl"])
 def test_adversarial_fit_one_goal_minigrid(benchmark, name):
-    """Default budget (40 000 generator steps); targets: GAIL <= 30 s, AIRL <= 60 s per goal. Generator steps
-    per second are stored as extra info."""
+    """Default budgets (GAIL 20 000, AIRL 40 000 generator steps); targets: GAIL <= 30 s, AIRL <= 60 s per goal.
+    Generator steps per second are stored as extra info."""
     rec = make_recognizer(name)
     goal = TASK.goals[0]
 
