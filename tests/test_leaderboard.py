@@ -104,6 +104,23 @@ def test_a_recognizer_run_with_two_configurations_gets_a_column_per_setting():
     assert board.columns == ["draco/wasserstein [012345]", "draco/wasserstein [abcdef]"]
 
 
+def test_paper_values_sit_beside_the_default_configuration_only_so_no_cell_counts_twice():
+    from grail_bench.recognizers.registry import build
+    from grail_bench.report.boards import verdict_counts
+
+    task = "GRAIL/MiniGrid-Optimal-v0"
+    default = record(task, "gail", "mse", 0.1, 0.5, recognizer_config=dict(build("gail").config))
+    longer = record(task, "gail", "mse", 0.1, 0.9, config_hash="0123456789ab",
+                    recognizer_config={**build("gail").config, "total_timesteps": 160000})
+    reference = {(task, "gail", 0.1): Reported("0.64 ± 0.28", (0.44, 0.84))}
+    (board,) = build_boards([default, longer], reference, ceiling_samples=None)
+    assert list(board.reported) == [(*board.rows[0], "gail/mse total_timesteps=20000")]
+    assert sum(verdict_counts([board]).values()) == 1
+    # Without a run at the default configuration every configuration is compared.
+    (board,) = build_boards([longer], reference, ceiling_samples=None)
+    assert len(board.reported) == 1
+
+
 def test_runs_table_shows_ranking_metrics_averaged_over_levels():
     records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", lv, 0.5, top2_mean=t, mean_rank_mean=m)
                for lv, t, m in ((0.1, 0.8, 1.6), (0.3, 1.0, 1.2))]

@@ -6,7 +6,8 @@ task's parameters, where runs used other than its defaults), a column per
 recognizer (``name/scorer`` when a recognizer was run with several scorers),
 each cell an :class:`~grail_bench.harness.modes.offline.OfflineRecord`. Values
 a publication reports are attached on the rows of each task's default protocol
-only; Bayes ceilings come in already computed
+only, beside each recognizer's default configuration where it ran in several
+(the others are variants, so no cell is counted twice); Bayes ceilings come in already computed
 (:func:`grail_bench.harness.ceiling.ceilings_for`), so no renderer computes one.
 """
 
@@ -22,7 +23,7 @@ import numpy as np
 
 from grail_bench.harness.ceiling import Ceiling
 from grail_bench.harness.modes.offline import OfflineRecord
-from grail_bench.recognizers.registry import UnknownRecognizerError, recognizer_info
+from grail_bench.recognizers.registry import UnknownRecognizerError, build, recognizer_info
 from grail_bench.report.reference import Reported
 from grail_bench.stats.metrics import expected_calibration_error
 from grail_bench.task import find_task, variant
@@ -60,6 +61,24 @@ def paper_method(recognizer: str) -> tuple[str, str | None]:
     except UnknownRecognizerError:
         return recognizer, None
     return info.paper_name, info.default_scorer
+
+
+@lru_cache(maxsize=None)
+def default_config(recognizer: str) -> str | None:
+    """The recognizer's default configuration as canonical JSON (None when it is not registered here or does
+    not build without arguments)."""
+    try:
+        return _canonical(build(recognizer).config)
+    except Exception:  # noqa: BLE001 - a plugin that cannot build on its own has no default to prefer
+        return None
+
+
+def _canonical(config: dict[str, Any]) -> str:
+    return json.dumps(config, sort_keys=True, default=str)
+
+
+def _is_default(record: OfflineRecord) -> bool:
+    return _canonical(record.recognizer_config) == default_config(record.recognizer)
 
 
 def own_scorer_records(records: Sequence[OfflineRecord]) -> list[OfflineRecord]:
@@ -139,12 +158,15 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
 
     Args:
         records: Offline records (:func:`grail_bench.harness.modes.offline.aggregate`).
-        reference: Reported values to show beside ours (on rows of the task's default parameters only).
+        reference: Reported values to show beside ours (on rows of the task's default parameters only, and
+            beside the recognizer's default configuration where the row has it).
         ceilings: Bayes ceilings by ``(task, task parameters as JSON, protocol, level)``, computed beforehand.
     """
     records = list(records)
     tasks = {t: find_task(t) for t in {r.task for r in records}}
     variants = config_variants(records)
+    # A recognizer run in several configurations on a row: the reported value sits beside its default one only.
+    at_default = {_cell_of(r) for r in records if _is_default(r)}
     ceilings = ceilings or {}
     boards: dict[str, Board] = {}
     for r in records:
@@ -163,7 +185,8 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
                 board.ceilings[row] = ceilings[key]
         board.cells[(*row, label)] = r
         paper_protocol = task is not None and r.protocol == task.protocol and not reading
-        if reference and paper_protocol and paper_method(r.recognizer)[1] in (r.scorer, None):
+        beside_default = _is_default(r) or _cell_of(r) not in at_default
+        if reference and paper_protocol and beside_default and paper_method(r.recognizer)[1] in (r.scorer, None):
             reported = reference.get((r.task, r.recognizer, round(r.observability, 6)))
             if reported:
                 board.reported[(*row, label)] = reported
@@ -171,6 +194,12 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
         board.rows.sort()
         board.columns.sort()
     return [boards[k] for k in sorted(boards)]
+
+
+def _cell_of(record: OfflineRecord) -> tuple[Any, ...]:
+    """A record's cell whatever its configuration: task, task parameters, protocol, level, recognizer, scorer."""
+    return (record.task, json.dumps(record.task_params, sort_keys=True), record.protocol, record.observability,
+            record.recognizer, record.scorer)
 
 
 def placement_counts(boards: Iterable[Board]) -> dict[str, int]:
