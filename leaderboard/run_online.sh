@@ -7,14 +7,15 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 GB=".venv/bin/grail-bench"
 RECOGNIZERS="-r bc -r graql -r gail -r airl"
+# MiniGrid, published with ceil rounding (before the cards' floor): --rounding ceil reproduces those rows.
 # Online: every prefix of every test trajectory, each recognizer's own scorer, 10 seeds.
 for t in Optimal Optimal-4Goals Optimal-6Goals Suboptimal Suboptimal-4Goals Suboptimal-6Goals Biased; do
-  $GB run -t GRAIL/MiniGrid-$t-v0 $RECOGNIZERS --online --seeds 10 --workers 2 --no-progress \
+  $GB run -t GRAIL/MiniGrid-$t-v0 $RECOGNIZERS --online --rounding ceil --seeds 10 --workers 2 --no-progress \
       --store leaderboard/results.sqlite --json leaderboard/results/MiniGrid-$t-online.json
 done
 # Open set: one goal held out per seed (each in turn), the tasks with 4 and 6 goals, their default levels.
 for t in Optimal-4Goals Optimal-6Goals Suboptimal-4Goals Suboptimal-6Goals; do
-  $GB run -t GRAIL/MiniGrid-$t-v0 $RECOGNIZERS --open-set --seeds 10 --workers 2 --no-progress \
+  $GB run -t GRAIL/MiniGrid-$t-v0 $RECOGNIZERS --open-set --rounding ceil --seeds 10 --workers 2 --no-progress \
       --store leaderboard/results.sqlite --json leaderboard/results/MiniGrid-$t-open-set.json
 done
 # PointMaze (gymnasium-robotics), both modes: each method with the seeds of its offline runs in run_point_maze.sh,

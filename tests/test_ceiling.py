@@ -59,10 +59,20 @@ def test_monte_carlo_agrees_with_the_exact_value(task_id, protocol):
 ])
 def test_the_paper_protocols_ceilings_on_six_goals(route_choice, prefix_ceiling, subset_ceiling):
     task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0", route_choice=route_choice)
-    prefix = [bayes_ceiling(task, "prefix", p).accuracy for p in (0.1, 0.2, 0.3)]
-    subset = [bayes_ceiling(task, "subset", p).accuracy for p in (0.1, 0.2, 0.3)]
+    prefix = [bayes_ceiling(task, "prefix", p, rounding="ceil").accuracy for p in (0.1, 0.2, 0.3)]
+    subset = [bayes_ceiling(task, "subset", p, rounding="ceil").accuracy for p in (0.1, 0.2, 0.3)]
     assert np.round(prefix, 2).tolist() == np.round(prefix_ceiling, 2).tolist()
     assert np.round(subset, 2).tolist() == subset_ceiling
+
+
+def test_the_ceiling_follows_the_tasks_rounding_and_fewer_pairs_tell_less():
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0")
+    assert task.rounding == "floor"
+    for p in (0.1, 0.2, 0.3):
+        default, floor = bayes_ceiling(task, "subset", p), bayes_ceiling(task, "subset", p, rounding="floor")
+        assert default == floor and default.protocol == "subset+floor"
+        assert floor.accuracy <= bayes_ceiling(task, "subset", p, rounding="ceil").accuracy
+    assert bayes_ceiling(task, "subset", 0.1).accuracy < bayes_ceiling(task, "subset", 0.1, rounding="ceil").accuracy
 
 
 def _brute_force_likelihoods(d: GoalDemonstrator, selection: Selection) -> dict:

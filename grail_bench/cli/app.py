@@ -87,7 +87,8 @@ def run(
                                                 help="Comma-separated fractions, e.g. 0.1,0.2,0.3 (default: the task's)."),
     protocol: Optional[str] = typer.Option(
         None, "--protocol", "-p", help="Observation protocol (see `grail-bench protocols`; default: the task's)."),
-    rounding: str = typer.Option("ceil", help="Observed pairs k = ceil(p*T) (ceil) or gr_libs' int(p*T) (floor)."),
+    rounding: Optional[str] = typer.Option(
+        None, help="Observed pairs k = ceil(p*T) (ceil) or gr_libs' int(p*T) (floor); default: the task's."),
     sampling: Optional[str] = typer.Option(None, "--sampling", hidden=True,
                                            help="Deprecated alias of --protocol (random = subset)."),
     scorer: Optional[List[str]] = typer.Option(None, "--scorer",
@@ -380,7 +381,8 @@ def protocols() -> None:
             chosen = BUILTIN.get(name) or get_protocol(name)
             rows.append((name, chosen.leaks_goal, chosen.description + ("" if name in BUILTIN else f" ({target})")))
     console.print(protocols_table(rows))
-    say("k = max(1, ceil(p * T)) pairs, or floor with --rounding floor (gr_libs' int(p * T)).")
+    say("k = max(1, ceil(p * T)) or max(1, int(p * T)) pairs (gr_libs'), by each task's rounding "
+        "(`grail-bench tasks`) or --rounding.")
 
 
 @app.command()
@@ -389,7 +391,7 @@ def ceiling(
     protocol: Optional[str] = typer.Option(None, "--protocol", "-p", help="Observation protocol (default: the task's)."),
     observability: Optional[str] = typer.Option(None, "--observability", "-o",
                                                 help="Comma-separated fractions (default: the task's)."),
-    rounding: str = typer.Option("ceil", help="ceil or floor, as for `run`."),
+    rounding: Optional[str] = typer.Option(None, help="ceil or floor, as for `run` (default: the task's)."),
     method: str = typer.Option("auto", help="auto (exact where it can enumerate), exact or monte-carlo."),
     samples: int = typer.Option(2000, min=2, help="Monte Carlo observations."),
     seed: int = typer.Option(0, min=0, help="Monte Carlo seed."),
@@ -405,7 +407,7 @@ def ceiling(
     with errors():
         outputs(files=[json_path])
         gr_task = make_task(task, **parse_params(params or []))
-        spec = ObservationSpec.resolve(protocol or gr_task.protocol, rounding, observability or gr_task.observability)
+        spec = ObservationSpec.resolve(protocol or gr_task.protocol, rounding or gr_task.rounding, observability or gr_task.observability)
         with console.status("computing the Bayes ceiling"):
             results = [bayes_ceiling(gr_task, spec.protocol, level, rounding=spec.rounding, method=method,
                                      samples=samples, seed=seed) for level in spec.levels]

@@ -23,7 +23,7 @@ from grail_bench.task.observation import ObservationSpec
 
 def request(task_id: str, recognizers: Sequence[str | RecognizerSpec | tuple[str, Mapping[str, Any]]], *,
             seeds: int | Sequence[int] = 3, observability: Iterable[float] | str | None = None,
-            protocol: str | None = None, rounding: str = "ceil", task_params: Mapping[str, Any] | None = None,
+            protocol: str | None = None, rounding: str | None = None, task_params: Mapping[str, Any] | None = None,
             mode: str = "offline") -> Request:
     """A checked :class:`~grail_bench.harness.sweep.Request` (see :func:`evaluate` for the arguments).
 
@@ -39,7 +39,7 @@ def request(task_id: str, recognizers: Sequence[str | RecognizerSpec | tuple[str
     specs = tuple(RecognizerSpec.of(r) for r in recognizers)
     if not specs:
         raise UserError("name at least one recognizer")
-    observation = ObservationSpec.resolve(protocol or task.protocol, rounding, levels)
+    observation = ObservationSpec.resolve(protocol or task.protocol, rounding or task.rounding, levels)
     seeds = tuple(seed_list(seeds))
     if task.demos:
         check_seeds(task.demos, seeds)
@@ -53,7 +53,7 @@ def evaluate(
     seeds: int | Sequence[int] = 3,
     observability: Iterable[float] | str | None = None,
     protocol: str | None = None,
-    rounding: str = "ceil",
+    rounding: str | None = None,
     store: ResultsStore | None = None,
     progress: bool = False,
     task_params: Mapping[str, Any] | None = None,
@@ -73,8 +73,8 @@ def evaluate(
         observability: Fractions observed; defaults to the task's.
         protocol: Observation protocol; defaults to the task's (``subset`` for
             the paper's optimal and suboptimal MiniGrid tasks).
-        rounding: ``"ceil"`` (default) or ``"floor"`` (gr_libs' ``int(p * T)``)
-            for the number of observed pairs.
+        rounding: ``"ceil"`` or ``"floor"`` (gr_libs' ``int(p * T)``) for the
+            number of observed pairs; defaults to the task's (``floor`` on MiniGrid).
         store: Where rows go; an in-memory store if ``None``.
         progress: Show a progress bar.
         task_params: Task overrides, as ``gym.make`` accepts them (e.g.

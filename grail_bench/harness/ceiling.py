@@ -172,7 +172,7 @@ def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 200
     return ceiling
 
 
-def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str = "ceil", method: str = "auto",
+def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | None = None, method: str = "auto",
                   samples: int = 2000, seed: int = 0) -> Ceiling:
     """Bayes-optimal expected accuracy of ``task`` under a protocol at one observability level.
 
@@ -180,7 +180,7 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str = 
         task: A task whose regime has a known likelihood (see :func:`has_ceiling`).
         protocol: A built-in protocol name.
         level: Observability fraction in (0, 1].
-        rounding: ``"ceil"`` or ``"floor"`` for the number of observed pairs.
+        rounding: ``"ceil"`` or ``"floor"`` for the number of observed pairs; defaults to the task's.
         method: ``"exact"``, ``"monte-carlo"`` or ``"auto"`` (exact when it can enumerate).
         samples: Monte Carlo observations (split equally across goals).
         seed: Monte Carlo seed.
@@ -193,6 +193,7 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str = 
         raise UserError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if samples < 2:
         raise UserError(f"need at least 2 Monte Carlo samples, got {samples}")
+    rounding = rounding or task.rounding
     selection = _selection(protocol, level, rounding)
     demonstrators = _demonstrators(task)
     size = _exact_size(demonstrators, selection) if method != "monte-carlo" else None

@@ -184,7 +184,7 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
             if key in ceilings:
                 board.ceilings[row] = ceilings[key]
         board.cells[(*row, label)] = r
-        paper_protocol = task is not None and r.protocol == task.protocol and not reading
+        paper_protocol = task is not None and r.protocol == task.protocol_label and not reading
         beside_default = _is_default(r) or _cell_of(r) not in at_default
         if reference and paper_protocol and beside_default and paper_method(r.recognizer)[1] in (r.scorer, None):
             reported = reference.get((r.task, r.recognizer, round(r.observability, 6)))

@@ -107,7 +107,7 @@ class Section:
     config: Mapping[str, Any] = field(default_factory=dict)  # hyperparameters for every recognizer of the section
 
     def requests(self, seeds: int, config: Mapping[str, Mapping[str, Any]]) -> list[Request]:
-        """This section's requests: each task's default protocol, its levels unless the section has its own."""
+        """This section's requests: each task's default protocol and rounding; its levels unless the section's."""
         out = []
         for task_id in self.tasks:
             for params, configs in self._variants(config):
@@ -115,7 +115,7 @@ class Section:
                 levels = (self.observability or task.observability) if get_mode(self.mode).takes_levels else ()
                 specs = tuple(RecognizerSpec(r, c, self.scorers) for r, c in configs)
                 out.append(Request(task.id, specs, tuple(range(self.seeds or seeds)),
-                                   ObservationSpec.resolve(task.protocol, "ceil", levels), params, self.mode))
+                                   ObservationSpec.resolve(task.protocol, task.rounding, levels), params, self.mode))
         return out
 
     def _variants(self, config: Mapping[str, Mapping[str, Any]]) -> list[tuple[dict[str, Any], list]]:

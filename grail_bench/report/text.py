@@ -240,7 +240,7 @@ def tasks_table(tasks: Sequence[Any]) -> Table:
         goals = " ".join("(" + ",".join(f"{c:g}" for c in g) + ")" for g in task.goals)
         table.add_row(task.id, task.domain, task.regime, goals,
                       f"{task.n_demos} ({task.n_train}/{task.n_demos - task.n_train})",
-                      ", ".join(f"{p:.0%}" for p in task.observability), task.protocol)
+                      ", ".join(f"{p:.0%}" for p in task.observability), task.protocol_label)
     return table
 
 

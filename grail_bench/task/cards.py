@@ -36,9 +36,10 @@ ID_PATTERN = re.compile(r"^GRAIL/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
 FILE_KEYS = {"domain", "description", "defaults", "task"}
 TASK_KEYS = {
     "id", "regime", "goals", "params", "env", "n_demos", "n_train",
-    "observability", "protocol", "description",
+    "observability", "protocol", "rounding", "description",
 }
-DEFAULT_FIELDS = {"n_demos": 10, "n_train": 7, "observability": [0.1, 0.2, 0.3], "protocol": "subset"}
+DEFAULT_FIELDS = {"n_demos": 10, "n_train": 7, "observability": [0.1, 0.2, 0.3], "protocol": "subset",
+                  "rounding": "ceil"}
 
 
 class CardError(UserError):
@@ -62,7 +63,7 @@ def _task(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: st
             id=task_id, domain=domain, regime=merged.get("regime"), goals=merged.get("goals"),
             params=merged.get("params", {}), env_params=merged.get("env", {}), n_demos=merged["n_demos"],
             n_train=merged["n_train"], observability=merged["observability"], protocol=merged["protocol"],
-            description=merged.get("description", ""), source=source,
+            rounding=merged["rounding"], description=merged.get("description", ""), source=source,
         )
     except TaskFieldError as exc:
         raise _fail(source, f"{where}.{exc.field}", exc.why) from None

@@ -5,7 +5,7 @@ seed, ID ``grail-bench/<task name>-seed<s>-v0`` (Minari's ``namespace/name-vN``)
 with every goal's demonstrations as episodes. Each episode's metadata records
 its ``goal`` and ``split`` (``train`` or ``test``); the dataset's metadata
 records, under ``grail_bench``, the task ID, regime, parameters, env
-parameters, goals, default protocol and levels, the seed and the grail-bench
+parameters, goals, default protocol, rounding and levels, the seed and the grail-bench
 version. Its ``env_spec`` and ``eval_env_spec`` are the task's gymnasium spec,
 so ``dataset.recover_environment()`` rebuilds the GRAIL env.
 
@@ -128,7 +128,7 @@ def export(task: GRTask, seeds: Sequence[int], out: Path) -> list[Path]:
         storage.update_metadata({"grail_bench": json.dumps({
             "task": task.id, "regime": task.regime, "params": dict(task.params), "env": dict(task.env_params),
             "goals": [list(map(float, g)) for g in task.goals], "protocol": task.protocol,
-            "observability": list(task.observability), "n_demos": task.n_demos, "n_train": task.n_train,
+            "rounding": task.rounding, "observability": list(task.observability), "n_demos": task.n_demos, "n_train": task.n_train,
             "seed": int(seed), "version": version("grail-bench")}, sort_keys=True)})
         written.append(out / ident)
     return written

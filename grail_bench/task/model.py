@@ -12,7 +12,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import DEMOS, goal_rng
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.task.domain import Domain, get_domain
-from grail_bench.task.observation import BUILTIN, available_protocols
+from grail_bench.task.observation import BUILTIN, ROUNDINGS, available_protocols, protocol_label
 
 if TYPE_CHECKING:
     import gymnasium as gym
@@ -60,6 +60,8 @@ class GRTask:
         observability: Default observability levels of the task.
         protocol: Default observation protocol (see
             :mod:`grail_bench.task.observation`).
+        rounding: How the default protocol rounds the number of observed pairs ``p * T``: ``"ceil"`` or
+            ``"floor"`` (the baselines' gr_libs, ``int(p * T)``), at least one pair either way.
         description: One line for humans.
         source: The card file that defines the task.
         demos: A Minari dataset (a folder, a folder of datasets, or an ID) to take the demonstrations from
@@ -76,6 +78,7 @@ class GRTask:
     n_train: int = 7
     observability: tuple[float, ...] = (0.1, 0.2, 0.3)
     protocol: str = "subset"
+    rounding: str = "ceil"
     description: str = ""
     source: str = ""
     demos: str = ""
@@ -115,6 +118,8 @@ class GRTask:
         object.__setattr__(self, "observability", tuple(float(p) for p in obs))
         if not isinstance(self.protocol, str) or not _known_protocol(self.protocol):
             raise TaskFieldError("protocol", f"unknown observation protocol {self.protocol!r}")
+        if self.rounding not in ROUNDINGS:
+            raise TaskFieldError("rounding", f"expected one of {', '.join(ROUNDINGS)}, got {self.rounding!r}")
         if not isinstance(self.description, str):
             raise TaskFieldError("description", "expected a string")
         if not isinstance(self.demos, str):
@@ -128,6 +133,11 @@ class GRTask:
 
     def __hash__(self) -> int:
         return hash((self.id, self.regime, self.goals, repr(sorted(self.params.items()))))
+
+    @property
+    def protocol_label(self) -> str:
+        """The store's label of the default protocol and rounding (``"subset+floor"``)."""
+        return protocol_label(self.protocol, self.rounding)
 
     @property
     def spec(self) -> Domain:
