@@ -140,6 +140,20 @@ def test_graql_learns_to_reach_goals():
         assert info["is_success"], f"greedy Q policy never reaches {goal}"
 
 
+@pytest.mark.parametrize("env_params", [{}, {"fixed_horizon": False}, {"max_steps": 40}])
+@pytest.mark.parametrize("config", [{}, {"max_episode_steps": 30}])
+def test_graql_on_the_rooms_tables_learns_what_stepping_the_env_learns(env_params, config):
+    """MiniGrid offers its dynamics as tables; Q-learning on them gives the stepped env's Q-table bit for bit."""
+    rec = make_recognizer("graql", episodes=1000, **config)
+    for goal in TASK.goals:
+        from_tables = rec._q_learning(TASK.make_env(goal, **env_params), seed=5)
+        stepped = TASK.make_env(goal, **env_params)
+        stepped.tabular_dynamics = None  # hides the tables: the env is stepped
+        from_env = rec._q_learning(stepped, seed=5)
+        assert np.array_equal(from_tables[0], from_env[0]) and np.array_equal(from_tables[1], from_env[1])
+        assert from_tables[2] == from_env[2] and max(from_env[2]) > 0  # returns; the goal was reached
+
+
 def test_graql_unvisited_states_get_uniform_policy():
     rec = fitted("graql")
     np.testing.assert_allclose(rec._softmax_policy(rec.q, np.zeros_like(rec.visited)), 0.25)

@@ -24,6 +24,8 @@ from minigrid.core.world_object import Goal, Wall
 from minigrid.minigrid_env import MiniGridEnv
 
 from grail_bench.core.errors import UserError
+from grail_bench.core.spaces import all_states, state_index
+from grail_bench.core.tabular import TabularDynamics
 from grail_bench.domains.minigrid.grid import ACTION_NAMES, GridModel, State
 
 _TO_MINIGRID = (Actions.left, Actions.right, Actions.forward, Actions.done)
@@ -105,6 +107,27 @@ class GRMiniGridEnv(MiniGridEnv):
         from grail_bench.domains.minigrid.vector import MiniGridVecEnv
 
         return MiniGridVecEnv(self, n_envs)
+
+    def tabular_dynamics(self) -> TabularDynamics:
+        """The room as tables over state indices (tabular learners step these instead of the env).
+
+        Cells outside the free area are never entered; their rows stay in place.
+        """
+        states = all_states(self.observation_space)
+        n_actions = int(self.action_space.n)
+        next_state = np.tile(np.arange(len(states))[:, None], (1, n_actions))
+        success = np.zeros(next_state.shape, dtype=bool)
+        for i, (x, y, d) in enumerate(states.tolist()):
+            if not self.model.free(x, y) or (x, y) == self.goal:
+                continue  # the goal is never left: reaching it ends the episode
+            for a in range(n_actions):
+                nx, ny, nd = self.model.step((x, y, d), a)
+                next_state[i, a] = int(state_index(np.array([[nx, ny, nd]]), self.observation_space)[0])
+                success[i, a] = (nx, ny) == self.goal
+        start = int(state_index(np.array([[*self.start, self.start_dir]]), self.observation_space)[0])
+        horizon = int(self.max_steps)
+        # minigrid's reward for reaching the goal (MiniGridEnv._reward), the same float operations
+        return TabularDynamics(next_state, success, start, horizon, lambda t: 1 - 0.9 * (t / horizon))
 
     @property
     def state(self) -> State:
