@@ -4,9 +4,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 GB=".venv/bin/grail-bench"
 # The paper's grid: every MiniGrid task under its default protocol and rounding (subset+floor; biased:
-# prefix+floor), BC, GRAQL, GAIL and
-# AIRL, 10 seeds, the four scorers; also writes leaderboard/paper/ (tables with CIs, figures, manifest; the one
-# published web page is leaderboard/site/, written by publish.sh from the whole store).
+# prefix+floor), BC, GRAQL, GAIL and AIRL, 10 seeds, the four scorers; also writes leaderboard/paper/ (tables
+# with CIs, figures, manifest; the one published web page is leaderboard/site/, written by publish.sh from the
+# whole store).
 $GB reproduce --profile paper --only minigrid --workers 2 --store leaderboard/results.sqlite --out leaderboard/paper --no-site \
     --no-progress
 # The stricter prefix variant, BC and GRAQL (published with ceil rounding).

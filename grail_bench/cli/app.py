@@ -407,7 +407,8 @@ def ceiling(
     with errors():
         outputs(files=[json_path])
         gr_task = make_task(task, **parse_params(params or []))
-        spec = ObservationSpec.resolve(protocol or gr_task.protocol, rounding or gr_task.rounding, observability or gr_task.observability)
+        spec = ObservationSpec.resolve(protocol or gr_task.protocol, rounding or gr_task.rounding,
+                                       observability or gr_task.observability)
         with console.status("computing the Bayes ceiling"):
             results = [bayes_ceiling(gr_task, spec.protocol, level, rounding=spec.rounding, method=method,
                                      samples=samples, seed=seed) for level in spec.levels]

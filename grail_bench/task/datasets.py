@@ -128,7 +128,8 @@ def export(task: GRTask, seeds: Sequence[int], out: Path) -> list[Path]:
         storage.update_metadata({"grail_bench": json.dumps({
             "task": task.id, "regime": task.regime, "params": dict(task.params), "env": dict(task.env_params),
             "goals": [list(map(float, g)) for g in task.goals], "protocol": task.protocol,
-            "rounding": task.rounding, "observability": list(task.observability), "n_demos": task.n_demos, "n_train": task.n_train,
+            "rounding": task.rounding, "observability": list(task.observability), "n_demos": task.n_demos,
+            "n_train": task.n_train,
             "seed": int(seed), "version": version("grail-bench")}, sort_keys=True)})
         written.append(out / ident)
     return written
