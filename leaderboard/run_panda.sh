@@ -1,13 +1,18 @@
 #!/usr/bin/env bash
-# PandaReach runs behind leaderboard/ (see leaderboard/README.md), both goal sets, seeds added in rounds.
+# PandaReach runs behind leaderboard/ (see leaderboard/README.md), both goal sets, 2 seeds: BC-GRAIL (at the 25
+# epochs it was run with), DRACO with PPO (its default, as the paper states) and DRACO with SAC (a named
+# configuration). DRACO's models depend only on the goal and seed, so the five regimes of a goal set share them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export GRAIL_BENCH_STORE=leaderboard/results.sqlite
 GB=".venv/bin/grail-bench"
-for n in 1 2 3; do
-  for t in Optimal Gaussian-0.1 Gaussian-0.3 Uniform-0.1 Uniform-0.3 Aligned-Optimal Aligned-Gaussian-0.1 \
-           Aligned-Gaussian-0.3 Aligned-Uniform-0.1 Aligned-Uniform-0.3; do
-    $GB run -t GRAIL/PandaReach-$t-v0 -r bc -r draco --scorer mse --scorer wasserstein --scorer loglik \
-        --seeds $n --no-progress --json leaderboard/results/PandaReach-$t-bc-draco.json
-  done
+SCORERS="--scorer mse --scorer wasserstein --scorer loglik"
+for t in Optimal Gaussian-0.1 Gaussian-0.3 Uniform-0.1 Uniform-0.3 Aligned-Optimal Aligned-Gaussian-0.1 \
+         Aligned-Gaussian-0.3 Aligned-Uniform-0.1 Aligned-Uniform-0.3; do
+  $GB run -t GRAIL/PandaReach-$t-v0 -r bc --set bc.n_epochs=25 $SCORERS --seeds 2 --no-progress \
+      --json leaderboard/results/PandaReach-$t-bc.json
+  $GB run -t GRAIL/PandaReach-$t-v0 -r draco $SCORERS --seeds 2 --no-progress \
+      --json leaderboard/results/PandaReach-$t-draco-ppo.json
+  $GB run -t GRAIL/PandaReach-$t-v0 -r draco --set draco.algorithm=sac $SCORERS --seeds 2 --no-progress \
+      --json leaderboard/results/PandaReach-$t-draco-sac.json
 done

@@ -237,3 +237,23 @@ def test_trained_policies_are_cached_and_reloaded(name, monkeypatch):
     second.fit(other_train, other_task.env_factory(), seed=4, cache_key=other_task.env_key)
     # Imitation learners retrain on other demonstrations; DRACO ignores them and reuses its policies.
     assert calls == ([] if name == "draco" else [1, 1])
+
+
+def test_draco_identity_holds_only_the_chosen_algorithms_budget(monkeypatch):
+    """PPO and SAC fits key results and models apart, and a new default for one algorithm leaves the other's
+    stored results and cached models valid."""
+    from grail_bench.harness.planning import RecognizerSpec, plan
+    from grail_bench.recognizers import draco
+
+    task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", expert="scripted")
+    action_space = task.make_env().action_space
+
+    def identity(**config):
+        return plan(task, RecognizerSpec("draco", config, ()), action_space).config_hash
+
+    sac = make_recognizer("draco", algorithm="sac")
+    assert sac.config == {"algorithm": "sac", "sac_steps": draco.STEPS["sac"], "net_arch": [64, 64]}
+    assert identity() != identity(algorithm="sac")
+    before = identity(algorithm="sac"), identity(algorithm="sac", sac_steps=5000)
+    monkeypatch.setitem(draco.STEPS, "ppo", draco.STEPS["ppo"] + 1)
+    assert (identity(algorithm="sac"), identity(algorithm="sac", sac_steps=5000)) == before

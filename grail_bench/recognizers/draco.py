@@ -46,16 +46,17 @@ class DRACORecognizer(PolicyRecognizer):
         if algorithm not in ALGORITHMS:
             raise UserError(f"draco: algorithm must be one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
         given = {"ppo": ppo_steps, "sac": sac_steps}
-        for other, steps in given.items():
-            # A stored configuration repeats the other algorithm's default, which stays accepted.
-            if other != algorithm and steps is not None and steps != STEPS[other]:
+        for other, budget in given.items():
+            # A configuration stored by an older version repeats the other algorithm's default: accepted.
+            if other != algorithm and budget is not None and budget != STEPS[other]:
                 raise UserError(f"draco: {other}_steps applies to algorithm={other}; with algorithm={algorithm} "
                                 f"set {algorithm}_steps")
-        sac_steps, ppo_steps = (STEPS[a] if given[a] is None else given[a] for a in ("sac", "ppo"))
-        if sac_steps < 1 or ppo_steps < 1:
+        steps = STEPS[algorithm] if given[algorithm] is None else given[algorithm]
+        if steps < 1:
             raise UserError("draco: step budgets must be positive")
-        super().__init__(scorer, algorithm=algorithm, sac_steps=sac_steps, ppo_steps=ppo_steps,
-                         net_arch=list(net_arch))
+        # The configuration (the results' and the model cache's key) holds the chosen algorithm's budget only,
+        # so a change to the other algorithm's default leaves its results and models valid.
+        super().__init__(scorer, algorithm=algorithm, **{f"{algorithm}_steps": steps}, net_arch=list(net_arch))
 
     def _algorithm(self, action_space: spaces.Space) -> str:
         if self.config["algorithm"] == "sac" and not isinstance(action_space, spaces.Box):

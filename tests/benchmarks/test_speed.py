@@ -183,6 +183,21 @@ def test_panda_sac_expert_training_one_goal(benchmark):
     benchmark.pedantic(train, rounds=1, iterations=1)
 
 
+@pytest.mark.parametrize("algorithm", ["ppo", "sac"])
+def test_draco_fit_one_goal_panda(benchmark, panda, algorithm):
+    """DRACO's fit of one PandaReach goal at its default budget per algorithm (README "Training budgets")."""
+    task, train, _ = panda
+    rec = make_recognizer("draco", algorithm=algorithm)
+    goal = task.goals[0]
+
+    def fit():
+        with single_thread():  # as PolicyRecognizer.fit trains
+            rec.train_policy(goal, train[goal], task.make_env, 0)
+
+    benchmark.pedantic(fit, rounds=1, iterations=1)
+    benchmark.extra_info["steps"] = rec.config[f"{algorithm}_steps"]
+
+
 def test_point_maze_env_step(benchmark):
     """One PointMaze step (5 MuJoCo steps of 10 ms)."""
     env = grail_bench.make_task("GRAIL/PointMaze-Optimal-v0").make_env((1, 5))
