@@ -9,10 +9,10 @@ GB=".venv/bin/grail-bench"
 SCORERS="--scorer mse --scorer wasserstein --scorer loglik"
 for t in Optimal Gaussian-0.1 Gaussian-0.3 Uniform-0.1 Uniform-0.3 Aligned-Optimal Aligned-Gaussian-0.1 \
          Aligned-Gaussian-0.3 Aligned-Uniform-0.1 Aligned-Uniform-0.3; do
-  $GB run -t GRAIL/PandaReach-$t-v0 -r bc --set bc.n_epochs=25 $SCORERS --seeds 2 --no-progress \
+  $GB run -t GRAIL/PandaReach-$t-v0 -r bc --set bc.n_epochs=25 $SCORERS --seeds 2 --workers 2 --no-progress \
       --json leaderboard/results/PandaReach-$t-bc.json
-  $GB run -t GRAIL/PandaReach-$t-v0 -r draco $SCORERS --seeds 2 --no-progress \
+  $GB run -t GRAIL/PandaReach-$t-v0 -r draco $SCORERS --seeds 2 --workers 2 --no-progress \
       --json leaderboard/results/PandaReach-$t-draco-ppo.json
-  $GB run -t GRAIL/PandaReach-$t-v0 -r draco --set draco.algorithm=sac $SCORERS --seeds 2 --no-progress \
+  $GB run -t GRAIL/PandaReach-$t-v0 -r draco --set draco.algorithm=sac $SCORERS --seeds 2 --workers 2 --no-progress \
       --json leaderboard/results/PandaReach-$t-draco-sac.json
 done

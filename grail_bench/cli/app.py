@@ -267,8 +267,9 @@ def _select(store, mode, task: Optional[List[str]], scorer: Optional[List[str]],
 @app.command()
 def reproduce(
     profile: str = typer.Option("quick", "--profile", help="quick (2 seeds, small budgets), paper, or a TOML file."),
-    only: Optional[List[str]] = typer.Option(None, "--only",
-                                             help="Only this section (minigrid, panda, online, open-set); repeatable."),
+    only: Optional[List[str]] = typer.Option(
+        None, "--only", help="Only this section of the profile (minigrid, panda, budget-bc, ...; an unknown name "
+                             "lists them all); repeatable."),
     out: Path = typer.Option(..., "--out", help="Folder for the tables, figures and manifest.json."),
     store_path: Optional[Path] = typer.Option(None, "--store", help="Results database (default: OUT/results.sqlite)."),
     workers: Optional[int] = typer.Option(None, "--workers", "-w", help=WORKERS_HELP),
