@@ -3,8 +3,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 GB=".venv/bin/grail-bench"
-# The paper's grid: every MiniGrid task under its default protocol and rounding (subset+floor; biased:
-# prefix+floor), BC, GRAQL, GAIL and AIRL, 10 seeds, the four scorers; also writes leaderboard/paper/ (tables
+# The paper's grid: every MiniGrid task under its default protocol and rounding (subset; biased: prefix;
+# k = ceil(p*T)), BC, GRAQL, GAIL and AIRL, 10 seeds, the four scorers; also writes leaderboard/paper/ (tables
 # with CIs, figures, manifest; the one published web page is leaderboard/site/, written by publish.sh from the
 # whole store).
 $GB reproduce --profile paper --only minigrid --workers 2 --store leaderboard/results.sqlite --out leaderboard/paper --no-site \
@@ -15,9 +15,9 @@ for t in Optimal Optimal-4Goals Optimal-6Goals Suboptimal Suboptimal-4Goals Subo
   $GB run -t GRAIL/MiniGrid-$t-v0 -r bc -r graql $SCORERS --protocol prefix --rounding ceil --seeds 10 --workers 2 --no-progress \
       --store leaderboard/results.sqlite --json leaderboard/results/MiniGrid-$t-bc-graql-prefix.json
 done
-# The same grid with the other rounding (k = ceil(p*T), the suite's first default; the cards' floor is gr_libs'
-# int(p*T), at least 1): the paper does not say how it rounds. Every model comes from the cache of the run above.
+# The same grid with the other rounding (floor: gr_libs' int(p*T), at least 1; the paper does not say how it
+# rounds, see leaderboard/README.md, "Rounding"). Every model comes from the cache of the run above.
 for t in Optimal Optimal-4Goals Optimal-6Goals Suboptimal Suboptimal-4Goals Suboptimal-6Goals; do
-  $GB run -t GRAIL/MiniGrid-$t-v0 -r bc -r graql -r gail -r airl $SCORERS --rounding ceil --seeds 10 --workers 2 \
+  $GB run -t GRAIL/MiniGrid-$t-v0 -r bc -r graql -r gail -r airl $SCORERS --rounding floor --seeds 10 --workers 2 \
       --no-progress --store leaderboard/results.sqlite
 done

@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 GB=".venv/bin/grail-bench"
 RECOGNIZERS="-r bc -r graql -r gail -r airl"
-# MiniGrid, published with ceil rounding (before the cards' floor): --rounding ceil reproduces those rows.
+# MiniGrid at ceil rounding (the cards' default, spelled out).
 # Online: every prefix of every test trajectory, each recognizer's own scorer, 10 seeds.
 for t in Optimal Optimal-4Goals Optimal-6Goals Suboptimal Suboptimal-4Goals Suboptimal-6Goals Biased; do
   $GB run -t GRAIL/MiniGrid-$t-v0 $RECOGNIZERS --online --rounding ceil --seeds 10 --workers 2 --no-progress \

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The suboptimal regime under its other reading (turn around and back), for leaderboard/README.md; published with
-# ceil rounding, before the MiniGrid cards' floor.
+# ceil rounding (the cards' default, spelled out).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export GRAIL_BENCH_STORE=leaderboard/readings.sqlite

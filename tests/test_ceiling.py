@@ -67,12 +67,12 @@ def test_the_paper_protocols_ceilings_on_six_goals(route_choice, prefix_ceiling,
 
 def test_the_ceiling_follows_the_tasks_rounding_and_fewer_pairs_tell_less():
     task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0")
-    assert task.rounding == "floor"
+    assert task.rounding == "ceil"
     for p in (0.1, 0.2, 0.3):
-        default, floor = bayes_ceiling(task, "subset", p), bayes_ceiling(task, "subset", p, rounding="floor")
-        assert default == floor and default.protocol == "subset+floor"
-        assert floor.accuracy <= bayes_ceiling(task, "subset", p, rounding="ceil").accuracy
-    assert bayes_ceiling(task, "subset", 0.1).accuracy < bayes_ceiling(task, "subset", 0.1, rounding="ceil").accuracy
+        default, ceil = bayes_ceiling(task, "subset", p), bayes_ceiling(task, "subset", p, rounding="ceil")
+        assert default == ceil and default.protocol == "subset"
+        assert bayes_ceiling(task, "subset", p, rounding="floor").accuracy <= ceil.accuracy
+    assert bayes_ceiling(task, "subset", 0.1, rounding="floor").accuracy < bayes_ceiling(task, "subset", 0.1).accuracy
 
 
 def _brute_force_likelihoods(d: GoalDemonstrator, selection: Selection) -> dict:

@@ -58,7 +58,7 @@ def test_plugin_runs_end_to_end_and_reaches_the_leaderboard(tmp_path):
     text = md.read_text()
     # The biased routes part at the first step: the ceiling is 1 and the normalised F1 too.
     assert "| MiniGrid-Biased | 2 | 20% | 1.00 | **1.00 ± 0.00 [1.00]** |" in text and "toy" in text
-    assert {r["protocol"] for r in records} == {"prefix+floor"}  # the biased task's default protocol and rounding
+    assert {r["protocol"] for r in records} == {"prefix"}  # the biased task's default protocol (rounding up)
 
 
 def test_rerun_reuses_stored_seeds(tmp_path):
@@ -166,8 +166,8 @@ def test_ablation_table_markdown_and_plot(tmp_path):
     assert out.returncode == 0, out.stderr
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = md.read_text()
-    assert "| GRAIL/MiniGrid-Biased-v0 (prefix+floor) | bc | loglik |" in text
-    assert "| GRAIL/MiniGrid-Biased-v0 (prefix+floor) | bc | mse |" in text
+    assert "| GRAIL/MiniGrid-Biased-v0 (prefix) | bc | loglik |" in text
+    assert "| GRAIL/MiniGrid-Biased-v0 (prefix) | bc | mse |" in text
     out = cli(["leaderboard", "--scorer", "mse"], tmp_path)
     assert "bc/mse" in out.stdout and "bc/loglik" not in out.stdout
 
@@ -191,7 +191,7 @@ def test_ceiling_command_matches_the_library(tmp_path):
     task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0", route_choice="uniform")
     assert [r["accuracy"] for r in records] == [bayes_ceiling(task, "prefix", p).accuracy for p in (0.1, 0.3)]
     assert {r["method"] for r in records} == {"exact"} and f"{records[0]['accuracy']:.3f}" in out.stdout
-    assert {r["protocol"] for r in records} == {"prefix+floor"}  # the task's rounding
+    assert {r["protocol"] for r in records} == {"prefix"}  # the task's rounding (ceil)
 
 
 def test_protocol_flag_and_deprecated_sampling_alias(tmp_path):
@@ -205,7 +205,7 @@ def test_protocol_flag_and_deprecated_sampling_alias(tmp_path):
                "--json", str(tmp_path / "b.json")], tmp_path, **env)
     assert out.returncode == 0, out.stderr
     assert "--sampling is deprecated" in out.stderr
-    assert {r["protocol"] for r in json.loads((tmp_path / "b.json").read_text())} == {"subset+floor"}  # task's
+    assert {r["protocol"] for r in json.loads((tmp_path / "b.json").read_text())} == {"subset"}  # task's
     out = cli(["run", "-r", "toy", "--seeds", "1", "--protocol", "subset", "--rounding", "ceil", "--no-progress",
                "--json", str(tmp_path / "c.json")], tmp_path, **env)
     assert {r["protocol"] for r in json.loads((tmp_path / "c.json").read_text())} == {"subset"}

@@ -66,16 +66,17 @@ def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise(
                record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.9, task_params=uniform)]
     reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
     boards = build_boards(records, reference, ceiling_samples=50)
-    assert [b.title for b in boards] == ["minigrid / optimal (prefix)", "minigrid / optimal (subset+floor)"]
+    assert [b.title for b in boards] == ["minigrid / optimal (prefix)", "minigrid / optimal (subset)"]
     text = markdown(boards, records)
     # Prefix at 10 % with every demonstration's route drawn uniformly: ceiling 2/3 exactly, so 0.30 normalises
     # to (0.3 - 0.5) / (2/3 - 0.5) = -1.2.
     assert '| MiniGrid-Optimal (route_choice="uniform") | 2 | 10% | 0.67 | **0.30 ± 0.10 [-1.20]** |\n' in text
     # The paper's values sit beside the task's default reading only. One fixed route per goal, 11 pairs of which
-    # the first 5 (the eastward run) are shared, and int(0.1 * 11) = 1 pair observed: ceiling 1 - 5/22 = 17/22,
-    # so 0.95 normalises to 0.45 / (17/22 - 0.5) = 1.65.
-    assert "| MiniGrid-Optimal | 2 | 10% | 0.77 | **0.95 ± 0.10 ▲ [1.65]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
-    assert '| MiniGrid-Optimal (route_choice="uniform") | 2 | 10% | 0.89 | **0.90 ± 0.10 [1.04]** | – |' in text
+    # the first 5 (the eastward run) are shared, and ceil(0.1 * 11) = 2 pairs observed: both fall in the shared
+    # run with probability C(5, 2) / C(11, 2) = 2/11, a coin flip then, so the ceiling is 1 - 1/11 = 10/11 and
+    # 0.95 normalises to 0.45 / (10/11 - 0.5) = 1.10.
+    assert "| MiniGrid-Optimal | 2 | 10% | 0.91 | **0.95 ± 0.10 ▲ [1.10]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
+    assert '| MiniGrid-Optimal (route_choice="uniform") | 2 | 10% | 0.97 | **0.90 ± 0.10 [0.85]** | – |' in text
     assert placement_counts(boards) == {"inside": 0, "above": 1, "below": 0}
 
 

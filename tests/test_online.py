@@ -212,7 +212,7 @@ def test_cli_online_run_then_leaderboard_plot(tmp_path, monkeypatch):
                                  "--markdown", str(md), "--no-ceiling"])
     assert result.exit_code == 0, result.output
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "| MiniGrid-Suboptimal-6Goals-v0 | subset+floor | bc/mse | 2 |" in md.read_text()
+    assert "| MiniGrid-Suboptimal-6Goals-v0 | subset | bc/mse | 2 |" in md.read_text()
     result = runner.invoke(app, ["leaderboard", "--open-set", "--store", str(store)])
     assert result.exit_code == 2 and "no open-set results" in result.output
     result = runner.invoke(app, ["leaderboard", "--store", str(store), "--plot", str(plot)])
@@ -226,8 +226,9 @@ def test_ceiling_curve_is_the_prefix_protocols_bayes_ceiling():
     fractions = [0.1, 0.5, 1.0]
     expected = [bayes_ceiling(task, "prefix", p, rounding="ceil").accuracy for p in fractions]
     assert ceiling_curve(task, "subset", fractions) == pytest.approx(expected)
-    floor = [bayes_ceiling(task, "prefix", p).accuracy for p in fractions]  # the task's rounding
-    assert ceiling_curve(task, task.protocol_label, fractions) == pytest.approx(floor) != expected
+    floor = [bayes_ceiling(task, "prefix", p, rounding="floor").accuracy for p in fractions]
+    assert ceiling_curve(task, "subset+floor", fractions) == pytest.approx(floor) != expected  # the label's rounding
+    assert ceiling_curve(task, task.protocol_label, fractions) == pytest.approx(expected)  # the task's: ceil
     assert expected[0] < expected[1] <= expected[2] == 1.0
     panda = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0")
     assert ceiling_curve(panda, "subset", fractions) is None  # no ceiling there

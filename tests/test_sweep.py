@@ -170,7 +170,7 @@ def test_reproduce_writes_every_table_figure_and_the_manifest(tmp_path):
                  tmp_path)
     assert result.returncode == 0, result.stderr
     tables = (out / "TABLES.md").read_text()
-    for title in ("## minigrid / optimal (subset+floor)", "## minigrid / biased (prefix+floor)",
+    for title in ("## minigrid / optimal (subset)", "## minigrid / biased (prefix)",
                   "## panda_reach / optimal (subset)"):
         assert title in tables
     assert "BC-GRAIL *(paper)*" in tables and "Against the paper's 95 % intervals" in tables
@@ -215,8 +215,8 @@ def test_reproduce_runs_the_online_and_open_set_sections(tmp_path):
         assert len(store.select(OnlineRow)) == 2 * 2 and len(store.select(OpenSetRow)) == 2 * 3  # 3 levels
         assert store.rows() == []
     online, open_set = (out / "ONLINE.md").read_text(), (out / "OPEN_SET.md").read_text()
-    assert "| MiniGrid-Biased-v0 | prefix+floor | bc/mse | 2 |" in online and "graql/kl" in online
-    assert "| MiniGrid-Optimal-4Goals-v0 | subset+floor | 30% | bc/mse | 2 |" in open_set
+    assert "| MiniGrid-Biased-v0 | prefix | bc/mse | 2 |" in online and "graql/kl" in online
+    assert "| MiniGrid-Optimal-4Goals-v0 | subset | 30% | bc/mse | 2 |" in open_set
     assert (out / "online.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not (out / "TABLES.md").exists()  # no section of the paper's protocol
     page = (out / "site" / "index.html").read_text()

@@ -74,7 +74,7 @@ def evaluate(
         protocol: Observation protocol; defaults to the task's (``subset`` for
             the paper's optimal and suboptimal MiniGrid tasks).
         rounding: ``"ceil"`` or ``"floor"`` (gr_libs' ``int(p * T)``) for the
-            number of observed pairs; defaults to the task's (``floor`` on MiniGrid).
+            number of observed pairs; defaults to the task's (``ceil`` on every card).
         store: Where rows go; an in-memory store if ``None``.
         progress: Show a progress bar.
         task_params: Task overrides, as ``gym.make`` accepts them (e.g.

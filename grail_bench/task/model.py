@@ -136,7 +136,7 @@ class GRTask:
 
     @property
     def protocol_label(self) -> str:
-        """The store's label of the default protocol and rounding (``"subset+floor"``)."""
+        """The store's label of the default protocol and rounding (``"subset"``; ``"subset+floor"`` rounds down)."""
         return protocol_label(self.protocol, self.rounding)
 
     @property
