@@ -4,8 +4,8 @@
 # - MiniGrid (budgets/): F1 at 30 % observed against BC's epochs, GRAQL's episodes, GAIL's and AIRL's generator
 #   steps and the training demonstrations per goal on the 6-goal tasks.
 # - PandaReach (budgets/panda/): F1 at 2 % observed on PandaReach-Aligned-Gaussian-0.3 against DRACO's PPO and
-#   SAC steps and BC's training demonstrations per goal (PPO took 1 h 17 min on 2 workers; SAC and the demos
-#   about 70 and 20 min more, estimated).
+#   SAC steps and BC's training demonstrations per goal (on 2 workers: PPO 1 h 17 min, SAC 1 h 26 min, the
+#   demos 33 min).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 GB=".venv/bin/grail-bench"
