@@ -7,7 +7,7 @@ actions) and does one of three things elsewhere:
 - ``goal-directed``: the actions that start a shortest path to its goal (uniform among them);
 - ``forward``: always forward (a policy that extrapolates one action everywhere).
 
-``goal-directed-only`` is goal-directed everywhere, its route included. Every policy mixes in 5 % of the
+A fourth policy is goal-directed everywhere, its route included. Every policy mixes in 5 % of the
 uniform distribution; an observed prefix scores its mean log-probability under each goal's policy, and ties
 are broken at random (the harness would break exact ties towards the first goal). The recognizer is a
 third-party plugin of the minimal contract (``fit`` + ``score``), scored by the harness like any other.
