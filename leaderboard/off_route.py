@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from grail_bench.domains.minigrid.demos import shortest_path_graph
-from grail_bench.domains.minigrid.grid import FORWARD, LEFT, RIGHT, STAY
+from grail_bench.domains.minigrid.demos import optimal_successors, shortest_path_graph
+from grail_bench.domains.minigrid.grid import FORWARD, STAY
 from grail_bench.harness.api import evaluate
 from grail_bench.recognizers.registry import register_recognizer
 
@@ -72,9 +72,7 @@ class HandBuilt:
         elif state[:2] == cell:
             p[STAY] = 1
         else:  # goal-directed: every action one step closer to the goal
-            for action in (LEFT, RIGHT, FORWARD):
-                if dist.get(model.step(state, action), np.inf) == dist[state] - 1:
-                    p[action] = 1
+            p[list(optimal_successors(model, dist, state))] = 1
             p /= p.sum()
         return (1 - EPS) * p + EPS / N_ACTIONS
 

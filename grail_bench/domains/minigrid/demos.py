@@ -70,15 +70,16 @@ def shortest_path_graph(model: GridModel, goal: tuple[int, int]) -> tuple[dict[S
                 dist[s], changed = best, True
     count: dict[State, int] = {}
     for s in sorted(states, key=lambda s: dist[s]):
-        count[s] = 1 if dist[s] == 0 else sum(count[t] for t in _optimal_successors(model, dist, s).values())
+        count[s] = 1 if dist[s] == 0 else sum(count[t] for t in optimal_successors(model, dist, s).values())
     return {s: int(d) for s, d in dist.items() if d < np.inf}, count
 
 
-def _optimal_successors(model: GridModel, dist: dict[State, float], state: State) -> dict[int, State]:
+def optimal_successors(model: GridModel, dist: dict[State, float], state: State) -> dict[int, State]:
+    """The actions (turns and forward) one step closer to the goal of ``dist``, with the states they lead to."""
     out = {}
     for a in (LEFT, RIGHT, FORWARD):
         nxt = model.step(state, a)
-        if dist[nxt] == dist[state] - 1:
+        if dist.get(nxt, np.inf) == dist[state] - 1:
             out[a] = nxt
     return out
 
@@ -90,7 +91,7 @@ def sample_shortest_path(model: GridModel, start: State, goal: tuple[int, int], 
         raise UserError(f"goal {goal} is unreachable from {start}")
     actions, s = [], start
     while dist[s] > 0:
-        succ = _optimal_successors(model, dist, s)
+        succ = optimal_successors(model, dist, s)
         options = sorted(succ)
         weights = np.array([count[succ[a]] for a in options], dtype=float)
         a = options[int(rng.choice(len(options), p=weights / weights.sum()))]
@@ -108,7 +109,7 @@ def all_shortest_paths(model: GridModel, start: State, goal: tuple[int, int]) ->
     def walk(s: State) -> list[list[int]]:
         if dist[s] == 0:
             return [[]]
-        return [[a, *rest] for a, nxt in sorted(_optimal_successors(model, dist, s).items()) for rest in walk(nxt)]
+        return [[a, *rest] for a, nxt in sorted(optimal_successors(model, dist, s).items()) for rest in walk(nxt)]
 
     return walk(start)
 
