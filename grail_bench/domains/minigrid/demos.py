@@ -1,10 +1,11 @@
 """Scripted MiniGrid demonstrators for the three behaviour regimes.
 
 * ``optimal``: a shortest action sequence. ``route_choice`` reads the
-  paper's "handcrafted to follow the shortest path to each goal": ``"fixed"``
-  (the default: one path per goal, every demonstration follows it; of all
-  shortest paths, the one going straight ahead first, see :func:`fixed_path`)
-  or ``"uniform"`` (each demonstration draws one uniformly among all of them).
+  paper's "handcrafted to follow the shortest path to each goal": ``"uniform"``
+  (the default: each demonstration draws one uniformly among all of them; a
+  consistent preference among equally short paths is the paper's *biased*
+  regime) or ``"fixed"`` (one path per goal, every demonstration follows it; of
+  all shortest paths, the one going straight ahead first, see :func:`fixed_path`).
 * ``biased``: one fixed shortest route per goal. A route is a heading order,
   e.g. ``"NE"``: of all shortest paths, the one whose sequence of forward-move
   headings is lexicographically smallest when north ranks before east (headings
