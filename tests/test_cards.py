@@ -19,7 +19,7 @@ params = { turn_prob = 0.5 }
 def test_good_card_merges_defaults():
     (card,) = parse_card(GOOD, "good.toml")
     assert card.id == "GRAIL/Test-v0"
-    assert card.params == {"route_choice": "fixed", "turn_prob": 0.5, "turn_pattern": "left-right"}
+    assert card.params == {"route_choice": "uniform", "turn_prob": 0.5, "turn_pattern": "left-right"}
     assert card.env_params["max_steps"] == 60
     assert card.source == "good.toml"
     assert card.protocol == "subset"

@@ -65,6 +65,27 @@ def test_the_paper_protocols_ceilings_on_six_goals(route_choice, prefix_ceiling,
     assert np.round(subset, 2).tolist() == subset_ceiling
 
 
+def test_pairs_only_leaves_out_how_many_pairs_there_are():
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0", route_choice="fixed")
+    # Prefix at 10 %: the first 2 pairs of the 11-action paths ((7,1), (7,7)) or the first 1 of the 9-action
+    # ones ((7,3), (7,5)), all "forward" from the start: the count tells long from short, the pairs nothing.
+    assert bayes_ceiling(task, "prefix", 0.1).accuracy == pytest.approx(0.5)
+    c = bayes_ceiling(task, "prefix", 0.1, pairs_only=True)
+    assert c.pairs_only and c.method == "exact" and c.accuracy == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("route_choice, expected", [
+    # One east-first route per goal: (7,1) and (7,3), like (7,7) and (7,5), act alike for 7 actions.
+    ("fixed", [0.62, 0.76, 0.85]),
+    ("uniform", [0.79, 0.90, 0.95]),
+])
+def test_pairs_only_ceilings_on_four_goals_are_below_the_bayes_ceiling(route_choice, expected):
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0", route_choice=route_choice)
+    pairs = [bayes_ceiling(task, "subset", p, pairs_only=True) for p in (0.1, 0.2, 0.3)]
+    assert [round(c.accuracy, 2) for c in pairs] == expected
+    assert all(c.accuracy < bayes_ceiling(task, "subset", c.observability).accuracy for c in pairs)
+
+
 def test_the_ceiling_follows_the_tasks_rounding_and_fewer_pairs_tell_less():
     task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0")
     assert task.rounding == "ceil"
@@ -116,6 +137,9 @@ def test_suboptimal_ceiling_is_monte_carlo_with_a_standard_error():
     assert c.method == "monte-carlo" and c.samples == 60 and 0 < c.stderr < 0.1
     assert 0.5 <= c.accuracy <= 1.0
     assert bayes_ceiling(task, "prefix", 0.3, samples=60, seed=0) == c  # seeded
+    pairs = bayes_ceiling(task, "prefix", 0.3, samples=60, seed=0, pairs_only=True)
+    assert pairs.method == "monte-carlo" and pairs.pairs_only and 0.5 <= pairs.accuracy <= 1.0
+    assert bayes_ceiling(task, "prefix", 0.3, samples=60, seed=0, pairs_only=True) == pairs
     with pytest.raises(ValueError, match="cannot enumerate"):
         bayes_ceiling(task, "prefix", 0.3, method="exact")
 

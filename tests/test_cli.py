@@ -192,6 +192,12 @@ def test_ceiling_command_matches_the_library(tmp_path):
     assert [r["accuracy"] for r in records] == [bayes_ceiling(task, "prefix", p).accuracy for p in (0.1, 0.3)]
     assert {r["method"] for r in records} == {"exact"} and f"{records[0]['accuracy']:.3f}" in out.stdout
     assert {r["protocol"] for r in records} == {"prefix"}  # the task's rounding (ceil)
+    out = cli(["ceiling", "-t", "GRAIL/MiniGrid-Optimal-6Goals-v0", "--observability", "0.3", "--pairs-only",
+               "--json", str(path)], tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "Pairs-only ceiling" in out.stdout
+    [record] = json.loads(path.read_text())
+    assert record["pairs_only"] and record["accuracy"] == bayes_ceiling(task, "subset", 0.3, pairs_only=True).accuracy
 
 
 def test_protocol_flag_and_deprecated_sampling_alias(tmp_path):

@@ -60,23 +60,23 @@ def test_reported_values_sit_beside_the_papers_scorer_only():
 
 
 def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise():
-    uniform = {**defaults("GRAIL/MiniGrid-Optimal-v0"), "route_choice": "uniform"}
-    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.3, protocol="prefix", task_params=uniform),
+    fixed = {**defaults("GRAIL/MiniGrid-Optimal-v0"), "route_choice": "fixed"}
+    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.3, protocol="prefix"),
                record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.95),
-               record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.9, task_params=uniform)]
+               record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.9, task_params=fixed)]
     reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
     boards = build_boards(records, reference, ceiling_samples=50)
     assert [b.title for b in boards] == ["minigrid / optimal (prefix)", "minigrid / optimal (subset)"]
     text = markdown(boards, records)
-    # Prefix at 10 % with every demonstration's route drawn uniformly: ceiling 2/3 exactly, so 0.30 normalises
-    # to (0.3 - 0.5) / (2/3 - 0.5) = -1.2.
-    assert '| MiniGrid-Optimal (route_choice="uniform") | 2 | 10% | 0.67 | **0.30 ± 0.10 [-1.20]** |\n' in text
-    # The paper's values sit beside the task's default reading only. One fixed route per goal, 11 pairs of which
-    # the first 5 (the eastward run) are shared, and ceil(0.1 * 11) = 2 pairs observed: both fall in the shared
-    # run with probability C(5, 2) / C(11, 2) = 2/11, a coin flip then, so the ceiling is 1 - 1/11 = 10/11 and
-    # 0.95 normalises to 0.45 / (10/11 - 0.5) = 1.10.
-    assert "| MiniGrid-Optimal | 2 | 10% | 0.91 | **0.95 ± 0.10 ▲ [1.10]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
-    assert '| MiniGrid-Optimal (route_choice="uniform") | 2 | 10% | 0.97 | **0.90 ± 0.10 [0.85]** | – |' in text
+    # Prefix at 10 % with every demonstration's route drawn uniformly (the default): ceiling 2/3 exactly, so
+    # 0.30 normalises to (0.3 - 0.5) / (2/3 - 0.5) = -1.2; no paper value under another protocol.
+    assert "| MiniGrid-Optimal | 2 | 10% | 0.67 | **0.30 ± 0.10 [-1.20]** |\n" in text
+    # The paper's values sit beside the task's default reading only (subset, uniform routes: ceiling 0.97).
+    assert "| MiniGrid-Optimal | 2 | 10% | 0.97 | **0.95 ± 0.10 ▲ [0.96]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
+    # One fixed route per goal, 11 pairs of which the first 5 (the eastward run) are shared, and
+    # ceil(0.1 * 11) = 2 pairs observed: both fall in the shared run with probability C(5, 2) / C(11, 2) = 2/11,
+    # a coin flip then, so the ceiling is 1 - 1/11 = 10/11 and 0.90 normalises to 0.4 / (10/11 - 0.5) = 0.98.
+    assert '| MiniGrid-Optimal (route_choice="fixed") | 2 | 10% | 0.91 | **0.90 ± 0.10 [0.98]** | – |' in text
     assert placement_counts(boards) == {"inside": 0, "above": 1, "below": 0}
 
 
@@ -92,10 +92,9 @@ def test_ceilings_use_the_task_parameters_of_the_run():
                                                         "turn_prob": 0.5})]
     (board,) = build_boards(mixed, ceiling_samples=50)
     # Runs with other parameters (readings) get rows of their own, each with its own ceiling.
-    assert [row[4] for row in board.rows] == ['route_choice="uniform" turn_prob=0.0',
-                                              'route_choice="uniform" turn_prob=0.5']
+    assert [row[4] for row in board.rows] == ["turn_prob=0.0", "turn_prob=0.5"]  # uniform routes: the default
     assert len(board.ceilings) == 2 and round(board.ceilings[board.rows[0]].accuracy, 2) == 0.75
-    assert "| MiniGrid-Suboptimal (route_choice=\"uniform\" turn_prob=0.0) | 2 | 20% | 0.75 |" in markdown([board], mixed)
+    assert "| MiniGrid-Suboptimal (turn_prob=0.0) | 2 | 20% | 0.75 |" in markdown([board], mixed)
 
 
 def test_a_recognizer_run_with_two_configurations_gets_a_column_per_setting():
@@ -126,6 +125,12 @@ def test_paper_values_sit_beside_the_default_configuration_only_so_no_cell_count
     # Without a run at the default configuration every configuration is compared.
     (board,) = build_boards([longer], reference, ceiling_samples=None)
     assert len(board.reported) == 1
+    # A run stored before the task had parameters reads as their implicit values (here the defaults): it
+    # shares the default row, and the paper's value stays beside the default configuration alone.
+    legacy = dataclasses.replace(longer, task_params={}, config_hash="fedcba987654")
+    (board,) = build_boards([default, legacy], reference, ceiling_samples=None)
+    assert len(board.rows) == 1 and len(board.reported) == 1
+    assert sum(verdict_counts([board]).values()) == 1
 
 
 def test_runs_table_shows_ranking_metrics_averaged_over_levels():

@@ -398,6 +398,9 @@ def ceiling(
     seed: int = typer.Option(0, min=0, help="Monte Carlo seed."),
     params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, e.g. turn_pattern=around-and-back."),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Also write the ceilings to this JSON file."),
+    pairs_only: bool = typer.Option(False, "--pairs-only",
+                                    help="The best accuracy of scoring the observed pairs with per-goal policies "
+                                         "(the demonstrators' own), as GRAIL, GRAQL and DRACO score."),
 ) -> None:
     """The Bayes ceiling: the best accuracy any recognizer can reach under a protocol and level."""
     from grail_bench.harness.ceiling import bayes_ceiling
@@ -412,7 +415,7 @@ def ceiling(
                                        observability or gr_task.observability)
         with console.status("computing the Bayes ceiling"):
             results = [bayes_ceiling(gr_task, spec.protocol, level, rounding=spec.rounding, method=method,
-                                     samples=samples, seed=seed) for level in spec.levels]
+                                     samples=samples, seed=seed, pairs_only=pairs_only) for level in spec.levels]
         console.print(ceiling_table(task, results))
         if json_path is not None:
             write_text(json_path, json.dumps([c.as_dict() for c in results], indent=2) + "\n", "ceilings")

@@ -27,9 +27,11 @@ class GoalModel(Protocol):
     Attributes:
         enumerable: Whether :meth:`support` lists every demonstration (else only
             Monte Carlo estimates are possible).
+        action_size: How many trailing entries of a pair are the action (the rest is the state).
     """
 
     enumerable: bool
+    action_size: int
 
     def support(self) -> Iterator[tuple[Any, float]]:
         """Every demonstration with its probability (only when :attr:`enumerable`)."""

@@ -11,6 +11,17 @@ bounds every recognizer's accuracy under that protocol and level.
   posterior of each is computed exactly; the estimate comes with its
   standard error.
 
+The *pairs-only* ceiling asks less of a recognizer's knowledge and more of its
+form: each goal is scored from the observed pairs through that goal's policy
+alone (GRAIL, GRAQL and DRACO all score so), with every policy the
+demonstrator's own (``P(action | state)`` over the states it visits, zero
+elsewhere) and the observed actions' log-probability summed; ties are broken
+at random. It leaves out what the pairs say beyond their actions: how many
+there are (a longer path yields more) and how likely the demonstrator is to
+visit their states. Where a demonstrator is deterministic (one route per goal)
+two goals whose demonstrators act alike on every observed state score alike
+under any per-pair score, so no such recognizer does better.
+
 Only regimes whose demonstrator has a known likelihood have a ceiling: a
 domain lists them in ``ceiling_regimes`` and builds the per-goal model
 (:class:`~grail_bench.domains.base.GoalModel`) in ``demonstrator`` (MiniGrid:
@@ -27,8 +38,8 @@ import json
 import math
 import os
 from collections import defaultdict
-from dataclasses import asdict, dataclass
-from typing import Any, Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, replace
+from typing import Any, Callable, Hashable, Iterable, Sequence
 
 import numpy as np
 
@@ -65,6 +76,7 @@ class Ceiling:
         chance: Accuracy of guessing, ``1 / n_goals``.
         method: ``"exact"`` or ``"monte-carlo"``.
         samples: Observations drawn (0 when exact).
+        pairs_only: Whether this is the pairs-only ceiling (see the module docstring).
     """
 
     task: str
@@ -75,6 +87,7 @@ class Ceiling:
     chance: float
     method: str
     samples: int
+    pairs_only: bool = False
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -144,6 +157,52 @@ def _monte_carlo(demonstrators: list, selection, samples: int, seed: int) -> tup
     return float(values.mean()), stderr, len(values)
 
 
+def _policies(demonstrators: list[GoalModel], selection: Selection, samples: int,
+              rng: np.random.Generator) -> list[dict[Hashable, float]]:
+    """Each demonstrator as a policy over the pairs the protocol samples from: ``{pair: P(action | state)}``,
+    states weighted by how often it visits them (over its support, else over ``samples`` demonstrations)."""
+    whole = replace(selection, random_subset=False, level=1.0)  # a demonstration's every pair
+    policies = []
+    for d in demonstrators:
+        visits: dict[Hashable, float] = defaultdict(float)
+        if d.enumerable:
+            for demonstration, p in d.support():
+                for pair in d.span(demonstration, selection):
+                    visits[pair] += p
+        else:
+            for _ in range(samples):
+                for pair in d.sample_observation(rng, whole):
+                    visits[pair] += 1.0
+        per_state: dict[Hashable, float] = defaultdict(float)
+        for pair, w in visits.items():
+            per_state[pair[:-d.action_size]] += w
+        policies.append({pair: w / per_state[pair[:-d.action_size]] for pair, w in visits.items()})
+    return policies
+
+
+def _pairs_only_hit(policies: list[dict[Hashable, float]], observation: tuple, goal: int) -> float:
+    """Expected accuracy of the summed log-probability under each policy on one observation, ties at random."""
+    scores = np.array([math.fsum(math.log(pi[pair]) if pair in pi else -math.inf for pair in observation)
+                       for pi in policies])
+    best = np.flatnonzero(scores >= scores.max() - 1e-9)  # equal policies can differ in the last bits
+    return float(goal in best) / len(best)
+
+
+def _pairs_only(demonstrators: list[GoalModel], selection: Selection, exact: bool, samples: int,
+                seed: int) -> tuple[float, float, int]:
+    rng = np.random.default_rng(seed)
+    policies = _policies(demonstrators, selection, samples, rng)
+    if exact:
+        total = math.fsum(p_demo * p_obs * _pairs_only_hit(policies, obs, g)
+                          for g, d in enumerate(demonstrators) for demonstration, p_demo in d.support()
+                          for obs, p_obs in d.observations(demonstration, selection))
+        return total / len(demonstrators), 0.0, 0
+    per_goal = max(1, math.ceil(samples / len(demonstrators)))
+    values = np.array([_pairs_only_hit(policies, d.sample_observation(rng, selection), g)
+                       for g, d in enumerate(demonstrators) for _ in range(per_goal)])
+    return float(values.mean()), float(values.std(ddof=1) / math.sqrt(len(values))), len(values)
+
+
 def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 2000, seed: int = 0) -> Ceiling | None:
     """:func:`bayes_ceiling` for a stored protocol label, read from or written to the on-disk cache.
 
@@ -173,7 +232,7 @@ def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 200
 
 
 def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | None = None, method: str = "auto",
-                  samples: int = 2000, seed: int = 0) -> Ceiling:
+                  samples: int = 2000, seed: int = 0, pairs_only: bool = False) -> Ceiling:
     """Bayes-optimal expected accuracy of ``task`` under a protocol at one observability level.
 
     Args:
@@ -182,8 +241,10 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | 
         level: Observability fraction in (0, 1].
         rounding: ``"ceil"`` or ``"floor"`` for the number of observed pairs; defaults to the task's.
         method: ``"exact"``, ``"monte-carlo"`` or ``"auto"`` (exact when it can enumerate).
-        samples: Monte Carlo observations (split equally across goals).
+        samples: Monte Carlo observations (split equally across goals); for the pairs-only ceiling of a
+            demonstrator that cannot be enumerated, also the demonstrations its policy is estimated from.
         seed: Monte Carlo seed.
+        pairs_only: The pairs-only ceiling instead (see the module docstring).
 
     Raises:
         UserError: For regimes without a known likelihood, plugin protocols, or ``exact`` where it
@@ -203,6 +264,11 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | 
                          f"use the Monte Carlo estimate")
     common = dict(task=task.id, protocol=protocol_label(protocol, rounding), observability=level,
                   chance=1.0 / len(task.goals))
+    if pairs_only:
+        exact = size is not None and size <= EXACT_LIMIT
+        accuracy, stderr, n = _pairs_only(demonstrators, selection, exact, samples, seed)
+        return Ceiling(accuracy=accuracy, stderr=stderr, method="exact" if exact else "monte-carlo", samples=n,
+                       pairs_only=True, **common)
     if size is not None and size <= EXACT_LIMIT:
         return Ceiling(accuracy=_exact(demonstrators, selection), stderr=0.0, method="exact", samples=0, **common)
     accuracy, stderr, n = _monte_carlo(demonstrators, selection, samples, seed)

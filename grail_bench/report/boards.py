@@ -164,9 +164,23 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
     """
     records = list(records)
     tasks = {t: find_task(t) for t in {r.task for r in records}}
+    readings: dict[tuple[str, str], str] = {}
+
+    def reading_of(r: OfflineRecord) -> str:
+        """How the run's task parameters differ from the task's defaults (rows stored before a parameter
+        existed read as its implicit value, so they share the row of the runs that state it)."""
+        key = (r.task, json.dumps(r.task_params, sort_keys=True))
+        if key not in readings:
+            readings[key] = variant(tasks[r.task], r.task_params) if tasks[r.task] else key[1]
+        return readings[key]
+
+    def cell_of(r: OfflineRecord) -> tuple[Any, ...]:
+        """A record's cell whatever its configuration: task, reading, protocol, level, recognizer, scorer."""
+        return r.task, reading_of(r), r.protocol, r.observability, r.recognizer, r.scorer
+
     variants = config_variants(records)
     # A recognizer run in several configurations on a row: the reported value sits beside its default one only.
-    at_default = {_cell_of(r) for r in records if _is_default(r)}
+    at_default = {cell_of(r) for r in records if _is_default(r)}
     ceilings = ceilings or {}
     boards: dict[str, Board] = {}
     for r in records:
@@ -176,7 +190,7 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
         label = column_label(r, variants)
         if label not in board.columns:
             board.columns.append(label)
-        reading = variant(task, r.task_params) if task else ""
+        reading = reading_of(r) if task else ""
         row = (len(task.goals) if task else 0, r.task, r.protocol, r.observability, reading)
         if row not in board.rows:
             board.rows.append(row)
@@ -185,7 +199,7 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
                 board.ceilings[row] = ceilings[key]
         board.cells[(*row, label)] = r
         paper_protocol = task is not None and r.protocol == task.protocol_label and not reading
-        beside_default = _is_default(r) or _cell_of(r) not in at_default
+        beside_default = _is_default(r) or cell_of(r) not in at_default
         if reference and paper_protocol and beside_default and paper_method(r.recognizer)[1] in (r.scorer, None):
             reported = reference.get((r.task, r.recognizer, round(r.observability, 6)))
             if reported:
@@ -194,12 +208,6 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
         board.rows.sort()
         board.columns.sort()
     return [boards[k] for k in sorted(boards)]
-
-
-def _cell_of(record: OfflineRecord) -> tuple[Any, ...]:
-    """A record's cell whatever its configuration: task, task parameters, protocol, level, recognizer, scorer."""
-    return (record.task, json.dumps(record.task_params, sort_keys=True), record.protocol, record.observability,
-            record.recognizer, record.scorer)
 
 
 def placement_counts(boards: Iterable[Board]) -> dict[str, int]:

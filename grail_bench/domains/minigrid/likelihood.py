@@ -43,6 +43,8 @@ class GoalDemonstrator:
         goal: One of its goals.
     """
 
+    action_size = 1
+
     def __init__(self, task: GRTask, goal: Goal) -> None:
         env = task.make_env(goal)
         base = env.unwrapped

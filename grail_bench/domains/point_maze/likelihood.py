@@ -38,6 +38,7 @@ class RouteDemonstrator:
     """
 
     enumerable = True
+    action_size = 2
 
     def __init__(self, task: GRTask, goal: Goal) -> None:
         if task.regime not in ("optimal", "biased") or task.params.get("expert", "scripted") != "scripted":
