@@ -77,8 +77,11 @@ class HandBuilt:
         elif self.off_route == "forward":
             p[FORWARD] = 1
         elif self.off_route == "avoid-others":
-            taken = sum((other[state] > 0 for other in self.others[goal] if state in other), np.zeros(N_ACTIONS))
-            p[:] = taken == 0 if 0 < taken.astype(bool).sum() < N_ACTIONS else 1
+            taken = np.zeros(N_ACTIONS, dtype=bool)
+            for other in self.others[goal]:
+                if state in other:
+                    taken |= other[state] > 0
+            p[:] = 1 if taken.all() or not taken.any() else ~taken
             p /= p.sum()
         elif state[:2] == cell:
             p[STAY] = 1

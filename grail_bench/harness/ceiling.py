@@ -39,6 +39,7 @@ import math
 import os
 from collections import defaultdict
 from dataclasses import asdict, dataclass, replace
+from functools import partial
 from typing import Any, Callable, Hashable, Iterable, Sequence
 
 import numpy as np
@@ -143,18 +144,23 @@ def _exact(demonstrators: list, selection) -> float:
     return min(1.0, total)  # rounding in the many small terms can push a certain answer past 1
 
 
-def _monte_carlo(demonstrators: list, selection, samples: int, seed: int) -> tuple[float, float, int]:
-    rng = np.random.default_rng(seed)
+def _monte_carlo(demonstrators: list, selection, samples: int, rng: np.random.Generator,
+                 hit: Callable[[tuple, int], float]) -> tuple[float, float, int]:
+    """Mean of ``hit(observation, goal index)`` over observations drawn from each goal alike, its standard
+    error and the number drawn."""
     per_goal = max(1, math.ceil(samples / len(demonstrators)))  # stratified: equal draws per goal
-    best = []
-    for d in demonstrators:
-        for _ in range(per_goal):
-            obs = d.sample_observation(rng, selection)
-            like = np.array([other.likelihood(obs, selection) for other in demonstrators])
-            best.append(like.max() / like.sum())
-    values = np.asarray(best)
+    values = np.array([hit(d.sample_observation(rng, selection), g)
+                       for g, d in enumerate(demonstrators) for _ in range(per_goal)])
     stderr = float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else float("nan")
     return float(values.mean()), stderr, len(values)
+
+
+def _bayes_hit(demonstrators: list, selection) -> Callable[[tuple, int], float]:
+    """The Bayes recognizer's expected accuracy on one observation: its largest posterior."""
+    def hit(observation: tuple, goal: int) -> float:
+        like = np.array([d.likelihood(observation, selection) for d in demonstrators])
+        return float(like.max() / like.sum())
+    return hit
 
 
 def _policies(demonstrators: list[GoalModel], selection: Selection, samples: int,
@@ -197,10 +203,7 @@ def _pairs_only(demonstrators: list[GoalModel], selection: Selection, exact: boo
                           for g, d in enumerate(demonstrators) for demonstration, p_demo in d.support()
                           for obs, p_obs in d.observations(demonstration, selection))
         return total / len(demonstrators), 0.0, 0
-    per_goal = max(1, math.ceil(samples / len(demonstrators)))
-    values = np.array([_pairs_only_hit(policies, d.sample_observation(rng, selection), g)
-                       for g, d in enumerate(demonstrators) for _ in range(per_goal)])
-    return float(values.mean()), float(values.std(ddof=1) / math.sqrt(len(values))), len(values)
+    return _monte_carlo(demonstrators, selection, samples, rng, partial(_pairs_only_hit, policies))
 
 
 def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 2000, seed: int = 0) -> Ceiling | None:
@@ -271,7 +274,8 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | 
                        pairs_only=True, **common)
     if size is not None and size <= EXACT_LIMIT:
         return Ceiling(accuracy=_exact(demonstrators, selection), stderr=0.0, method="exact", samples=0, **common)
-    accuracy, stderr, n = _monte_carlo(demonstrators, selection, samples, seed)
+    accuracy, stderr, n = _monte_carlo(demonstrators, selection, samples, np.random.default_rng(seed),
+                                       _bayes_hit(demonstrators, selection))
     return Ceiling(accuracy=accuracy, stderr=stderr, method="monte-carlo", samples=n, **common)
 
 

@@ -267,7 +267,7 @@ def protocols_table(rows: Sequence[tuple[str, bool, str]]) -> Table:
 
 def ceiling_table(task_id: str, ceilings: Sequence[Any]) -> Table:
     """Bayes ceilings of one task (one row per protocol and level)."""
-    kind = "Pairs-only ceiling" if any(getattr(c, "pairs_only", False) for c in ceilings) else "Bayes ceiling"
+    kind = "Pairs-only ceiling" if any(c.pairs_only for c in ceilings) else "Bayes ceiling"
     table = Table(title=f"{kind} (accuracy): {task_id}")
     for col in ("protocol", "obs", "ceiling", "std. error", "chance", "method"):
         table.add_column(col)
