@@ -17,84 +17,15 @@ networks or extractors, value clipping, a KL target, SDE) fall back to SB3's.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import torch
 from gymnasium import spaces
 from stable_baselines3 import PPO
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.torch_layers import FlattenExtractor
-from torch import nn
 
+from grail_bench.core.flat_mlp import Adam, FlatMLPs
 from grail_bench.core.spaces import preprocess
-
-_ACTIVATIONS = {nn.Tanh: (np.tanh, lambda y: 1.0 - y * y), nn.ReLU: (lambda x: np.maximum(x, 0.0), lambda y: y > 0)}
-
-
-class _FlatMLPs:
-    """The actor and critic of an ``ActorCriticPolicy`` as views into one flat float32 vector (and its grads)."""
-
-    def __init__(self, policy: ActorCriticPolicy) -> None:
-        actor = [*policy.mlp_extractor.policy_net, policy.action_net]
-        critic = [*policy.mlp_extractor.value_net, policy.value_net]
-        self.params = [p for m in actor + critic for p in m.parameters()]
-        sizes = [p.numel() for p in self.params]
-        self.flat = np.zeros(sum(sizes), dtype=np.float32)
-        self.grad = np.zeros_like(self.flat)
-        views, grads, start = [], [], 0
-        for p, n in zip(self.params, sizes):
-            # torch's Linear stores (out, in); keep that layout so the flat vector matches the state_dict.
-            views.append(self.flat[start:start + n].reshape(p.shape))
-            grads.append(self.grad[start:start + n].reshape(p.shape))
-            start += n
-        pairs = iter(zip(views, grads))
-        self.actor, self.critic = self._layers(actor, pairs), self._layers(critic, pairs)
-
-    @staticmethod
-    def _layers(modules: list[nn.Module], pairs: Any) -> list[tuple]:
-        """``(weight, bias, weight grad, bias grad, activation or None)`` per Linear."""
-        layers = []
-        for i, module in enumerate(modules):
-            if isinstance(module, nn.Linear):
-                (w, gw), (b, gb) = next(pairs), next(pairs)
-                follower = modules[i + 1] if i + 1 < len(modules) else None
-                layers.append((w, b, gw, gb, _ACTIVATIONS.get(type(follower))))
-        return layers
-
-    @staticmethod
-    def forward(layers: list[tuple], x: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
-        """Output and every layer's input."""
-        inputs = []
-        for w, b, _, _, act in layers:
-            inputs.append(x)
-            x = x @ w.T + b
-            if act is not None:
-                x = act[0](x)
-        return x, inputs
-
-    @staticmethod
-    def backward(layers: list[tuple], inputs: list[np.ndarray], grad_out: np.ndarray) -> None:
-        """Write the gradients of ``sum(grad_out * output)`` into the flat gradient."""
-        for (w, _, gw, gb, act), x, nxt in zip(reversed(layers), reversed(inputs), reversed(inputs[1:] + [None])):
-            if act is not None:  # this layer's activated output is the next layer's input
-                grad_out = grad_out * act[1](nxt)
-            np.matmul(grad_out.T, x, out=gw)
-            np.sum(grad_out, axis=0, out=gb)
-            grad_out = grad_out @ w
-
-    def read(self) -> None:
-        """Copy the torch policy's parameters into the flat vector (in place: the views stay valid)."""
-        self.flat[:] = np.concatenate([p.detach().numpy().reshape(-1) for p in self.params])
-
-    def write_back(self) -> None:
-        """Copy the flat parameters into the torch policy."""
-        start = 0
-        with torch.no_grad():
-            for p in self.params:
-                n = p.numel()
-                p.copy_(torch.from_numpy(self.flat[start:start + n].reshape(p.shape)))
-                start += n
 
 
 def mirrorable(model: PPO) -> bool:
@@ -109,30 +40,31 @@ def mirrorable(model: PPO) -> bool:
             and not model.use_sde and model.clip_range_vf is None and model.target_kl is None
             and model.normalize_advantage and type(policy.optimizer) is torch.optim.Adam
             and not (group.get("amsgrad") or group.get("maximize") or group.get("weight_decay"))
-            and all(isinstance(m, (nn.Linear, *_ACTIVATIONS)) for m in layers))
+            and FlatMLPs.mirrors(layers))
 
 
 class NumpyPPO(PPO):
     """SB3's PPO whose update (:meth:`train`) runs in numpy when the policy allows (:func:`mirrorable`)."""
 
-    _mlps: _FlatMLPs | None = None
-    _adam: tuple[np.ndarray, np.ndarray] | None = None
-    _adam_steps: int = 0
+    _mlps: FlatMLPs | None = None
+    _adam: Adam | None = None
 
     def train(self) -> None:
         if not mirrorable(self):
             super().train()
             return
+        group = self.policy.optimizer.param_groups[0]
         if self._mlps is None:
-            self._mlps = _FlatMLPs(self.policy)
-            self._adam = (np.zeros_like(self._mlps.flat), np.zeros_like(self._mlps.flat))
+            policy = self.policy
+            self._mlps = FlatMLPs([[*policy.mlp_extractor.policy_net, policy.action_net],
+                                   [*policy.mlp_extractor.value_net, policy.value_net]])
+            self._adam = Adam(self._mlps.flat.size, group["betas"], float(group["eps"]))
         self._mlps.read()
         self.policy.set_training_mode(True)
         self._update_learning_rate(self.policy.optimizer)  # as SB3 does: logs it and keeps the optimizer in step
-        group = self.policy.optimizer.param_groups[0]
-        lr, (beta1, beta2), eps = float(group["lr"]), group["betas"], float(group["eps"])
+        lr = float(group["lr"])
         clip_range = float(self.clip_range(self._current_progress_remaining))
-        mlps, (m, v), buffer = self._mlps, self._adam, self.rollout_buffer
+        mlps, buffer = self._mlps, self.rollout_buffer
 
         def flat(name: str) -> np.ndarray:  # SB3's swap_and_flatten, read without changing the buffer
             arr = getattr(buffer, name)
@@ -148,16 +80,10 @@ class NumpyPPO(PPO):
                 idx = indices[start:start + self.batch_size]
                 self._minibatch(features[idx], actions[idx], old_log_prob[idx], advantages[idx], returns[idx],
                                 clip_range)
-                # The global-norm clip, then Adam (torch's update rule, bias-corrected).
+                # The global-norm clip, then Adam.
                 norm = float(np.sqrt(np.dot(mlps.grad, mlps.grad)))
                 mlps.grad *= min(1.0, self.max_grad_norm / (norm + 1e-6))
-                self._adam_steps += 1
-                m *= beta1
-                m += (1 - beta1) * mlps.grad
-                v *= beta2
-                v += (1 - beta2) * mlps.grad * mlps.grad
-                correction1, correction2 = 1 - beta1 ** self._adam_steps, 1 - beta2 ** self._adam_steps
-                mlps.flat -= (lr / correction1) * m / (np.sqrt(v) / np.sqrt(correction2) + eps)
+                self._adam.step(mlps.flat, mlps.grad, lr)
         self._n_updates += self.n_epochs
         mlps.write_back()
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
@@ -167,8 +93,9 @@ class NumpyPPO(PPO):
                    returns: np.ndarray, clip_range: float) -> None:
         """Gradients of SB3's PPO loss on one minibatch, into the flat gradient."""
         mlps, batch = self._mlps, len(actions)
-        logits, actor_inputs = mlps.forward(mlps.actor, x)
-        values, critic_inputs = mlps.forward(mlps.critic, x)
+        actor, critic = mlps.chains
+        logits, actor_inputs = mlps.forward(actor, x)
+        values, critic_inputs = mlps.forward(critic, x)
         shifted = logits - logits.max(axis=1, keepdims=True)
         log_probs = shifted - np.log(np.exp(shifted).sum(axis=1, keepdims=True))
         probs = np.exp(log_probs)
@@ -189,5 +116,5 @@ class NumpyPPO(PPO):
             entropy = -(probs * log_probs).sum(axis=1)
             d_logits += (self.ent_coef / batch) * probs * (log_probs + entropy[:, None])
         d_values = (self.vf_coef * 2.0 / batch) * (values[:, 0] - returns)
-        mlps.backward(mlps.actor, actor_inputs, d_logits.astype(np.float32))
-        mlps.backward(mlps.critic, critic_inputs, d_values[:, None].astype(np.float32))
+        mlps.backward(actor, actor_inputs, d_logits.astype(np.float32))
+        mlps.backward(critic, critic_inputs, d_values[:, None].astype(np.float32))

@@ -1,0 +1,129 @@
+"""imitation's behavioural cloning loop in numpy, for the small MLP policies the suite clones.
+
+BC-GRAIL takes one Adam step per 8 demonstrated pairs (the paper's batch), so
+a PandaReach goal with 150 demonstrations is ~100 000 steps. imitation's
+``bc.BC`` spends ~1.5 ms on each (data loader, torch forward, backward and
+Adam on a ~2 500-weight network), nearly all of it framework overhead.
+:func:`train_bc` runs the same loop on one flat float32 vector: the batches in
+the order imitation's data loader draws them (the same torch generator
+calls), imitation's loss (negative log-likelihood of the demonstrated action,
+minus ``ent_weight`` times the policy's entropy) and torch's Adam with
+imitation's settings. It agrees with ``bc.BC`` to float32 rounding (tested on
+discrete and continuous actions). :func:`mirrorable` says which policies it
+can run; others go through imitation's own loop.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Iterator
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.distributions import CategoricalDistribution, DiagGaussianDistribution
+from stable_baselines3.common.policies import ActorCriticPolicy
+from stable_baselines3.common.preprocessing import is_image_space
+from stable_baselines3.common.torch_layers import FlattenExtractor
+from torch.utils.data import DataLoader
+
+from grail_bench.core.flat_mlp import Adam, FlatMLPs
+from grail_bench.core.spaces import preprocess
+
+_HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
+
+
+def mirrorable(policy: ActorCriticPolicy) -> bool:
+    """Whether :func:`train_bc` can clone into ``policy``: a flat-input MLP with a categorical or Gaussian head."""
+    discrete = isinstance(policy.action_space, spaces.Discrete) and isinstance(policy.action_dist,
+                                                                               CategoricalDistribution)
+    gaussian = (isinstance(policy.action_space, spaces.Box) and type(policy.action_dist) is DiagGaussianDistribution
+                and not policy.squash_output)
+    obs = policy.observation_space
+    flat_obs = isinstance(obs, (spaces.Discrete, spaces.MultiDiscrete)) or (
+        isinstance(obs, spaces.Box) and not is_image_space(obs, check_channels=False))
+    return (isinstance(policy, ActorCriticPolicy) and (discrete or gaussian) and flat_obs
+            and isinstance(policy.features_extractor, FlattenExtractor)
+            and FlatMLPs.mirrors([*policy.mlp_extractor.policy_net, policy.action_net]))
+
+
+def batch_indices(n: int, batch_size: int, n_epochs: int | None, n_batches: int | None) -> Iterator[np.ndarray]:
+    """The index batches imitation's ``bc.BC`` trains on, in its order.
+
+    Its data loader (torch's, shuffled, incomplete last batch dropped) is
+    iterated afresh every epoch, each time drawing its shuffle from torch's
+    global generator; an index loader of the same length makes the same draws.
+    Exactly one of ``n_epochs`` and ``n_batches`` is given.
+    """
+    loader = DataLoader(range(n), batch_size=batch_size, shuffle=True, drop_last=True, collate_fn=np.array)
+    epochs = itertools.count() if n_epochs is None else range(n_epochs)
+    return itertools.islice((batch for _ in epochs for batch in loader), n_batches)
+
+
+def train_bc(policy: ActorCriticPolicy, obs: np.ndarray, acts: np.ndarray, *, batch_size: int,
+             learning_rate: float, ent_weight: float, n_epochs: int | None = None, n_batches: int | None = None,
+             log_interval: int = 1) -> list[float]:
+    """Clone ``(obs, acts)`` into ``policy`` (in place) as imitation's ``bc.BC`` would.
+
+    Args:
+        policy: A policy :func:`mirrorable` accepts; its weights are the starting point.
+        obs: Demonstrated observations, ``(N, *observation_space.shape)``.
+        acts: Demonstrated actions, ``(N, *action_space.shape)``.
+        batch_size: Pairs per Adam step (at most ``N``).
+        learning_rate: Adam's (imitation's other Adam settings are torch's defaults).
+        ent_weight: Weight of the entropy bonus.
+        n_epochs, n_batches: The budget: passes over the data, or steps (exactly one of them).
+        log_interval: Record the loss of every ``log_interval``-th step, from the first.
+
+    Returns:
+        The recorded losses (each before its step).
+    """
+    if (n_epochs is None) == (n_batches is None):
+        raise ValueError("train_bc needs exactly one of n_epochs and n_batches")
+    x_all = preprocess(np.asarray(obs), policy.observation_space)
+    gaussian = isinstance(policy.action_space, spaces.Box)
+    acts = np.asarray(acts, dtype=np.float32 if gaussian else np.int64)
+    acts = acts.reshape(len(acts), -1) if gaussian else acts.reshape(-1)
+    net = FlatMLPs([[*policy.mlp_extractor.policy_net, policy.action_net]], extra=[policy.log_std] if gaussian else [])
+    net.read()
+    (layers,) = net.chains
+    adam = Adam(net.flat.size)
+    losses = []
+    for step, idx in enumerate(batch_indices(len(x_all), batch_size, n_epochs, n_batches)):
+        out, inputs = net.forward(layers, x_all[idx])
+        loss, d_out = (_gaussian if gaussian else _categorical)(net, out, acts[idx], ent_weight)
+        if step % log_interval == 0:
+            losses.append(loss)
+        net.backward(layers, inputs, d_out)
+        adam.step(net.flat, net.grad, learning_rate)
+    net.write_back()
+    return losses
+
+
+def _categorical(net: FlatMLPs, logits: np.ndarray, acts: np.ndarray, ent_weight: float) -> tuple[float, np.ndarray]:
+    """Loss and its gradient by the logits: ``-mean(log p(a)) - ent_weight * mean(H)``."""
+    batch, rows = len(acts), np.arange(len(acts))
+    shifted = logits - logits.max(axis=1, keepdims=True)
+    log_probs = shifted - np.log(np.exp(shifted).sum(axis=1, keepdims=True))
+    probs = np.exp(log_probs)
+    entropy = -(probs * log_probs).sum(axis=1)
+    d_logits = probs.copy()
+    d_logits[rows, acts] -= 1.0
+    d_logits += ent_weight * probs * (log_probs + entropy[:, None])  # dH/dlogits = -p (log p + H)
+    d_logits /= batch
+    return float(-log_probs[rows, acts].sum() - ent_weight * entropy.sum()) / batch, d_logits
+
+
+def _gaussian(net: FlatMLPs, mean: np.ndarray, acts: np.ndarray, ent_weight: float) -> tuple[float, np.ndarray]:
+    """As :func:`_categorical` for SB3's diagonal Gaussian (one state-independent ``log_std``); its gradient by
+    ``log_std`` goes into the flat gradient."""
+    (log_std,), (d_log_std,) = net.extra, net.extra_grad
+    batch, dims = acts.shape
+    std = np.exp(log_std)
+    z = (acts - mean) / std
+    squares = z * z
+    d_log_std[:] = 1.0 - ent_weight - squares.sum(axis=0) / batch
+    sum_log_std = float(log_std.sum())
+    neg_log_prob = 0.5 * float(squares.sum()) / batch + sum_log_std + dims * _HALF_LOG_2PI
+    entropy = dims * (0.5 + _HALF_LOG_2PI) + sum_log_std
+    return neg_log_prob - ent_weight * entropy, (-z / std) / batch
