@@ -1,4 +1,4 @@
-"""BC's loop in numpy: equal to imitation's ``bc.BC`` to float32 rounding, and imitation's wherever it cannot mirror it."""
+"""BC's loop in numpy: equal to imitation's ``bc.BC`` to float32 rounding; imitation's where it cannot mirror."""
 
 from __future__ import annotations
 

@@ -20,12 +20,12 @@ import math
 from typing import Iterator
 
 import numpy as np
+import torch
 from gymnasium import spaces
 from stable_baselines3.common.distributions import CategoricalDistribution, DiagGaussianDistribution
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.preprocessing import is_image_space
 from stable_baselines3.common.torch_layers import FlattenExtractor
-from torch.utils.data import DataLoader
 
 from grail_bench.core.flat_mlp import Adam, FlatMLPs
 from grail_bench.core.spaces import preprocess
@@ -51,13 +51,21 @@ def batch_indices(n: int, batch_size: int, n_epochs: int | None, n_batches: int 
     """The index batches imitation's ``bc.BC`` trains on, in its order.
 
     Its data loader (torch's, shuffled, incomplete last batch dropped) is
-    iterated afresh every epoch, each time drawing its shuffle from torch's
-    global generator; an index loader of the same length makes the same draws.
+    iterated afresh every epoch. Each time it draws two seeds from torch's
+    global generator, its iterator's base seed and then its sampler's, and the
+    sampler permutes the indices with a generator seeded by the second; the
+    same draws here leave the global generator where the loader leaves it.
     Exactly one of ``n_epochs`` and ``n_batches`` is given.
     """
-    loader = DataLoader(range(n), batch_size=batch_size, shuffle=True, drop_last=True, collate_fn=np.array)
-    epochs = itertools.count() if n_epochs is None else range(n_epochs)
-    return itertools.islice((batch for _ in epochs for batch in loader), n_batches)
+    def batches() -> Iterator[np.ndarray]:
+        for _ in itertools.count() if n_epochs is None else range(n_epochs):
+            torch.empty((), dtype=torch.int64).random_()  # the loader iterator's base seed (unused here)
+            seed = int(torch.empty((), dtype=torch.int64).random_().item())
+            order = torch.randperm(n, generator=torch.Generator().manual_seed(seed)).numpy()
+            for start in range(0, n - batch_size + 1, batch_size):
+                yield order[start:start + batch_size]
+
+    return itertools.islice(batches(), n_batches)
 
 
 def train_bc(policy: ActorCriticPolicy, obs: np.ndarray, acts: np.ndarray, *, batch_size: int,

@@ -64,11 +64,12 @@ class BCRecognizer(PolicyRecognizer):
 
 def train_bc(policy: ActorCriticPolicy, transitions: TransitionsMinimal, seed: int, *, batch_size: int,
              learning_rate: float, ent_weight: float, n_epochs: int | None = None,
-             n_batches: int | None = None) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
+             n_batches: int | None = None, numpy: bool = True) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
     """Train ``policy`` by behavioural cloning (imitation's ``bc.BC``) on ``transitions``.
 
     The loop runs in numpy where :func:`~grail_bench.core.bc_update.mirrorable` allows (the same batches,
-    loss and Adam steps to float32 rounding, ~30x faster on the suite's policies), else in imitation.
+    loss and Adam steps to float32 rounding, and the same stored results; ~18x faster on the suite's
+    policies), else in imitation.
 
     Args:
         policy: The policy to train, built for ``transitions``' observation space.
@@ -76,6 +77,7 @@ def train_bc(policy: ActorCriticPolicy, transitions: TransitionsMinimal, seed: i
         seed: Seeds imitation's random generator (torch's global seed orders the batches; the caller sets it).
         batch_size: Capped at the number of transitions.
         n_epochs, n_batches: The budget: passes over the data, or gradient steps (exactly one of them).
+        numpy: False runs imitation's own loop whatever the policy (to compare the two).
 
     Returns:
         The trained policy and its loss curve (``{"loss": [...]}``, one point per epoch or per 1 % of the
@@ -84,7 +86,7 @@ def train_bc(policy: ActorCriticPolicy, transitions: TransitionsMinimal, seed: i
     batch_size = min(batch_size, len(transitions))
     # One logged batch per epoch (the loader drops the last, incomplete batch), or per 1 % of the steps.
     interval = max(1, len(transitions) // batch_size) if n_batches is None else max(1, n_batches // 100)
-    if bc_update.mirrorable(policy):
+    if numpy and bc_update.mirrorable(policy):
         losses = bc_update.train_bc(policy, transitions.obs, transitions.acts, batch_size=batch_size,
                                     learning_rate=learning_rate, ent_weight=ent_weight, n_epochs=n_epochs,
                                     n_batches=n_batches, log_interval=interval)
