@@ -61,7 +61,10 @@ class Domain(Protocol):
 
     A domain may also declare ``implicit``: per regime parameter added after
     runs were stored, the value those runs used (so that a stored run is read
-    with the parameters it really had; see :func:`stored_params`).
+    with the parameters it really had; see :func:`stored_params`); and
+    ``cache_demos = True`` to have its demonstrations generated once per goal,
+    regime, parameters and seed and kept on disk (for slow demonstrators; see
+    :mod:`grail_bench.task.demo_cache`).
     """
 
     name: str

@@ -16,6 +16,7 @@ from grail_bench.task.observation import BUILTIN, ROUNDINGS, available_protocols
 
 if TYPE_CHECKING:
     import gymnasium as gym
+    from imitation.data.types import Trajectory
 
 ENV_ONLY = ("render_mode", "goal")  # gym.make arguments that shape one env, not the task
 
@@ -249,7 +250,18 @@ class GRTask:
                                 f"the task expects {self.n_train}")
             return loaded.demos
         n = self.n_demos if n_demos is None else n_demos
-        return {goal: self.spec.generate_demos(self, goal, n, goal_rng(seed, goal, DEMOS)) for goal in self.goals}
+        return {goal: self._goal_demos(goal, n, seed) for goal in self.goals}
+
+    def _goal_demos(self, goal: Goal, n: int, seed: int) -> list[Trajectory]:
+        """One goal's demonstrations, from its own stream; through the disk cache where the domain asks for it."""
+        def generate() -> list[Trajectory]:
+            return self.spec.generate_demos(self, goal, n, goal_rng(seed, goal, DEMOS))
+
+        if not getattr(self.spec, "cache_demos", False):
+            return generate()
+        from grail_bench.task.demo_cache import goal_demos  # the cache imports nothing heavy until it writes
+
+        return goal_demos(self, self.spec, goal, n, seed, generate)
 
     def split(self, demos: Demos) -> tuple[Demos, Demos]:
         """Split each goal's demonstrations into the first ``n_train`` and the rest."""

@@ -1,0 +1,86 @@
+"""Demonstrations kept on disk: identical to generated ones, generated once per key, regenerated when it changes."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from imitation.data.types import Trajectory
+
+import grail_bench
+from grail_bench.core.errors import UserError
+from grail_bench.task import demo_cache
+
+# The scripted expert keeps this cheap; the SAC expert's demonstrations go through the same code.
+PANDA = {"expert": "scripted", "n_demos": 3, "n_train": 2}
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path))
+    return tmp_path / demo_cache.KIND
+
+
+def generated(task, seed: int):
+    """The demonstrations as the domain generates them, bypassing the cache."""
+    from grail_bench.core.seeding import DEMOS, goal_rng
+
+    return {g: task.spec.generate_demos(task, g, task.n_demos, goal_rng(seed, g, DEMOS)) for g in task.goals}
+
+
+def assert_same(got, expected):
+    assert list(got) == list(expected)
+    for goal in expected:
+        assert len(got[goal]) == len(expected[goal])
+        for a, b in zip(got[goal], expected[goal]):
+            assert a.obs.dtype == b.obs.dtype and a.acts.dtype == b.acts.dtype and a.terminal == b.terminal
+            np.testing.assert_array_equal(a.obs, b.obs)
+            np.testing.assert_array_equal(a.acts, b.acts)
+            assert list(a.infos) == list(b.infos)
+
+
+@pytest.mark.parametrize("task_id, params", [("GRAIL/PandaReach-Gaussian-0.1-v0", PANDA),
+                                             ("GRAIL/PointMaze-Noisy-0.1-v0", {"n_demos": 2, "n_train": 1})])
+def test_cached_demonstrations_are_the_generated_ones_and_generated_once(cache, monkeypatch, task_id, params):
+    task = grail_bench.make_task(task_id, **params)
+    expected = generated(task, seed=3)
+    assert_same(task.generate_demos(seed=3), expected)  # generated and written
+    assert len(list(cache.glob("*.npz"))) == len(task.goals)
+
+    def fail(*_):
+        raise AssertionError("a cached goal was generated again")
+
+    monkeypatch.setattr(type(task.spec), "generate_demos", fail)
+    assert_same(task.generate_demos(seed=3), expected)  # read back
+
+
+def test_what_the_demonstrations_depend_on_keys_the_cache(cache):
+    task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", **PANDA)
+    base = task.generate_demos(seed=0)
+    other_seed = task.generate_demos(seed=1)
+    noisier = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", sigma=0.3, **PANDA).generate_demos(seed=0)
+    goal = task.goals[0]
+    assert not np.array_equal(base[goal][0].acts, other_seed[goal][0].acts)
+    assert not np.array_equal(base[goal][0].acts, noisier[goal][0].acts)
+    assert len(list(cache.glob("*.npz"))) == 3 * len(task.goals)
+    # A goal's demonstrations are the same in every task that has it, so tasks sharing goals share entries.
+    fewer_goals = dataclasses.replace(task, goals=task.goals[:2])
+    assert_same(fewer_goals.generate_demos(seed=0), {g: base[g] for g in task.goals[:2]})
+    assert len(list(cache.glob("*.npz"))) == 3 * len(task.goals)
+
+
+def test_a_corrupt_entry_is_regenerated(cache):
+    task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0", **PANDA)
+    expected = task.generate_demos(seed=0)
+    for entry in cache.glob("*.npz"):
+        entry.write_bytes(b"not an npz")
+    with pytest.warns(UserWarning, match="unusable"):
+        assert_same(task.generate_demos(seed=0), expected)
+
+
+def test_infos_that_could_not_come_back_are_refused():
+    traj = Trajectory(obs=np.zeros((2, 1)), acts=np.zeros(1), infos=np.array([{"is_success": True, "x": 1}]),
+                      terminal=True)
+    with pytest.raises(UserError, match="other than is_success"):
+        demo_cache.pack([traj], "toy")
