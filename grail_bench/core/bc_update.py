@@ -35,6 +35,8 @@ _HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
 
 def mirrorable(policy: ActorCriticPolicy) -> bool:
     """Whether :func:`train_bc` can clone into ``policy``: a flat-input MLP with a categorical or Gaussian head."""
+    if not isinstance(policy, ActorCriticPolicy):
+        return False
     discrete = isinstance(policy.action_space, spaces.Discrete) and isinstance(policy.action_dist,
                                                                                CategoricalDistribution)
     gaussian = (isinstance(policy.action_space, spaces.Box) and type(policy.action_dist) is DiagGaussianDistribution
@@ -42,8 +44,7 @@ def mirrorable(policy: ActorCriticPolicy) -> bool:
     obs = policy.observation_space
     flat_obs = isinstance(obs, (spaces.Discrete, spaces.MultiDiscrete)) or (
         isinstance(obs, spaces.Box) and not is_image_space(obs, check_channels=False))
-    return (isinstance(policy, ActorCriticPolicy) and (discrete or gaussian) and flat_obs
-            and isinstance(policy.features_extractor, FlattenExtractor)
+    return ((discrete or gaussian) and flat_obs and isinstance(policy.features_extractor, FlattenExtractor)
             and FlatMLPs.mirrors([*policy.mlp_extractor.policy_net, policy.action_net]))
 
 

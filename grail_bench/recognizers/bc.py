@@ -68,8 +68,8 @@ def train_bc(policy: ActorCriticPolicy, transitions: TransitionsMinimal, seed: i
     """Train ``policy`` by behavioural cloning (imitation's ``bc.BC``) on ``transitions``.
 
     The loop runs in numpy where :func:`~grail_bench.core.bc_update.mirrorable` allows (the same batches,
-    loss and Adam steps to float32 rounding, and the same stored results; ~18x faster on the suite's
-    policies), else in imitation.
+    loss and Adam steps to float32 rounding, and the same stored results; 8-13x faster in ``make bench``),
+    else in imitation.
 
     Args:
         policy: The policy to train, built for ``transitions``' observation space.

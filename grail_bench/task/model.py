@@ -259,7 +259,7 @@ class GRTask:
 
         if not getattr(self.spec, "cache_demos", False):
             return generate()
-        from grail_bench.task.demo_cache import goal_demos  # the cache imports nothing heavy until it writes
+        from grail_bench.task.demo_cache import goal_demos  # here: task cards load on `import gymnasium`
 
         return goal_demos(self, self.spec, goal, n, seed, generate)
 
