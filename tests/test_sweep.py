@@ -229,6 +229,8 @@ def test_reproduce_runs_the_online_and_open_set_sections(tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["--profile", "huge"], "unknown profile 'huge'"),
     (["--profile", "quick", "--only", "atari"], "profile 'quick' has no section 'atari'"),
+    (["--profile", "paper", "--only", "panda-sac", "-r", "gail"],
+     "no section of profile 'paper' chosen runs recognizer 'gail'; they run draco"),
 ])
 def test_reproduce_bad_input_is_one_line(tmp_path, args, message):
     out = cli(["reproduce", "--out", str(tmp_path / "o"), *args], tmp_path)
@@ -251,6 +253,17 @@ def test_the_shipped_profiles_plan(tmp_path, name, units):
     with ResultsStore(tmp_path / "r.sqlite") as store:
         planned = [plan_request(r, store) for r in load_profile(name).requests()]
     assert sum(len(todo) for _, todo, _ in planned) == units
+
+
+def test_reproduce_narrows_to_recognizers():
+    """The paper's PandaReach sections for BC and DRACO alone (GAIL and AIRL need fewer seeds): 10 tasks x 10 seeds
+    of BC and of DRACO with each algorithm."""
+    paper = load_profile("paper")
+    narrowed = paper.requests(["panda", "panda-sac"], ["bc", "draco"])
+    assert {s.name for r in narrowed for s in r.specs} == {"bc", "draco"}
+    with ResultsStore(":memory:") as store:
+        assert sum(len(plan_request(r, store)[1]) for r in narrowed) == 10 * 10 * 3
+        assert sum(len(plan_request(r, store)[1]) for r in paper.requests(["panda", "panda-sac"])) == 10 * 10 * 5
 
 
 SCALING = BUDGETS + """

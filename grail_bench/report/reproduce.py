@@ -20,6 +20,7 @@ page) from the store alone, so the outputs never depend on which units ran now.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import tomllib
 from dataclasses import dataclass, field
@@ -152,15 +153,25 @@ class Profile:
     sections: tuple[Section, ...]
     config: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
-    def requests(self, only: Sequence[str] = ()) -> list[Request]:
+    def requests(self, only: Sequence[str] = (), recognizers: Sequence[str] = ()) -> list[Request]:
         """The sweep's requests: each task's default protocol and levels (online: none), every section unless
-        ``only``."""
+        ``only``, every recognizer of those sections unless ``recognizers``."""
         unknown = set(only) - {s.name for s in self.sections}
         if unknown:
             raise UserError(f"profile {self.name!r} has no section {sorted(unknown)[0]!r}; it has "
                             f"{', '.join(s.name for s in self.sections)}")
-        return [r for section in self.sections if not only or section.name in only
-                for r in section.requests(self.seeds, self.config)]
+        requests = [r for section in self.sections if not only or section.name in only
+                    for r in section.requests(self.seeds, self.config)]
+        if not recognizers:
+            return requests
+        chosen = {spec.name for r in requests for spec in r.specs}
+        missing = sorted(set(recognizers) - chosen)
+        if missing:
+            raise UserError(f"no section of profile {self.name!r} chosen runs recognizer {missing[0]!r}; they run "
+                            f"{', '.join(sorted(chosen))}")
+        narrowed = [dataclasses.replace(r, specs=tuple(s for s in r.specs if s.name in recognizers))
+                    for r in requests]
+        return [r for r in narrowed if r.specs]
 
     def grid_requests(self, only: Sequence[str] = ()) -> list[Request]:
         """The requests of the sections that are not budget studies (the paper's tables and the modes')."""
@@ -218,7 +229,7 @@ def load_profile(name_or_path: str) -> Profile:
 
 
 def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executor: Any, started: datetime,
-             summary: SweepSummary, commit: str | None) -> dict[str, Any]:
+             summary: SweepSummary, commit: str | None, recognizers: Sequence[str] = ()) -> dict[str, Any]:
     """What produced a reproduction: command, code, packages, machine, time, executor and model counts.
 
     ``commit`` is the code's commit when the run started (:func:`grail_bench.core.provenance.git_commit`).
@@ -228,6 +239,7 @@ def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executo
         "command": list(argv),
         "profile": profile.name,
         "only": list(only),
+        "recognizers": list(recognizers),
         "git_commit": commit,
         **provenance.machine(),
         "executor": executor.name,
