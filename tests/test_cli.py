@@ -56,8 +56,8 @@ def test_plugin_runs_end_to_end_and_reaches_the_leaderboard(tmp_path):
     out = cli(["leaderboard", "--markdown", str(md)], tmp_path, **env)
     assert out.returncode == 0, out.stderr
     text = md.read_text()
-    # The biased routes part at the first step: the ceiling is 1 and the normalised F1 too.
-    assert "| MiniGrid-Biased | 2 | 20% | 1.00 | **1.00 ± 0.00 [1.00]** |" in text and "toy" in text
+    # The biased routes part at the first step: both ceilings are 1 and the normalised F1 too.
+    assert "| MiniGrid-Biased | 2 | 20% | 1.00 | 1.00 | **1.00 ± 0.00 [1.00]** |" in text and "toy" in text
     assert {r["protocol"] for r in records} == {"prefix"}  # the biased task's default protocol (rounding up)
 
 

@@ -69,15 +69,29 @@ def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise(
     assert [b.title for b in boards] == ["minigrid / optimal (prefix)", "minigrid / optimal (subset)"]
     text = markdown(boards, records)
     # Prefix at 10 % with every demonstration's route drawn uniformly (the default): ceiling 2/3 exactly, so
-    # 0.30 normalises to (0.3 - 0.5) / (2/3 - 0.5) = -1.2; no paper value under another protocol.
-    assert "| MiniGrid-Optimal | 2 | 10% | 0.67 | **0.30 ± 0.10 [-1.20]** |\n" in text
+    # 0.30 normalises to (0.3 - 0.5) / (2/3 - 0.5) = -1.2; no paper value under another protocol. Both goals'
+    # paths are 11 actions long, so the count of pairs says nothing: the pairs-only ceiling is the same.
+    assert "| MiniGrid-Optimal | 2 | 10% | 0.67 | 0.67 | **0.30 ± 0.10 [-1.20]** |\n" in text
     # The paper's values sit beside the task's default reading only (subset, uniform routes: ceiling 0.97).
-    assert "| MiniGrid-Optimal | 2 | 10% | 0.97 | **0.95 ± 0.10 ▲ [0.96]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
+    assert "| MiniGrid-Optimal | 2 | 10% | 0.97 | 0.97 | **0.95 ± 0.10 ▲ [0.96]** | 0.73 ± 0.33 [0.49, 0.90] |" in text
     # One fixed route per goal, 11 pairs of which the first 5 (the eastward run) are shared, and
     # ceil(0.1 * 11) = 2 pairs observed: both fall in the shared run with probability C(5, 2) / C(11, 2) = 2/11,
     # a coin flip then, so the ceiling is 1 - 1/11 = 10/11 and 0.90 normalises to 0.4 / (10/11 - 0.5) = 0.98.
-    assert '| MiniGrid-Optimal (route_choice="fixed") | 2 | 10% | 0.91 | **0.90 ± 0.10 [0.98]** | – |' in text
+    assert '| MiniGrid-Optimal (route_choice="fixed") | 2 | 10% | 0.91 | 0.91 | **0.90 ± 0.10 [0.98]** | – |' in text
     assert placement_counts(boards) == {"inside": 0, "above": 1, "below": 0}
+
+
+def test_boards_show_the_pairs_only_ceiling_beside_the_bayes_one():
+    fixed = {**defaults("GRAIL/MiniGrid-Optimal-4Goals-v0"), "route_choice": "fixed"}
+    records = [record("GRAIL/MiniGrid-Optimal-4Goals-v0", "bc", "mse", 0.1, 0.3, protocol="prefix",
+                      task_params=fixed)]
+    (board,) = build_boards(records, ceiling_samples=50)
+    # The first 2 pairs of the 11-action paths or the first 1 of the 9-action ones, all "forward": the count
+    # tells long from short (Bayes 0.5), the pairs nothing (pairs-only: a draw among all 4 goals, 0.25).
+    assert '| MiniGrid-Optimal-4Goals (route_choice="fixed") | 4 | 10% | 0.50 | 0.25 | **0.30 ± 0.10 [0.20]** |' \
+        in markdown([board], records)
+    (no_ceilings,) = build_boards(records, ceiling_samples=None)
+    assert not no_ceilings.pairs_only and "pairs-only" not in markdown([no_ceilings], records).split("## ")[1]
 
 
 def test_ceilings_use_the_task_parameters_of_the_run():

@@ -206,8 +206,10 @@ def _pairs_only(demonstrators: list[GoalModel], selection: Selection, exact: boo
     return _monte_carlo(demonstrators, selection, samples, rng, partial(_pairs_only_hit, policies))
 
 
-def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 2000, seed: int = 0) -> Ceiling | None:
-    """:func:`bayes_ceiling` for a stored protocol label, read from or written to the on-disk cache.
+def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 2000, seed: int = 0,
+                   pairs_only: bool = False) -> Ceiling | None:
+    """:func:`bayes_ceiling` (or, with ``pairs_only``, the pairs-only ceiling) for a stored protocol label, read
+    from or written to the on-disk cache.
 
     Returns:
         None where the task or protocol has no ceiling (other domains, plugin or legacy protocols).
@@ -218,7 +220,7 @@ def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 200
     key = {"task": task.id, "regime": task.regime, "goals": [list(g) for g in task.goals],
            "params": dict(task.params), "env": dict(task.env_params), "protocol": label, "level": level,
            "samples": samples, "seed": seed, "schema": 1,
-           "domain": task.domain}
+           "domain": task.domain} | ({"pairs_only": True} if pairs_only else {})
     path = cache_dir() / "ceilings" / f"{key_digest(key)}.json"
     try:
         stored = json.loads(path.read_text(encoding="utf-8"))
@@ -226,7 +228,7 @@ def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 200
             return Ceiling(**stored["ceiling"])
     except (OSError, ValueError, TypeError):
         pass  # missing or unreadable: compute it again
-    ceiling = bayes_ceiling(task, name, level, rounding=rounding, samples=samples, seed=seed)
+    ceiling = bayes_ceiling(task, name, level, rounding=rounding, samples=samples, seed=seed, pairs_only=pairs_only)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".tmp{os.getpid()}")
     tmp.write_text(json.dumps({"key": key, "ceiling": ceiling.as_dict()}), encoding="utf-8")
@@ -280,8 +282,10 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | 
 
 
 def ceilings_for(cells: Iterable[tuple[str, dict[str, Any], str, float]], samples: int = 2000,
-                 on_cell: Callable[[], None] | None = None) -> dict[tuple[str, str, str, float], Ceiling]:
-    """The Bayes ceiling of each ``(task, task parameters, protocol label, level)`` cell that has one.
+                 on_cell: Callable[[], None] | None = None,
+                 pairs_only: bool = False) -> dict[tuple[str, str, str, float], Ceiling]:
+    """The Bayes ceiling (or the pairs-only one) of each ``(task, task parameters, protocol label, level)`` cell
+    that has one.
 
     Returns:
         ``{(task, task parameters as sorted JSON, protocol label, level): Ceiling}``, without the cells that
@@ -290,7 +294,7 @@ def ceilings_for(cells: Iterable[tuple[str, dict[str, Any], str, float]], sample
     out = {}
     for task_id, params, label, level in cells:
         task = find_task(task_id, params)
-        ceiling = cached_ceiling(task, label, level, samples=samples) if task is not None else None
+        ceiling = cached_ceiling(task, label, level, samples=samples, pairs_only=pairs_only) if task else None
         if ceiling is not None:
             out[(task_id, json.dumps(params, sort_keys=True), label, level)] = ceiling
         if on_cell is not None:

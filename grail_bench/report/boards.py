@@ -42,6 +42,7 @@ class Board:
     cells: dict[CellKey, OfflineRecord] = field(default_factory=dict)
     reported: dict[CellKey, Reported] = field(default_factory=dict)
     ceilings: dict[Row, Ceiling] = field(default_factory=dict)
+    pairs_only: dict[Row, Ceiling] = field(default_factory=dict)
 
     def best(self, row: Row) -> float | None:
         """The best mean F1 of a row."""
@@ -153,7 +154,8 @@ def ceiling_cells(records: Iterable[OfflineRecord]) -> list[tuple[str, dict[str,
 
 
 def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, str, float], Reported] | None = None,
-                 ceilings: dict[tuple[str, str, str, float], Ceiling] | None = None) -> list[Board]:
+                 ceilings: dict[tuple[str, str, str, float], Ceiling] | None = None,
+                 pairs_only: dict[tuple[str, str, str, float], Ceiling] | None = None) -> list[Board]:
     """Group records into boards (see the module docstring).
 
     Args:
@@ -161,6 +163,7 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
         reference: Reported values to show beside ours (on rows of the task's default parameters only, and
             beside the recognizer's default configuration where the row has it).
         ceilings: Bayes ceilings by ``(task, task parameters as JSON, protocol, level)``, computed beforehand.
+        pairs_only: Pairs-only ceilings, keyed alike.
     """
     records = list(records)
     tasks = {t: find_task(t) for t in {r.task for r in records}}
@@ -181,7 +184,7 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
     variants = config_variants(records)
     # A recognizer run in several configurations on a row: the reported value sits beside its default one only.
     at_default = {cell_of(r) for r in records if _is_default(r)}
-    ceilings = ceilings or {}
+    ceilings, pairs_only = ceilings or {}, pairs_only or {}
     boards: dict[str, Board] = {}
     for r in records:
         task = tasks[r.task]
@@ -197,6 +200,8 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
             key = (r.task, json.dumps(r.task_params, sort_keys=True), r.protocol, r.observability)
             if key in ceilings:
                 board.ceilings[row] = ceilings[key]
+            if key in pairs_only:
+                board.pairs_only[row] = pairs_only[key]
         board.cells[(*row, label)] = r
         paper_protocol = task is not None and r.protocol == task.protocol_label and not reading
         beside_default = _is_default(r) or cell_of(r) not in at_default

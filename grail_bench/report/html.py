@@ -186,7 +186,8 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0) -> dict[str,
                 shown[label].best = True
             section.rows.append({"task": row[1], "key": row_name(row), "name": row_name(row), "goals": row[0],
                                  "obs": row[3],
-                                 "ceiling": ceiling, "cells": [shown.get(label) for label, _ in section.columns]})
+                                 "ceiling": ceiling, "pairs_only": b.pairs_only.get(row),
+                                 "cells": [shown.get(label) for label, _ in section.columns]})
         by_domain[domain].append(section)
         sections.append(section)
     own = {position[id(r)] for r in own_scorer_records(records)}  # records under their recognizer's own scorer

@@ -62,7 +62,7 @@ def _progress(enabled: bool, total: int) -> tuple[Any, Any]:
     from rich.progress import Progress
 
     bar = Progress(transient=True)
-    job = bar.add_task("Bayes ceilings (computed once, then cached)", total=total)
+    job = bar.add_task("Bayes and pairs-only ceilings (computed once, then cached)", total=total)
     return bar, lambda: bar.advance(job)
 
 
@@ -75,7 +75,7 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
     Args:
         rows: Offline rows (every seed).
         reference: Reported values to show beside ours.
-        ceiling_samples: Monte Carlo samples of the Bayes ceilings; None computes and shows none.
+        ceiling_samples: Monte Carlo samples of the Bayes and pairs-only ceilings; None computes and shows none.
         studies: Rows of the other modes by mode name (``online``, ``open-set``).
         records: The offline records when already aggregated (else aggregated here).
         progress: Show a progress bar while ceilings are computed.
@@ -91,14 +91,15 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
     cells = ceiling_cells(records) if ceiling_samples is not None else []
     online = studies_out.get("online")
     panels = _online_panels(online.records) if online is not None and ceiling_samples is not None else {}
-    bar, tick = _progress(progress, len(cells) + sum(len(f) for _, f in panels.values()))
+    bar, tick = _progress(progress, 2 * len(cells) + sum(len(f) for _, f in panels.values()))
     with bar:
         ceilings = ceilings_for(cells, ceiling_samples, tick) if cells else {}
+        pairs_only = ceilings_for(cells, ceiling_samples, tick, pairs_only=True) if cells else {}
         if online is not None:
             online.curves = {key: ceiling_curve(task, key[1], fractions, ceiling_samples, tick)
                              for key, (task, fractions) in panels.items() if task is not None}
-    return Leaderboard(rows, records, build_boards(records, reference, ceilings), ceilings, reference, studies_out,
-                       summarize(fits))
+    return Leaderboard(rows, records, build_boards(records, reference, ceilings, pairs_only), ceilings, reference,
+                       studies_out, summarize(fits))
 
 
 def _online_panels(records: Sequence[Any]) -> dict[tuple[str, str], tuple[Any, list[float]]]:

@@ -10,7 +10,7 @@ from typing import Any, Callable, Sequence
 
 from rich.table import Table
 
-from grail_bench.harness.ceiling import normalised
+from grail_bench.harness.ceiling import Ceiling, normalised
 from grail_bench.harness.modes import Mode
 from grail_bench.report.boards import (
     Board,
@@ -48,8 +48,7 @@ def _cell(board: Board, row: Row, column: str, ci: bool = False) -> tuple[str, b
     return text, record.f1_mean == board.best(row)
 
 
-def _ceiling_text(board: Board, row: Row) -> str:
-    ceiling = board.ceilings.get(row)
+def _ceiling_text(ceiling: Ceiling | None) -> str:
     if ceiling is None:
         return "–"
     return f"{ceiling.accuracy:.2f}" + (f" ± {ceiling.stderr:.2f}" if ceiling.method == "monte-carlo" else "")
@@ -57,7 +56,7 @@ def _ceiling_text(board: Board, row: Row) -> str:
 
 def board_grid(board: Board, paper_label: Callable[[str], str] = str, ci: bool = False) -> Grid:
     """The table model both renderers draw: a header and, per row, ``(text, best)`` cells."""
-    header = ["task", "goals", "obs", "ceiling"]
+    header = ["task", "goals", "obs", "ceiling"] + (["pairs-only"] if board.pairs_only else [])
     for c in board.columns:
         header.append(c)
         if board.has_reported(c):
@@ -65,7 +64,9 @@ def board_grid(board: Board, paper_label: Callable[[str], str] = str, ci: bool =
     rows = []
     for row in board.rows:
         cells = [(row_name(row), False), (str(row[0]), False), (f"{row[3]:.0%}", False),
-                 (_ceiling_text(board, row), False)]
+                 (_ceiling_text(board.ceilings.get(row)), False)]
+        if board.pairs_only:
+            cells.append((_ceiling_text(board.pairs_only.get(row)), False))
         for c in board.columns:
             cells.append(_cell(board, row, c, ci))
             if board.has_reported(c):
@@ -116,7 +117,9 @@ def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
              + " (best of each row in bold). Where the task has a",
              "Bayes ceiling (the best accuracy any recognizer can reach under that protocol and level; ± its",
              "Monte Carlo standard error), the cell adds the normalised F1 in brackets,",
-             "(F1 - chance) / (ceiling - chance).",
+             "(F1 - chance) / (ceiling - chance). The pairs-only ceiling is the accuracy of scoring each goal",
+             "from the observed pairs through that goal's own demonstrator (as GRAIL, GRAQL and DRACO score,",
+             "with perfect policies): how far a method is from what its form allows.",
              "Columns marked *(paper)* are the values the GRAIL paper (AAMAS 2026) reports, transcribed",
              "from its tables and text; they were not produced by grail-bench, and are shown on the rows",
              "of each task's default protocol only.", ""]
