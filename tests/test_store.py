@@ -34,6 +34,17 @@ def test_rows_survive_reopening(tmp_path):
         assert len(store.rows()) == 1
 
 
+def test_reading_leaves_the_file_as_it_was(tmp_path):
+    """A published store is committed: a command that only reads it (a leaderboard) must not change its bytes."""
+    path = tmp_path / "r.sqlite"
+    with ResultsStore(path) as store:
+        store.add([row(0)])
+    before = path.read_bytes()
+    with ResultsStore(path) as store:
+        assert len(store.rows()) == 1
+    assert path.read_bytes() == before
+
+
 def _writer(path: str, offset: int) -> None:
     with ResultsStore(path) as store:
         for i in range(60):

@@ -94,14 +94,16 @@ class ResultsStore:
                 raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
             if self.path != ":memory:":
                 self._conn.execute("PRAGMA journal_mode=WAL")
-            with self._conn:
-                if tables and version < 2:
-                    _migrate_v1(self._conn)
-                if tables and version < SCHEMA_VERSION:
-                    _add_missing_columns(self._conn)
-                for kind, (table, key) in _tables().items():
-                    self._conn.execute(_create(kind, table, key))
-                self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+            missing = {table for table, _ in _tables().values()} - tables
+            if version < SCHEMA_VERSION or missing:  # else nothing to write: reading leaves the file as it was
+                with self._conn:
+                    if tables and version < 2:
+                        _migrate_v1(self._conn)
+                    if tables and version < SCHEMA_VERSION:
+                        _add_missing_columns(self._conn)
+                    for kind, (table, key) in _tables().items():
+                        self._conn.execute(_create(kind, table, key))
+                    self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
         except sqlite3.Error as exc:
             raise StoreError(f"cannot use results store {self.path}: {exc}") from None
         except OSError as exc:
