@@ -25,13 +25,11 @@ SPACES = {
 
 def transitions(kind: str, n: int = 203) -> Transitions:
     """``n`` random pairs (203: the loader drops an incomplete last batch of 8)."""
-    rng = np.random.default_rng(0)
     obs_space, act_space = SPACES[kind]
     obs_space.seed(1), act_space.seed(2)
-    obs = np.stack([obs_space.sample() for _ in range(n)])
+    obs = (np.random.default_rng(0).normal(size=(n, *obs_space.shape)).astype(np.float32) if kind == "reaching"
+           else np.stack([obs_space.sample() for _ in range(n)]))
     acts = np.stack([act_space.sample() for _ in range(n)])
-    if kind == "reaching":
-        obs = rng.normal(size=obs.shape).astype(np.float32)
     return Transitions(obs=obs, acts=acts, infos=np.array([{}] * n), next_obs=obs, dones=np.zeros(n, bool))
 
 

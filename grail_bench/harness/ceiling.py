@@ -294,7 +294,8 @@ def ceilings_for(cells: Iterable[tuple[str, dict[str, Any], str, float]], sample
     out = {}
     for task_id, params, label, level in cells:
         task = find_task(task_id, params)
-        ceiling = cached_ceiling(task, label, level, samples=samples, pairs_only=pairs_only) if task else None
+        ceiling = (cached_ceiling(task, label, level, samples=samples, pairs_only=pairs_only)
+                   if task is not None else None)
         if ceiling is not None:
             out[(task_id, json.dumps(params, sort_keys=True), label, level)] = ceiling
         if on_cell is not None:
