@@ -182,16 +182,25 @@ def _stored(tmp_path) -> int:
     return sqlite3.connect(path).execute("SELECT COUNT(*) FROM results").fetchone()[0] if path.exists() else 0
 
 
+@pytest.fixture(scope="module")
+def one_seed_stored(tmp_path_factory) -> Path:
+    """A store holding one seed of BC, shared read-only by the cases below (each works on a copy)."""
+    root = tmp_path_factory.mktemp("one-seed")
+    first = _cli(root, "run", "-r", "bc", "--seeds", "1", "--set", "bc.n_epochs=1", "--no-progress")
+    assert first.returncode == 0, first.stderr
+    return root / "store.sqlite"
+
+
 @pytest.mark.parametrize("args, message", [
     (["--set", "bc.n_epochs=abc"], "n_epochs expects an integer, got 'abc'"),
     (["--set", "bc.learning_rate=[1]"], "learning_rate expects a number, got [1]"),
     (["--json", "/proc/nope/r.json"], "cannot write the file /proc/nope/r.json"),
     (["--json", "."], "it is a folder"),
 ])
-def test_bad_values_are_one_line_before_any_unit_runs(tmp_path, args, message):
-    first = _cli(tmp_path, "run", "-r", "bc", "--seeds", "1", "--set", "bc.n_epochs=1", "--no-progress")
-    assert first.returncode == 0, first.stderr
+def test_bad_values_are_one_line_before_any_unit_runs(tmp_path, one_seed_stored, args, message):
+    shutil.copy(one_seed_stored, tmp_path / "store.sqlite")
     before = _stored(tmp_path)
+    assert before > 0
     out = _cli(tmp_path, "run", "-r", "bc", "--seeds", "2", "--no-progress", *args)
     lines = out.stderr.strip().splitlines()
     assert out.returncode == 2 and len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], out.stderr
