@@ -158,6 +158,36 @@ def test_ceilings_are_cached_and_other_domains_have_none(tmp_path, monkeypatch):
     assert cached_ceiling(task, "random", 0.2) is None  # legacy rows have no ceiling
 
 
+class _Refuses:
+    """An executor that must not be given work: every cell is already cached."""
+
+    def map_unordered(self, fn, items):
+        assert not items, f"{len(items)} ceilings computed again"
+        return iter(())
+
+
+def test_ceilings_on_a_process_pool_equal_the_serial_ones_and_are_cached(tmp_path, monkeypatch):
+    from grail_bench.harness.ceiling import ceilings_for
+    from grail_bench.harness.executors import LocalExecutor
+
+    cells = [("GRAIL/MiniGrid-Optimal-v0", {}, "subset+floor", 0.1), ("GRAIL/MiniGrid-Optimal-v0", {}, "prefix", 0.5),
+             ("GRAIL/MiniGrid-Suboptimal-v0", {"turn_prob": 0.3}, "prefix", 0.3),
+             ("GRAIL/PandaReach-Optimal-v0", {}, "subset", 0.1)]  # no ceiling: left out
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path / "serial"))
+    serial = ceilings_for(cells, samples=60)
+    assert len(serial) == 3
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path / "pool"))
+    pool = LocalExecutor(2)
+    try:
+        ticks = []
+        assert ceilings_for(cells, samples=60, on_cell=lambda: ticks.append(1), executor=pool) == serial
+    finally:
+        pool.close()
+    assert len(ticks) == len(cells)
+    assert len(list((tmp_path / "pool" / "ceilings").glob("*.json"))) == 3
+    assert ceilings_for(cells, samples=60, executor=_Refuses()) == serial
+
+
 def test_normalised_f1():
     assert normalised(0.5, 1.0, 0.5) == 0.0
     assert normalised(1.0, 1.0, 0.5) == 1.0

@@ -136,14 +136,15 @@ def run(
         with open_store(store_path) as store, make_executor(executor, workers, address) as chosen:
             run_sweep([req], store, chosen, progress=progress, description=f"{req.task_id} ({mode})")
             records, where = collect(req, store), store.path
-        _show(records, MODES[mode])
+            _show(records, MODES[mode], chosen)
         say(f"results stored in {where}")
         if json_path is not None:
             write_text(json_path, json.dumps([r.to_dict() for r in records], indent=2) + "\n", "records")
 
 
-def _show(records: list, mode) -> None:  # noqa: ANN001 - a Mode
-    """A run's tables: offline, the paper-style F1 tables (with Bayes ceilings) and the timings."""
+def _show(records: list, mode, executor) -> None:  # noqa: ANN001 - a Mode and an Executor
+    """A run's tables: offline, the paper-style F1 tables (with Bayes ceilings, those not cached yet computed on
+    the run's executor) and the timings."""
     from grail_bench.report import leaderboard
     from grail_bench.report.text import mode_table, rich_tables, timing_table
 
@@ -151,7 +152,7 @@ def _show(records: list, mode) -> None:  # noqa: ANN001 - a Mode
         console.print(mode_table(records, mode))
         return
     with console.status("Bayes ceilings (computed once, then cached)"):
-        board = leaderboard.build([], records=records)
+        board = leaderboard.build([], records=records, executor=executor)
     for table in rich_tables(board.boards):
         console.print(table)
     console.print(timing_table(records))
@@ -170,6 +171,8 @@ def leaderboard_(
         None, "--protocol", "-p", help="Only these observation protocols (as stored, e.g. subset, prefix+floor)."),
     ceiling_samples: int = typer.Option(2000, min=2, help="Monte Carlo samples of the Bayes ceilings (cached)."),
     no_ceiling: bool = typer.Option(False, "--no-ceiling", help="Do not compute or show Bayes ceilings."),
+    workers: Optional[int] = typer.Option(
+        None, "--workers", "-w", help="Processes computing the ceilings not cached yet (default: 1)."),
     ablation: bool = typer.Option(False, "--ablation", help="Compare scorers: F1 and scoring time per scorer."),
     online: bool = typer.Option(False, "--online", help="The online runs (`run --online`) instead."),
     open_set: bool = typer.Option(False, "--open-set", help="The open-set runs (`run --open-set`) instead."),
@@ -233,7 +236,9 @@ def leaderboard_(
         offline = selected.pop("offline", [])
         if mode.name != "offline" and plot is None:
             samples = None  # the tables show no ceiling; only the online plot draws one
-        board = leaderboard.build(offline, ref, samples, studies=selected, progress=True, fits=fits)
+        with make_executor(None, workers, None) as pool:
+            board = leaderboard.build(offline, ref, samples, studies=selected, progress=True, fits=fits,
+                                      executor=pool)
         if mode.name != "offline":
             study = board.studies[mode.name]
             console.print(mode_table(study.records, mode))
@@ -303,8 +308,9 @@ def reproduce(
             tasks = sorted({r.task_id for r in requests})
             rows = [row for mode in MODES.values() for row in store.select(mode, task=tasks)]
             fits = store.select(FitRow, task=tasks)
-        with console.status("tables, figures and web page"):
-            written = write_outputs(rows, chosen_profile, out, meta, only or (), site=site, fits=fits)
+            with console.status("tables, figures and web page"):
+                written = write_outputs(rows, chosen_profile, out, meta, only or (), site=site, fits=fits,
+                                        executor=chosen)
     say(f"{summary.units} units ({summary.skipped} already stored) in {summary.seconds:.0f} s on {chosen.name} x "
         f"{chosen.workers}; models trained {summary.trained}, reused from the cache {summary.reused}, a run "
         f"without reuse would train {summary.naive}")

@@ -40,6 +40,7 @@ import os
 from collections import defaultdict
 from dataclasses import asdict, dataclass, replace
 from functools import partial
+from pathlib import Path
 from typing import Any, Callable, Hashable, Iterable, Sequence
 
 import numpy as np
@@ -48,6 +49,7 @@ from grail_bench.core.cache import key_digest
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import cache_dir
 from grail_bench.domains.base import GoalModel
+from grail_bench.harness.executors import Executor, SerialExecutor
 from grail_bench.task import GRTask, find_task
 from grail_bench.task.observation import (
     BUILTIN,
@@ -206,6 +208,44 @@ def _pairs_only(demonstrators: list[GoalModel], selection: Selection, exact: boo
     return _monte_carlo(demonstrators, selection, samples, rng, partial(_pairs_only_hit, policies))
 
 
+def _applies(task: GRTask | None, label: str) -> bool:
+    """Whether a stored protocol label on ``task`` has a ceiling (known demonstrator, built-in protocol)."""
+    return task is not None and has_ceiling(task) and parse_label(label)[0] in BUILTIN
+
+
+def _cache_path(task: GRTask, label: str, level: float, samples: int, seed: int,
+                pairs_only: bool) -> tuple[dict[str, Any], Path]:
+    """The cache key of one ceiling and the file it is stored in."""
+    key = {"task": task.id, "regime": task.regime, "goals": [list(g) for g in task.goals],
+           "params": dict(task.params), "env": dict(task.env_params), "protocol": label, "level": level,
+           "samples": samples, "seed": seed, "schema": 1,
+           "domain": task.domain} | ({"pairs_only": True} if pairs_only else {})
+    return key, cache_dir() / "ceilings" / f"{key_digest(key)}.json"
+
+
+def _read(key: dict[str, Any], path: Path) -> Ceiling | None:
+    """The stored ceiling, or None when it is missing or unreadable (compute it again)."""
+    try:
+        stored = json.loads(path.read_text(encoding="utf-8"))
+        if stored.get("key") == json.loads(json.dumps(key)):
+            return Ceiling(**stored["ceiling"])
+    except (OSError, ValueError, TypeError):
+        pass
+    return None
+
+
+def _write(key: dict[str, Any], path: Path, ceiling: Ceiling) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".tmp{os.getpid()}")
+    tmp.write_text(json.dumps({"key": key, "ceiling": ceiling.as_dict()}), encoding="utf-8")
+    tmp.replace(path)
+
+
+def _compute(task: GRTask, label: str, level: float, samples: int, seed: int, pairs_only: bool) -> Ceiling:
+    name, rounding = parse_label(label)
+    return bayes_ceiling(task, name, level, rounding=rounding, samples=samples, seed=seed, pairs_only=pairs_only)
+
+
 def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 2000, seed: int = 0,
                    pairs_only: bool = False) -> Ceiling | None:
     """:func:`bayes_ceiling` (or, with ``pairs_only``, the pairs-only ceiling) for a stored protocol label, read
@@ -214,25 +254,13 @@ def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 200
     Returns:
         None where the task or protocol has no ceiling (other domains, plugin or legacy protocols).
     """
-    name, rounding = parse_label(label)
-    if not has_ceiling(task) or name not in BUILTIN:
+    if not _applies(task, label):
         return None
-    key = {"task": task.id, "regime": task.regime, "goals": [list(g) for g in task.goals],
-           "params": dict(task.params), "env": dict(task.env_params), "protocol": label, "level": level,
-           "samples": samples, "seed": seed, "schema": 1,
-           "domain": task.domain} | ({"pairs_only": True} if pairs_only else {})
-    path = cache_dir() / "ceilings" / f"{key_digest(key)}.json"
-    try:
-        stored = json.loads(path.read_text(encoding="utf-8"))
-        if stored.get("key") == json.loads(json.dumps(key)):
-            return Ceiling(**stored["ceiling"])
-    except (OSError, ValueError, TypeError):
-        pass  # missing or unreadable: compute it again
-    ceiling = bayes_ceiling(task, name, level, rounding=rounding, samples=samples, seed=seed, pairs_only=pairs_only)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".tmp{os.getpid()}")
-    tmp.write_text(json.dumps({"key": key, "ceiling": ceiling.as_dict()}), encoding="utf-8")
-    tmp.replace(path)
+    key, path = _cache_path(task, label, level, samples, seed, pairs_only)
+    ceiling = _read(key, path)
+    if ceiling is None:
+        ceiling = _compute(task, label, level, samples, seed, pairs_only)
+        _write(key, path, ceiling)
     return ceiling
 
 
@@ -281,25 +309,54 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | 
     return Ceiling(accuracy=accuracy, stderr=stderr, method="monte-carlo", samples=n, **common)
 
 
-def ceilings_for(cells: Iterable[tuple[str, dict[str, Any], str, float]], samples: int = 2000,
-                 on_cell: Callable[[], None] | None = None,
-                 pairs_only: bool = False) -> dict[tuple[str, str, str, float], Ceiling]:
+Cell = tuple[str, dict[str, Any], str, float]
+
+
+def _cell_key(cell: Cell) -> tuple[str, str, str, float]:
+    return cell[0], json.dumps(cell[1], sort_keys=True), cell[2], cell[3]
+
+
+def _cell_ceiling(cell: Cell, samples: int, pairs_only: bool) -> Ceiling:
+    """One cell's ceiling, computed (an executor's work item: no cache access, so any worker can run it)."""
+    task_id, params, label, level = cell
+    return _compute(find_task(task_id, params), label, level, samples, 0, pairs_only)
+
+
+def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[], None] | None = None,
+                 pairs_only: bool = False,
+                 executor: Executor | None = None) -> dict[tuple[str, str, str, float], Ceiling]:
     """The Bayes ceiling (or the pairs-only one) of each ``(task, task parameters, protocol label, level)`` cell
     that has one.
+
+    Cached cells are read here; the others are computed on ``executor`` (default: in this process, in order)
+    and cached by this process.
 
     Returns:
         ``{(task, task parameters as sorted JSON, protocol label, level): Ceiling}``, without the cells that
         have none.
     """
-    out = {}
-    for task_id, params, label, level in cells:
-        task = find_task(task_id, params)
-        ceiling = (cached_ceiling(task, label, level, samples=samples, pairs_only=pairs_only)
-                   if task is not None else None)
-        if ceiling is not None:
-            out[(task_id, json.dumps(params, sort_keys=True), label, level)] = ceiling
+    out, missing = {}, {}
+
+    def tick() -> None:
         if on_cell is not None:
             on_cell()
+
+    for cell in cells:
+        task = find_task(cell[0], cell[1])
+        if _applies(task, cell[2]):
+            key, path = _cache_path(task, cell[2], cell[3], samples, 0, pairs_only)
+            ceiling = _read(key, path)
+            if ceiling is None:
+                missing[_cell_key(cell)] = (cell, key, path)
+                continue
+            out[_cell_key(cell)] = ceiling
+        tick()
+    compute = partial(_cell_ceiling, samples=samples, pairs_only=pairs_only)
+    for cell, ceiling in (executor or SerialExecutor()).map_unordered(compute, [m[0] for m in missing.values()]):
+        _, key, path = missing[_cell_key(cell)]
+        _write(key, path, ceiling)
+        out[_cell_key(cell)] = ceiling
+        tick()
     return out
 
 

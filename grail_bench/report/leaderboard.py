@@ -15,6 +15,7 @@ from typing import Any, Sequence
 
 from grail_bench.harness.ceiling import Ceiling, ceiling_curve, ceilings_for
 from grail_bench.harness.diagnostics import FitRow, FitSummary, summarize
+from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import MODES, Mode, ResultRow
 from grail_bench.harness.modes.offline import OfflineRecord
 from grail_bench.report.boards import Board, build_boards, ceiling_cells
@@ -69,7 +70,7 @@ def _progress(enabled: bool, total: int) -> tuple[Any, Any]:
 def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Reported] | None = None,
           ceiling_samples: int | None = 2000, studies: dict[str, Sequence[Any]] | None = None,
           records: Sequence[OfflineRecord] | None = None, progress: bool = False,
-          fits: Sequence[FitRow] = ()) -> Leaderboard:
+          fits: Sequence[FitRow] = (), executor: Executor | None = None) -> Leaderboard:
     """The leaderboard of stored rows.
 
     Args:
@@ -80,6 +81,7 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
         records: The offline records when already aggregated (else aggregated here).
         progress: Show a progress bar while ceilings are computed.
         fits: Stored fit diagnostics (:class:`~grail_bench.harness.diagnostics.FitRow`).
+        executor: Where ceilings missing from the cache are computed (default: in this process).
     """
     rows = list(rows)
     records = list(records) if records is not None else MODES["offline"].aggregate(rows)
@@ -93,8 +95,8 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
     panels = _online_panels(online.records) if online is not None and ceiling_samples is not None else {}
     bar, tick = _progress(progress, 2 * len(cells) + sum(len(f) for _, f in panels.values()))
     with bar:
-        ceilings = ceilings_for(cells, ceiling_samples, tick) if cells else {}
-        pairs_only = ceilings_for(cells, ceiling_samples, tick, pairs_only=True) if cells else {}
+        ceilings = ceilings_for(cells, ceiling_samples, tick, executor=executor) if cells else {}
+        pairs_only = ceilings_for(cells, ceiling_samples, tick, pairs_only=True, executor=executor) if cells else {}
         if online is not None:
             online.curves = {key: ceiling_curve(task, key[1], fractions, ceiling_samples, tick)
                              for key, (task, fractions) in panels.items() if task is not None}

@@ -33,6 +33,7 @@ from grail_bench.core import provenance
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import cache_dir
 from grail_bench.harness.diagnostics import FitRow
+from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import MODES, Row, get_mode
 from grail_bench.harness.planning import RecognizerSpec
 from grail_bench.harness.sweep import Request, SweepSummary
@@ -260,14 +261,15 @@ def _owned(rows: Sequence[Any], requests: Sequence[Request]) -> list[Any]:
 
 
 def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[str, Any], only: Sequence[str] = (),
-                  site: bool = True, progress: bool = False, fits: Sequence[FitRow] = ()) -> list[Path]:
+                  site: bool = True, progress: bool = False, fits: Sequence[FitRow] = (),
+                  executor: Executor | None = None) -> list[Path]:
     """Tables, figures, the web page (``site/``, unless ``site`` is False) and the manifest into ``out``.
 
     The paper's tables and figures come from the offline rows of the grid's sections; every other mode with
     rows adds its table (``ONLINE.md``, ``OPEN_SET.md``) and the online runs their figure (``online.png``);
     budget studies write ``BUDGETS.md`` and ``budgets.png``. Only the rows the profile's requests own count
-    (other configurations in a shared store do not); ``fits`` are the stored fit diagnostics. Returns the files
-    written.
+    (other configurations in a shared store do not); ``fits`` are the stored fit diagnostics. Ceilings missing
+    from the cache are computed on ``executor`` (default: in this process). Returns the files written.
     """
     out.mkdir(parents=True, exist_ok=True)
     grid = _owned(rows, profile.grid_requests(only))
@@ -276,7 +278,8 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     reference = read_reference(paper_reference_path())
     owned_fits = [f for f in fits if any((f.task, f.recognizer, f.config_hash) == (r.task, r.recognizer, r.config_hash)
                                          for r in offline)]
-    board = leaderboard.build(offline, reference, studies=by_mode, progress=progress, fits=owned_fits)
+    board = leaderboard.build(offline, reference, studies=by_mode, progress=progress, fits=owned_fits,
+                              executor=executor)
     title = f"grail-bench reproduce: {profile.name}"
     written: list[Path] = []
     if offline:
