@@ -20,10 +20,10 @@ demo: $(STAMP)
 # Tests run on every core (pytest-xdist); benchmarks stay serial (`make bench`), so their timings stay clean.
 test: $(STAMP)
 	$(VENV)/bin/lint-imports
-	$(PY) -m pytest -n auto --dist worksteal
+	$(PY) -m pytest -n logical --dist worksteal
 
 test-fast: $(STAMP)
-	$(PY) -m pytest -n auto --dist worksteal -m "not slow"
+	$(PY) -m pytest -n logical --dist worksteal -m "not slow"
 
 bench: $(STAMP)
 	$(PY) -m pytest tests/benchmarks --benchmark-only --benchmark-columns=min,median,max,rounds
