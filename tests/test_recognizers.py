@@ -215,7 +215,8 @@ def test_policy_bank_matches_sac_actor():
 
 
 @pytest.mark.parametrize("name", ["bc", "gail", "draco"])
-def test_trained_policies_are_cached_and_reloaded(name, monkeypatch):
+def test_trained_policies_are_cached_and_reloaded(name, monkeypatch, tmp_path):
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path / "cache"))  # counts from an empty cache, in any test order
     factory = TASK.env_factory()
     first = make_recognizer(name, **FAST[name])
     first_report = first.fit(TRAIN, factory, seed=4, cache_key=TASK.env_key)
