@@ -104,7 +104,8 @@ class AdversarialRecognizer(PolicyRecognizer):
         demo_batch_size: Paper: 16.
         update: How PPO's update runs: ``"numpy"`` (the same update written out in numpy,
             :mod:`grail_bench.core.ppo_update`; ~4x faster on these networks, equal to SB3's to
-            float32 rounding) or ``"torch"`` (SB3's own ``train()``).
+            float32 rounding) or ``"torch"`` (SB3's own ``train()``). The numpy update mirrors discrete
+            actions only: on continuous ones (PandaReach, PointMaze) both values run SB3's ``train()``.
         scorer: Default ``"mse"``.
     """
 
