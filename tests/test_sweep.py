@@ -231,6 +231,7 @@ def test_reproduce_runs_the_online_and_open_set_sections(tmp_path):
     (["--profile", "quick", "--only", "atari"], "profile 'quick' has no section 'atari'"),
     (["--profile", "paper", "--only", "panda-sac", "-r", "gail"],
      "no section of profile 'paper' chosen runs recognizer 'gail'; they run draco"),
+    (["--profile", "quick", "--seeds", "0"], "--seeds must be at least 1, got 0"),
 ])
 def test_reproduce_bad_input_is_one_line(tmp_path, args, message):
     out = cli(["reproduce", "--out", str(tmp_path / "o"), *args], tmp_path)
@@ -256,14 +257,18 @@ def test_the_shipped_profiles_plan(tmp_path, name, units):
 
 
 def test_reproduce_narrows_to_recognizers():
-    """The paper's PandaReach sections for BC and DRACO alone (GAIL and AIRL need fewer seeds): 10 tasks x 10 seeds
-    of BC and of DRACO with each algorithm."""
+    """The paper's PandaReach sections for BC and DRACO alone: 10 tasks x 10 seeds of BC and of DRACO with each
+    algorithm; and GAIL and AIRL at 3 seeds."""
     paper = load_profile("paper")
     narrowed = paper.requests(["panda", "panda-sac"], ["bc", "draco"])
     assert {s.name for r in narrowed for s in r.specs} == {"bc", "draco"}
     with ResultsStore(":memory:") as store:
         assert sum(len(plan_request(r, store)[1]) for r in narrowed) == 10 * 10 * 3
         assert sum(len(plan_request(r, store)[1]) for r in paper.requests(["panda", "panda-sac"])) == 10 * 10 * 5
+        # --seeds: the first 3 seeds of GAIL and AIRL, in one sweep.
+        adversarial = paper.requests(["panda"], ["gail", "airl"], seeds=3)
+        assert {r.seeds for r in adversarial} == {(0, 1, 2)}
+        assert sum(len(plan_request(r, store)[1]) for r in adversarial) == 10 * 3 * 2
 
 
 SCALING = BUDGETS + """

@@ -278,6 +278,9 @@ def reproduce(
     recognizer: Optional[List[str]] = typer.Option(
         None, "--recognizer", "-r", help="Only this recognizer of the chosen sections (e.g. -r bc -r draco to add "
                                          "seeds of those alone); repeatable. The tables show every stored row."),
+    seeds: Optional[int] = typer.Option(
+        None, "--seeds", help="Seeds 0..N-1 of every chosen section instead of the profile's (e.g. 3 seeds of the "
+                              "slow methods first). The tables show every stored row."),
     out: Path = typer.Option(..., "--out", help="Folder for the tables, figures and manifest.json."),
     store_path: Optional[Path] = typer.Option(None, "--store", help="Results database (default: OUT/results.sqlite)."),
     workers: Optional[int] = typer.Option(None, "--workers", "-w", help=WORKERS_HELP),
@@ -299,12 +302,12 @@ def reproduce(
     with errors():
         outputs(folders=[out])
         chosen_profile = load_profile(profile)
-        requests = chosen_profile.requests(only or (), recognizer or ())
+        requests = chosen_profile.requests(only or (), recognizer or (), seeds)
         with open_store(store_path or out / "results.sqlite") as store, \
                 make_executor(executor, workers, address) as chosen:
             summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
             meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary, commit,
-                            recognizer or [])
+                            recognizer or [], seeds)
             tasks = sorted({r.task_id for r in requests})
             rows = [row for mode in MODES.values() for row in store.select(mode, task=tasks)]
             fits = store.select(FitRow, task=tasks)

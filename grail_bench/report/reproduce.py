@@ -154,14 +154,19 @@ class Profile:
     sections: tuple[Section, ...]
     config: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
 
-    def requests(self, only: Sequence[str] = (), recognizers: Sequence[str] = ()) -> list[Request]:
+    def requests(self, only: Sequence[str] = (), recognizers: Sequence[str] = (),
+                 seeds: int | None = None) -> list[Request]:
         """The sweep's requests: each task's default protocol and levels (online: none), every section unless
-        ``only``, every recognizer of those sections unless ``recognizers``."""
+        ``only``, every recognizer of those sections unless ``recognizers``, each section's seeds unless
+        ``seeds`` (then seeds ``0 .. seeds - 1`` of every section)."""
         unknown = set(only) - {s.name for s in self.sections}
         if unknown:
             raise UserError(f"profile {self.name!r} has no section {sorted(unknown)[0]!r}; it has "
                             f"{', '.join(s.name for s in self.sections)}")
-        requests = [r for section in self.sections if not only or section.name in only
+        if seeds is not None and seeds < 1:
+            raise UserError(f"--seeds must be at least 1, got {seeds}")
+        requests = [r if seeds is None else dataclasses.replace(r, seeds=tuple(range(seeds)))
+                    for section in self.sections if not only or section.name in only
                     for r in section.requests(self.seeds, self.config)]
         if not recognizers:
             return requests
@@ -230,7 +235,8 @@ def load_profile(name_or_path: str) -> Profile:
 
 
 def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executor: Any, started: datetime,
-             summary: SweepSummary, commit: str | None, recognizers: Sequence[str] = ()) -> dict[str, Any]:
+             summary: SweepSummary, commit: str | None, recognizers: Sequence[str] = (),
+             seeds: int | None = None) -> dict[str, Any]:
     """What produced a reproduction: command, code, packages, machine, time, executor and model counts.
 
     ``commit`` is the code's commit when the run started (:func:`grail_bench.core.provenance.git_commit`).
@@ -241,6 +247,7 @@ def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executo
         "profile": profile.name,
         "only": list(only),
         "recognizers": list(recognizers),
+        "seeds": seeds,  # None: each section's own
         "git_commit": commit,
         **provenance.machine(),
         "executor": executor.name,
