@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 import grail_bench
 from grail_bench.cli import app
 from grail_bench.harness.api import evaluate
+from grail_bench.harness.executors import SerialExecutor
 from grail_bench.harness.modes.online import (
     GRID,
     convergence,
@@ -225,10 +226,39 @@ def test_ceiling_curve_is_the_prefix_protocols_bayes_ceiling():
     task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0")
     fractions = [0.1, 0.5, 1.0]
     expected = [bayes_ceiling(task, "prefix", p, rounding="ceil").accuracy for p in fractions]
-    assert ceiling_curve(task, "subset", fractions) == pytest.approx(expected)
+    assert ceiling_curve(task.id, {}, "subset", fractions) == pytest.approx(expected)
     floor = [bayes_ceiling(task, "prefix", p, rounding="floor").accuracy for p in fractions]
-    assert ceiling_curve(task, "subset+floor", fractions) == pytest.approx(floor) != expected  # the label's rounding
-    assert ceiling_curve(task, task.protocol_label, fractions) == pytest.approx(expected)  # the task's: ceil
+    assert ceiling_curve(task.id, {}, "subset+floor", fractions) == pytest.approx(floor) != expected  # the label's
+    assert ceiling_curve(task.id, {}, task.protocol_label, fractions) == pytest.approx(expected)  # the task's: ceil
     assert expected[0] < expected[1] <= expected[2] == 1.0
-    panda = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0")
-    assert ceiling_curve(panda, "subset", fractions) is None  # no ceiling there
+    assert ceiling_curve("GRAIL/PandaReach-Optimal-v0", {}, "subset", fractions) is None  # no ceiling there
+
+
+class _Recording(SerialExecutor):
+    """Runs in this process and keeps what it was given."""
+
+    def __init__(self) -> None:
+        self.items: list = []
+
+    def map_unordered(self, fn, items):
+        self.items += items
+        return super().map_unordered(fn, items)
+
+
+def test_leaderboard_computes_online_ceiling_curves_on_its_executor(tmp_path, monkeypatch):
+    from grail_bench.harness.ceiling import ceiling_curve
+    from grail_bench.report.leaderboard import build
+
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path))
+    spec = RecognizerSpec("graql", FAST["graql"])
+    rows = run_mode("online", TASK, plan(TASK, spec, TASK.make_env().action_space), 1, (), "subset")[0]
+    executor = _Recording()
+    board = build([], ceiling_samples=60, studies={"online": rows}, executor=executor)
+    (key,) = board.studies["online"].curves
+    assert len(executor.items) == len(GRID)  # every fraction's ceiling went to the executor, each once
+    assert {item[2] for item in executor.items} == {"prefix"}
+    curve, again = board.studies["online"].curves[key], _Recording()
+    params = board.studies["online"].records[0].task_params
+    assert curve == ceiling_curve(TASK.id, params, "subset", GRID, samples=60, executor=again)
+    assert again.items == []  # cached by the first pass
+    assert len(curve) == len(GRID) and curve[-1] >= curve[0]

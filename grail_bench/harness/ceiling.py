@@ -316,6 +316,11 @@ def _cell_key(cell: Cell) -> tuple[str, str, str, float]:
     return cell[0], json.dumps(cell[1], sort_keys=True), cell[2], cell[3]
 
 
+def distinct_cells(cells: Iterable[Cell]) -> list[Cell]:
+    """``cells`` without repeats, in order (an offline level may also be an online fraction)."""
+    return list({_cell_key(cell): cell for cell in cells}.values())
+
+
 def _cell_ceiling(cell: Cell, samples: int, pairs_only: bool) -> Ceiling:
     """One cell's ceiling, computed (an executor's work item: no cache access, so any worker can run it)."""
     task_id, params, label, level = cell
@@ -329,7 +334,7 @@ def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[
     that has one.
 
     Cached cells are read here; the others are computed on ``executor`` (default: in this process, in order)
-    and cached by this process.
+    and cached by this process. ``on_cell`` is called once per distinct cell (for a progress bar).
 
     Returns:
         ``{(task, task parameters as sorted JSON, protocol label, level): Ceiling}``, without the cells that
@@ -341,7 +346,7 @@ def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[
         if on_cell is not None:
             on_cell()
 
-    for cell in cells:
+    for cell in distinct_cells(cells):
         task = find_task(cell[0], cell[1])
         if _applies(task, cell[2]):
             key, path = _cache_path(task, cell[2], cell[3], samples, 0, pairs_only)
@@ -360,24 +365,35 @@ def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[
     return out
 
 
-def ceiling_curve(task: GRTask, label: str, fractions: Sequence[float], samples: int = 2000,
-                  on_level: Callable[[], None] | None = None) -> list[float] | None:
-    """The Bayes ceiling of an online run at each observed fraction (cached on disk).
+def curve_cells(task_id: str, params: dict[str, Any], label: str, fractions: Sequence[float]) -> list[Cell]:
+    """The cells whose Bayes ceilings make the ceiling curve of an online run (empty for plugin protocols).
 
     Online, the first ``n_observed(p, T)`` steps are what the offline prefix
-    protocol of the same span observes at level ``p``, so the ceiling is that
-    protocol's. ``None`` where there is none (other domains, plugin protocols).
-    ``on_level`` is called after each fraction (for a progress bar).
+    protocol of the same span observes at level ``p``, so the ceiling at each
+    fraction is that protocol's.
     """
     name, rounding = parse_label(label)
     if name not in PREFIX_OF:
+        return []
+    prefix = protocol_label(PREFIX_OF[name], rounding)
+    return [(task_id, params, prefix, fraction) for fraction in fractions]
+
+
+def curve_of(cells: Sequence[Cell], ceilings: dict[tuple[str, str, str, float], Ceiling]) -> list[float] | None:
+    """The accuracies of :func:`curve_cells`' cells in ``ceilings`` (from :func:`ceilings_for`), or None
+    where any has no ceiling."""
+    found = [ceilings.get(_cell_key(cell)) for cell in cells]
+    if not found or None in found:
         return None
-    curve = []
-    for fraction in fractions:
-        ceiling = cached_ceiling(task, protocol_label(PREFIX_OF[name], rounding), fraction, samples=samples)
-        if ceiling is None:
-            return None
-        curve.append(ceiling.accuracy)
-        if on_level is not None:
-            on_level()
-    return curve
+    return [ceiling.accuracy for ceiling in found]
+
+
+def ceiling_curve(task_id: str, params: dict[str, Any], label: str, fractions: Sequence[float],
+                  samples: int = 2000, executor: Executor | None = None) -> list[float] | None:
+    """The Bayes ceiling of an online run at each observed fraction (cached on disk; see :func:`curve_cells`).
+
+    Returns:
+        None where there is none (other domains, plugin protocols).
+    """
+    cells = curve_cells(task_id, params, label, fractions)
+    return curve_of(cells, ceilings_for(cells, samples, executor=executor))

@@ -8,19 +8,17 @@ the web page all read the resulting :class:`Leaderboard`.
 
 from __future__ import annotations
 
-from collections import defaultdict
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
-from grail_bench.harness.ceiling import Ceiling, ceiling_curve, ceilings_for
+from grail_bench.harness.ceiling import Ceiling, Cell, ceilings_for, curve_cells, curve_of, distinct_cells
 from grail_bench.harness.diagnostics import FitRow, FitSummary, summarize
 from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import MODES, Mode, ResultRow
 from grail_bench.harness.modes.offline import OfflineRecord
 from grail_bench.report.boards import Board, build_boards, ceiling_cells
 from grail_bench.report.reference import Reported
-from grail_bench.task import find_task
 
 
 @dataclass
@@ -92,21 +90,23 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
             studies_out[name] = Study(MODES[name], mode_rows, MODES[name].aggregate(mode_rows))
     cells = ceiling_cells(records) if ceiling_samples is not None else []
     online = studies_out.get("online")
-    panels = _online_panels(online.records) if online is not None and ceiling_samples is not None else {}
-    bar, tick = _progress(progress, 2 * len(cells) + sum(len(f) for _, f in panels.values()))
+    curves = _online_curve_cells(online.records) if online is not None and ceiling_samples is not None else {}
+    # The offline levels and the online fractions in one pass, so every worker helps with both.
+    bayes_cells = distinct_cells([*cells, *(cell for curve in curves.values() for cell in curve)])
+    bar, tick = _progress(progress, len(bayes_cells) + len(cells))
     with bar:
-        ceilings = ceilings_for(cells, ceiling_samples, tick, executor=executor) if cells else {}
+        ceilings = ceilings_for(bayes_cells, ceiling_samples, tick, executor=executor) if bayes_cells else {}
         pairs_only = ceilings_for(cells, ceiling_samples, tick, pairs_only=True, executor=executor) if cells else {}
-        if online is not None:
-            online.curves = {key: ceiling_curve(task, key[1], fractions, ceiling_samples, tick)
-                             for key, (task, fractions) in panels.items() if task is not None}
+    if online is not None:
+        online.curves = {key: curve_of(curve, ceilings) for key, curve in curves.items()}
     return Leaderboard(rows, records, build_boards(records, reference, ceilings, pairs_only), ceilings, reference,
                        studies_out, summarize(fits))
 
 
-def _online_panels(records: Sequence[Any]) -> dict[tuple[str, str], tuple[Any, list[float]]]:
-    """Per (task, protocol) of online records, the task with its run's parameters and the curve's fractions."""
-    params: dict[tuple[str, str], list[Any]] = defaultdict(list)
+def _online_curve_cells(records: Sequence[Any]) -> dict[tuple[str, str], list[Cell]]:
+    """Per (task, protocol) of online records, the cells of its ceiling curve (its run's parameters and
+    fractions)."""
+    first: dict[tuple[str, str], Any] = {}
     for r in records:
-        params[(r.task, r.protocol)].append(r)
-    return {key: (find_task(key[0], rs[0].task_params), list(rs[0].fractions)) for key, rs in sorted(params.items())}
+        first.setdefault((r.task, r.protocol), r)
+    return {key: curve_cells(key[0], r.task_params, key[1], list(r.fractions)) for key, r in sorted(first.items())}
