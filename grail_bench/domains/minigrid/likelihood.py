@@ -10,7 +10,8 @@ horizon, where the agent stays on the goal. :class:`GoalDemonstrator` gives:
 * the exact support of the demonstrator when it is small (optimal, biased);
 * samples of observations, drawn exactly as the harness draws them;
 * the exact likelihood of an observation, summed over every path and every
-  insertion pattern by dynamic programming (no enumeration of the insertions).
+  insertion pattern without enumerating the insertions: a prefix is parsed
+  against each path, a subset by dynamic programming.
 
 The dynamics are deterministic, so the state after the last observed pair is
 implied by it and is left out of an observation.
@@ -18,7 +19,7 @@ implied by it and is left out of an observation.
 
 from __future__ import annotations
 
-from math import comb
+from math import comb, fsum
 from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
@@ -137,60 +138,96 @@ class GoalDemonstrator:
 
     def likelihood(self, observation: Observation, selection: Selection) -> float:
         """Probability that this goal's demonstrator yields ``observation`` under the protocol."""
-        total, matches = 0.0, _matches(observation)
-        for path, blocks, pad_pair in self._models:
-            total += self._path_likelihood(path, blocks, pad_pair, observation, matches, selection)
+        if selection.random_subset:
+            matches = _matches(observation)
+            total = sum(self._subset_likelihood(blocks, pad_pair, observation, matches, selection)
+                        for _, blocks, pad_pair in self._models)
+        else:
+            total = sum(self._prefix_likelihood(blocks, pad_pair, observation, selection)
+                        for _, blocks, pad_pair in self._models)
         return total / len(self.paths)
 
-    def _path_likelihood(self, path: list[int], blocks: list, pad_pair: Pair, obs: Observation,
-                         matches: dict[Pair, np.ndarray], sel: Selection) -> float:
+    def _padding(self, n: int, k: int, sel: Selection) -> int | None:
+        """The stay-on-goal pairs after a demonstration of ``n`` pairs, or None when it cannot yield an
+        observation of ``k`` pairs (longer than the horizon, or observed with another count)."""
+        pad = self.horizon - n if sel.horizon else 0
+        if pad < 0 or n_observed(sel.level, n + pad, sel.rounding) != k:
+            return None
+        return pad
+
+    def _prefix_likelihood(self, blocks: list, pad_pair: Pair, obs: Observation, sel: Selection) -> float:
+        # A prefix is parsed against the path: at each path action the observation continues either with the
+        # action's own pair or with one of the insertions, so only a few insertion counts m stay alive. Once
+        # the observation is used up, the remaining actions are free and m grows binomially.
+        k, length = len(obs), len(blocks)
+        step = len(self.patterns[0]) if self.patterns else 0
+        share = self.turn_prob / len(self.patterns) if self.patterns else 0.0
+
+        def free(m: int, done: int) -> float:
+            """Probability that the actions after the first ``done`` give a length observed as k pairs."""
+            rest = length - done
+            return fsum(comb(rest, i) * self.turn_prob ** i * (1.0 - self.turn_prob) ** (rest - i)
+                        for i in range(rest + 1) if self._padding(length + (m + i) * step, k, sel) is not None)
+
+        out, alive = 0.0, {0: 1.0}  # insertions so far -> probability that every pair so far was observed
+        for i, (own, insertions) in enumerate(blocks):
+            nxt: dict[int, float] = {}
+            for m, prob in alive.items():
+                pos = i + m * step
+                if pos >= k:
+                    out += prob * free(m, i)
+                    continue
+                if own[0] == obs[pos] and self.turn_prob < 1.0:  # (turns before every action: never)
+                    nxt[m] = nxt.get(m, 0.0) + (1.0 - self.turn_prob) * prob
+                for pairs in insertions:
+                    if tuple(pairs[:k - pos]) == obs[pos:pos + len(pairs)]:
+                        nxt[m + 1] = nxt.get(m + 1, 0.0) + share * prob
+            alive = nxt
+        for m, prob in alive.items():  # every action emitted
+            n = length + m * step
+            if n >= k:
+                out += prob * free(m, length)
+            elif self._padding(n, k, sel) is not None and all(p == pad_pair for p in obs[n:]):
+                out += prob  # the rest of the observation is the padding
+        return out
+
+    def _subset_likelihood(self, blocks: list, pad_pair: Pair, obs: Observation, matches: dict[Pair, np.ndarray],
+                           sel: Selection) -> float:
         # a[m, j]: probability mass of demonstrations with m insertions so far, weighted by the number of
-        # ways the pairs emitted so far match the first j observed pairs (subset) / match them in full
-        # (prefix: j = pairs emitted so far, capped at K).
-        K, L = len(obs), len(path)
-        a = np.zeros((L + 1, K + 1))
+        # ways the pairs emitted so far match the first j observed pairs.
+        k, length = len(obs), len(blocks)
+        a = np.zeros((length + 1, k + 1))
         a[0, 0] = 1.0
         share = self.turn_prob / len(self.patterns) if self.patterns else 0.0
         for own, insertions in blocks:
-            nxt = (1.0 - self.turn_prob) * self._emit(a, own, matches, sel.random_subset)
+            nxt = (1.0 - self.turn_prob) * _emit(a, own, matches)
             for pairs in insertions:
-                nxt[1:] += share * self._emit(a, pairs, matches, sel.random_subset)[:-1]
+                nxt[1:] += share * _emit(a, pairs, matches)[:-1]
             a = nxt
-            if not a.any():
-                return 0.0  # a prefix this path cannot emit (subsets never empty the table)
-        insertion_len = len(self.patterns[0]) if self.patterns else 0
+        step = len(self.patterns[0]) if self.patterns else 0
         out = 0.0
-        for m in range(L + 1):
-            n = L + m * insertion_len
-            pad = self.horizon - n if sel.horizon else 0
-            if pad < 0:
-                continue  # the generator refuses demonstrations longer than the horizon
-            if n_observed(sel.level, n + pad, sel.rounding) != K:
+        for m in range(length + 1):
+            n = length + m * step
+            pad = self._padding(n, k, sel)
+            if pad is None:
                 continue
             mass = 0.0
-            for j in range(K + 1):  # the last K - j observed pairs fall in the padding
+            for j in range(k + 1):  # the last k - j observed pairs fall in the padding
                 if a[m, j] != 0.0 and all(p == pad_pair for p in obs[j:]):
-                    mass += a[m, j] * (comb(pad, K - j) if sel.random_subset else 1)
-            # Subsets: each size-K index set of the span is equally likely.
-            out += mass / comb(n + pad, K) if sel.random_subset else mass
+                    mass += a[m, j] * comb(pad, k - j)
+            out += mass / comb(n + pad, k)  # each size-k index set of the span is equally likely
         return out
 
-    @staticmethod
-    def _emit(a: np.ndarray, pairs: list[Pair], matches: dict[Pair, np.ndarray], subset: bool) -> np.ndarray:
-        for pair in pairs:
-            match = matches.get(pair)
-            if match is None:  # a pair the observation never shows
-                if not subset:
-                    b = np.zeros_like(a)
-                    b[:, -1] = a[:, -1]
-                    a = b
-                continue
-            b = a.copy() if subset else np.zeros_like(a)
+
+def _emit(a: np.ndarray, pairs: list[Pair], matches: dict[Pair, np.ndarray]) -> np.ndarray:
+    """The subset table after emitting ``pairs``: each may be skipped or, where observed, matched next."""
+    for pair in pairs:
+        match = matches.get(pair)
+        if match is not None:  # else a pair the observation never shows: it is skipped
+            b = a.copy()
             b[:, 1:] += a[:, :-1] * match
-            if not subset:
-                b[:, -1] += a[:, -1]
             a = b
-        return a
+    return a
 
 
 def _matches(obs: Observation) -> dict[Pair, np.ndarray]:
