@@ -62,8 +62,13 @@ class GoalDemonstrator:
         self.turn_prob = float(task.params["turn_prob"]) if suboptimal else 0.0
         self.pattern = task.params["turn_pattern"] if suboptimal else None
         self.patterns = TURN_PATTERNS[self.pattern] if suboptimal else ()
-        # Per path: the pairs of each of its actions with and without insertions, and its stay-on-goal pair.
-        self._models = [(path, self._path_blocks(path), self.goal_pair(path)) for path in self.paths]
+        # Per path: the pairs of each of its actions with and without insertions, its stay-on-goal pair, and
+        # every pair it can show.
+        self._models = []
+        for path in self.paths:
+            blocks, pad_pair = self._path_blocks(path), self.goal_pair(path)
+            shown = {pad_pair, *(p for own, insertions in blocks for p in [*own, *sum(insertions, [])])}
+            self._models.append((blocks, pad_pair, frozenset(shown)))
 
     # -- the demonstrator's support and samples -------------------------------------------------------------
 
@@ -139,12 +144,12 @@ class GoalDemonstrator:
     def likelihood(self, observation: Observation, selection: Selection) -> float:
         """Probability that this goal's demonstrator yields ``observation`` under the protocol."""
         if selection.random_subset:
-            matches = _matches(observation)
+            matches, observed = _matches(observation), set(observation)
             total = sum(self._subset_likelihood(blocks, pad_pair, observation, matches, selection)
-                        for _, blocks, pad_pair in self._models)
+                        for blocks, pad_pair, shown in self._models if observed <= shown)  # else impossible
         else:
             total = sum(self._prefix_likelihood(blocks, pad_pair, observation, selection)
-                        for _, blocks, pad_pair in self._models)
+                        for blocks, pad_pair, _ in self._models)
         return total / len(self.paths)
 
     def _padding(self, n: int, k: int, sel: Selection) -> int | None:
