@@ -112,11 +112,12 @@ def _brute_force_likelihoods(d: GoalDemonstrator, selection: Selection) -> dict:
     return out
 
 
+@pytest.mark.parametrize("turn_prob", [0.4, 1.0])  # 1.0: turns before every action, the default
 @pytest.mark.parametrize("pattern", sorted(TURN_PATTERNS))
 @pytest.mark.parametrize("protocol, level", [("subset", 0.15), ("prefix", 0.5), ("horizon-subset", 0.1),
                                              ("horizon-prefix", 0.6)])
-def test_likelihood_with_turn_insertions_matches_brute_force(pattern, protocol, level):
-    task = tiny("suboptimal", turn_prob=0.4, turn_pattern=pattern)
+def test_likelihood_with_turn_insertions_matches_brute_force(pattern, protocol, level, turn_prob):
+    task = tiny("suboptimal", turn_prob=turn_prob, turn_pattern=pattern)
     task = GRTask(**{**task.__dict__, "env_params": {**task.env_params, "max_steps": 20}})
     chosen = grail_bench.task.observation.BUILTIN[protocol]
     selection = Selection(horizon=chosen.span == "horizon", random_subset=chosen.random_subset, level=level)
