@@ -17,7 +17,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.harness.executors import make_executor
 from grail_bench.harness.planning import RecognizerSpec
 from grail_bench.harness.store import OnlineRow, OpenSetRow, ResultsStore
-from grail_bench.harness.sweep import Request, plan_request, run_sweep
+from grail_bench.harness.sweep import Request, plan_request, plan_sweep, run_sweep
 from grail_bench.report.reproduce import load_profile
 from grail_bench.task.observation import ObservationSpec
 
@@ -69,6 +69,22 @@ def test_models_shared_across_goal_sets_are_trained_once(tmp_path, monkeypatch):
     large = Request("GRAIL/MiniGrid-Optimal-4Goals-v0", spec, (0,), ObservationSpec("subset", "ceil", (0.3,)))
     summary = run_sweep([small, large], store)
     assert (summary.trained, summary.reused, summary.naive) == (4, 2, 6)
+
+
+def test_a_seed_starts_with_one_unit_of_each_group_that_shares_models(tmp_path):
+    """Two workers should start by training different models, not one waiting for the other's: DRACO on three
+    regimes of one goal set trains on the first and reuses on the others."""
+    specs = (RecognizerSpec("draco", {"ppo_steps": 64}), RecognizerSpec("draco", {"algorithm": "sac", "sac_steps": 64}))
+    tasks = ("GRAIL/PandaReach-Aligned-Optimal-v0", "GRAIL/PandaReach-Gaussian-0.1-v0",
+             "GRAIL/PandaReach-Aligned-Gaussian-0.1-v0")
+    requests = [Request(t, specs, (0, 1), ObservationSpec("subset", "ceil", (0.02,))) for t in tasks]
+    units, _ = plan_sweep(requests, ResultsStore(tmp_path / "s.sqlite"))
+    order = [(u.seed, u.task_id.removeprefix("GRAIL/PandaReach-"), json.loads(u.planned.config)["config"]["algorithm"])
+             for u in units]
+    assert order == [(s, t, a) for s in (0, 1) for t, a in [
+        ("Aligned-Gaussian-0.1-v0", "ppo"), ("Aligned-Gaussian-0.1-v0", "sac"),  # each goal set and algorithm
+        ("Gaussian-0.1-v0", "ppo"), ("Gaussian-0.1-v0", "sac"),                  # trains first,
+        ("Aligned-Optimal-v0", "ppo"), ("Aligned-Optimal-v0", "sac")]]           # then its models are reused
 
 
 def test_a_lost_worker_loses_only_its_units_and_the_rerun_completes(tmp_path):

@@ -199,8 +199,20 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
 
 
 def order_units(units: Sequence[Unit]) -> list[Unit]:
-    """Seed by seed, each task's recognizers together (a worker reuses the demonstrations it generated)."""
-    return sorted(units, key=lambda u: (u.seed, u.task_id, u.planned.name, u.mode))
+    """Seed by seed, each task's recognizers together (a worker reuses the demonstrations it generated), but
+    within a seed first one unit of each group that may share models: the same recognizer configuration,
+    env and goals (e.g. DRACO or GRAQL on every regime of a goal set). Workers then start by training different
+    models instead of waiting for each other's, and the rest of each group reuses them."""
+    ordered = sorted(units, key=lambda u: (u.seed, u.task_id, u.planned.name, u.mode))
+    seen: set[tuple] = set()
+    later = []
+    for u in ordered:
+        task = _task(u.task_id, u.task_params)
+        group = (u.seed, u.planned.name, json.dumps(u.planned.spec.config, sort_keys=True, default=str),
+                 task.env_key, json.dumps(sorted(map(list, task.goals)), default=float))
+        later.append(group in seen)
+        seen.add(group)
+    return [u for _, _, u in sorted(zip((u.seed for u in ordered), later, ordered), key=lambda t: t[:2])]
 
 
 def plan_sweep(requests: Sequence[Request], store: ResultsStore) -> tuple[list[Unit], SweepSummary]:
