@@ -16,3 +16,11 @@ for t in Optimal Gaussian-0.1 Gaussian-0.3 Uniform-0.1 Uniform-0.3 Aligned-Optim
   $GB run -t GRAIL/PandaReach-$t-v0 -r draco --set draco.algorithm=sac $SCORERS --seeds 2 --workers 2 --no-progress \
       --json leaderboard/results/PandaReach-$t-draco-sac.json
 done
+
+# The paper profile's PandaReach sections at the paper's scale: BC and DRACO (both
+# algorithms) at 10 seeds, GAIL and AIRL at 3. Each skips the units the store holds, so the script resumes.
+for args in "-r bc" "-r gail -r airl --seeds 3" "--only panda-sac -r draco"; do
+  # shellcheck disable=SC2086  # $args is several options
+  $GB reproduce --profile paper --only panda $args --workers "$(nproc)" --store "$GRAIL_BENCH_STORE" \
+      --out /tmp/panda-paper --no-site --no-progress
+done
