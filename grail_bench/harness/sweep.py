@@ -212,7 +212,7 @@ def order_units(units: Sequence[Unit]) -> list[Unit]:
                  task.env_key, json.dumps(sorted(map(list, task.goals)), default=float))
         later.append(group in seen)
         seen.add(group)
-    return [u for _, _, u in sorted(zip((u.seed for u in ordered), later, ordered), key=lambda t: t[:2])]
+    return [u for _, u in sorted(zip(later, ordered), key=lambda pair: (pair[1].seed, pair[0]))]  # stable
 
 
 def plan_sweep(requests: Sequence[Request], store: ResultsStore) -> tuple[list[Unit], SweepSummary]:
