@@ -13,7 +13,7 @@ import grail_bench
 from grail_bench.domains import get_domain
 from grail_bench.domains.minigrid.grid import TURN_PATTERNS
 from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
-from grail_bench.harness.ceiling import bayes_ceiling, cached_ceiling, normalised
+from grail_bench.harness.ceiling import bayes_ceiling, normalised
 from grail_bench.task.model import GRTask
 from grail_bench.task.observation import Selection
 
@@ -147,16 +147,19 @@ def test_suboptimal_ceiling_is_monte_carlo_with_a_standard_error():
 
 def test_ceilings_are_cached_and_other_domains_have_none(tmp_path, monkeypatch):
     monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path))
-    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0")
-    first = cached_ceiling(task, "subset+floor", 0.2)
+    from grail_bench.harness.ceiling import ceilings_for
+
+    cell = ("GRAIL/MiniGrid-Optimal-v0", {}, "subset+floor", 0.2)
+    first = ceilings_for([cell])
+    (only,) = first.values()
     files = list((tmp_path / "ceilings").glob("*.json"))
-    assert len(files) == 1 and first.protocol == "subset+floor"
-    assert cached_ceiling(task, "subset+floor", 0.2) == first
+    assert len(files) == 1 and only.protocol == "subset+floor"
+    assert ceilings_for([cell], executor=_Refuses()) == first  # read back, nothing computed
     files[0].write_text("{not json")  # a corrupt entry is computed again
-    assert cached_ceiling(task, "subset+floor", 0.2) == first
-    assert json.loads(files[0].read_text())["ceiling"]["accuracy"] == first.accuracy
-    assert cached_ceiling(grail_bench.make_task("GRAIL/PandaReach-Optimal-v0"), "subset", 0.02) is None
-    assert cached_ceiling(task, "random", 0.2) is None  # legacy rows have no ceiling
+    assert ceilings_for([cell]) == first
+    assert json.loads(files[0].read_text())["ceiling"]["accuracy"] == only.accuracy
+    assert ceilings_for([("GRAIL/PandaReach-Optimal-v0", {}, "subset", 0.02)]) == {}
+    assert ceilings_for([(cell[0], {}, "random", 0.2)]) == {}  # legacy rows have no ceiling
 
 
 class _Refuses:

@@ -246,24 +246,6 @@ def _compute(task: GRTask, label: str, level: float, samples: int, seed: int, pa
     return bayes_ceiling(task, name, level, rounding=rounding, samples=samples, seed=seed, pairs_only=pairs_only)
 
 
-def cached_ceiling(task: GRTask, label: str, level: float, *, samples: int = 2000, seed: int = 0,
-                   pairs_only: bool = False) -> Ceiling | None:
-    """:func:`bayes_ceiling` (or, with ``pairs_only``, the pairs-only ceiling) for a stored protocol label, read
-    from or written to the on-disk cache.
-
-    Returns:
-        None where the task or protocol has no ceiling (other domains, plugin or legacy protocols).
-    """
-    if not _applies(task, label):
-        return None
-    key, path = _cache_path(task, label, level, samples, seed, pairs_only)
-    ceiling = _read(key, path)
-    if ceiling is None:
-        ceiling = _compute(task, label, level, samples, seed, pairs_only)
-        _write(key, path, ceiling)
-    return ceiling
-
-
 def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | None = None, method: str = "auto",
                   samples: int = 2000, seed: int = 0, pairs_only: bool = False) -> Ceiling:
     """Bayes-optimal expected accuracy of ``task`` under a protocol at one observability level.
