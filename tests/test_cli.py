@@ -30,6 +30,13 @@ def test_tasks_lists_every_id():
         assert task_id in result.output
 
 
+def test_python_dash_m_runs_the_command_without_warnings():
+    out = subprocess.run([sys.executable, "-m", "grail_bench", "list"], capture_output=True, text=True,
+                         env={**os.environ, "COLUMNS": "200"})
+    assert out.returncode == 0 and "graql" in out.stdout
+    assert "Warning" not in out.stderr, out.stderr
+
+
 def test_list_does_not_import_torch(tmp_path):
     code = ("import sys\nfrom grail_bench.cli import main\nsys.argv = ['grail-bench', 'list']\n"
             "try:\n    main()\nexcept SystemExit:\n    pass\nassert 'torch' not in sys.modules\nprint('no torch')")

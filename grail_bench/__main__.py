@@ -1,0 +1,6 @@
+"""``python -m grail_bench``: the ``grail-bench`` command."""
+
+from grail_bench.cli import main
+
+if __name__ == "__main__":
+    main()
