@@ -13,7 +13,7 @@ import grail_bench
 from grail_bench.domains import get_domain
 from grail_bench.domains.minigrid.grid import TURN_PATTERNS
 from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
-from grail_bench.harness.ceiling import bayes_ceiling, normalised
+from grail_bench.harness.ceiling import bayes_ceiling, ceilings_for, normalised
 from grail_bench.task.model import GRTask
 from grail_bench.task.observation import Selection
 
@@ -147,8 +147,6 @@ def test_suboptimal_ceiling_is_monte_carlo_with_a_standard_error():
 
 def test_ceilings_are_cached_and_other_domains_have_none(tmp_path, monkeypatch):
     monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path))
-    from grail_bench.harness.ceiling import ceilings_for
-
     cell = ("GRAIL/MiniGrid-Optimal-v0", {}, "subset+floor", 0.2)
     first = ceilings_for([cell])
     (only,) = first.values()
@@ -171,7 +169,6 @@ class _Refuses:
 
 
 def test_ceilings_on_a_process_pool_equal_the_serial_ones_and_are_cached(tmp_path, monkeypatch):
-    from grail_bench.harness.ceiling import ceilings_for
     from grail_bench.harness.executors import LocalExecutor
 
     cells = [("GRAIL/MiniGrid-Optimal-v0", {}, "subset+floor", 0.1), ("GRAIL/MiniGrid-Optimal-v0", {}, "prefix", 0.5),

@@ -213,12 +213,12 @@ def _applies(task: GRTask | None, label: str) -> bool:
     return task is not None and has_ceiling(task) and parse_label(label)[0] in BUILTIN
 
 
-def _cache_path(task: GRTask, label: str, level: float, samples: int, seed: int,
+def _cache_path(task: GRTask, label: str, level: float, samples: int,
                 pairs_only: bool) -> tuple[dict[str, Any], Path]:
-    """The cache key of one ceiling and the file it is stored in."""
+    """The cache key of one ceiling (Monte Carlo seed 0, as every cached ceiling is computed) and its file."""
     key = {"task": task.id, "regime": task.regime, "goals": [list(g) for g in task.goals],
            "params": dict(task.params), "env": dict(task.env_params), "protocol": label, "level": level,
-           "samples": samples, "seed": seed, "schema": 1,
+           "samples": samples, "seed": 0, "schema": 1,
            "domain": task.domain} | ({"pairs_only": True} if pairs_only else {})
     return key, cache_dir() / "ceilings" / f"{key_digest(key)}.json"
 
@@ -239,11 +239,6 @@ def _write(key: dict[str, Any], path: Path, ceiling: Ceiling) -> None:
     tmp = path.with_suffix(f".tmp{os.getpid()}")
     tmp.write_text(json.dumps({"key": key, "ceiling": ceiling.as_dict()}), encoding="utf-8")
     tmp.replace(path)
-
-
-def _compute(task: GRTask, label: str, level: float, samples: int, seed: int, pairs_only: bool) -> Ceiling:
-    name, rounding = parse_label(label)
-    return bayes_ceiling(task, name, level, rounding=rounding, samples=samples, seed=seed, pairs_only=pairs_only)
 
 
 def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | None = None, method: str = "auto",
@@ -306,7 +301,9 @@ def distinct_cells(cells: Iterable[Cell]) -> list[Cell]:
 def _cell_ceiling(cell: Cell, samples: int, pairs_only: bool) -> Ceiling:
     """One cell's ceiling, computed (an executor's work item: no cache access, so any worker can run it)."""
     task_id, params, label, level = cell
-    return _compute(find_task(task_id, params), label, level, samples, 0, pairs_only)
+    name, rounding = parse_label(label)
+    return bayes_ceiling(find_task(task_id, params), name, level, rounding=rounding, samples=samples, seed=0,
+                         pairs_only=pairs_only)
 
 
 def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[], None] | None = None,
@@ -331,7 +328,7 @@ def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[
     for cell in distinct_cells(cells):
         task = find_task(cell[0], cell[1])
         if _applies(task, cell[2]):
-            key, path = _cache_path(task, cell[2], cell[3], samples, 0, pairs_only)
+            key, path = _cache_path(task, cell[2], cell[3], samples, pairs_only)
             ceiling = _read(key, path)
             if ceiling is None:
                 missing[_cell_key(cell)] = (cell, key, path)
