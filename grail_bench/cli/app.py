@@ -438,7 +438,3 @@ def main() -> None:
     """Console-script entry point."""
     one_line_warnings()
     app()
-
-
-if __name__ == "__main__":
-    main()
