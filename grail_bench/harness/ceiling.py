@@ -64,6 +64,7 @@ from grail_bench.task.observation import (
 
 METHODS = ("auto", "exact", "monte-carlo")
 EXACT_LIMIT = 2_000_000  # observations enumerated at most before "auto" samples instead
+CACHED_SEED = 0  # the Monte Carlo seed of every cached ceiling: its cache key records it
 
 
 @dataclass(frozen=True)
@@ -215,10 +216,10 @@ def _applies(task: GRTask | None, label: str) -> bool:
 
 def _cache_path(task: GRTask, label: str, level: float, samples: int,
                 pairs_only: bool) -> tuple[dict[str, Any], Path]:
-    """The cache key of one ceiling (Monte Carlo seed 0, as every cached ceiling is computed) and its file."""
+    """The cache key of one ceiling (computed at :data:`CACHED_SEED`) and the file it is stored in."""
     key = {"task": task.id, "regime": task.regime, "goals": [list(g) for g in task.goals],
            "params": dict(task.params), "env": dict(task.env_params), "protocol": label, "level": level,
-           "samples": samples, "seed": 0, "schema": 1,
+           "samples": samples, "seed": CACHED_SEED, "schema": 1,
            "domain": task.domain} | ({"pairs_only": True} if pairs_only else {})
     return key, cache_dir() / "ceilings" / f"{key_digest(key)}.json"
 
@@ -302,8 +303,8 @@ def _cell_ceiling(cell: Cell, samples: int, pairs_only: bool) -> Ceiling:
     """One cell's ceiling, computed (an executor's work item: no cache access, so any worker can run it)."""
     task_id, params, label, level = cell
     name, rounding = parse_label(label)
-    return bayes_ceiling(find_task(task_id, params), name, level, rounding=rounding, samples=samples, seed=0,
-                         pairs_only=pairs_only)
+    return bayes_ceiling(find_task(task_id, params), name, level, rounding=rounding, samples=samples,
+                         seed=CACHED_SEED, pairs_only=pairs_only)
 
 
 def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[], None] | None = None,
