@@ -12,40 +12,27 @@ Nothing is imported until a recognizer is made.
 
 from __future__ import annotations
 
-from importlib.metadata import entry_points
 from typing import Any, Callable
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.params import check_kwargs
-from grail_bench.core.plugins import load_target
+from grail_bench.core.registry import Registry
 from grail_bench.recognizers.contract import Capabilities, Info, capabilities, info
 
 GROUP = "grail_bench.recognizers"
-
-_LOCAL: dict[str, str | Callable[..., Any]] = {}
 
 
 class UnknownRecognizerError(UserError):
     """No recognizer is registered under the requested name."""
 
 
-def _entry_point_targets() -> dict[str, str]:
-    targets: dict[str, str] = {}
-    for ep in entry_points(group=GROUP):
-        if ep.name in targets and targets[ep.name] != ep.value:
-            raise UserError(
-                f"recognizer name {ep.name!r} is registered twice: {targets[ep.name]} and {ep.value}"
-            )
-        targets[ep.name] = ep.value
-    return targets
+#: Every recognizer: the built-in ones come through the same entry-point group as third-party ones.
+RECOGNIZERS: Registry[Callable[..., Any]] = Registry("recognizer", GROUP, unknown=UnknownRecognizerError)
 
 
 def available_recognizers() -> dict[str, str]:
     """Registered recognizer names and what they point to (nothing is imported)."""
-    targets = _entry_point_targets()
-    for name, target in _LOCAL.items():
-        targets[name] = target if isinstance(target, str) else f"{target.__module__}:{target.__qualname__}"
-    return dict(sorted(targets.items()))
+    return RECOGNIZERS.targets()
 
 
 def register_recognizer(name: str, factory: str | Callable[..., Any]) -> None:
@@ -58,14 +45,12 @@ def register_recognizer(name: str, factory: str | Callable[..., Any]) -> None:
     Raises:
         UserError: If the name is taken.
     """
-    if name in _LOCAL or name in _entry_point_targets():
-        raise UserError(f"recognizer name {name!r} is already registered")
-    _LOCAL[name] = factory
+    RECOGNIZERS.register(name, factory)
 
 
 def unregister_recognizer(name: str) -> None:
     """Remove a recognizer registered with :func:`register_recognizer`."""
-    _LOCAL.pop(name, None)
+    RECOGNIZERS.unregister(name)
 
 
 def make_recognizer(name: str, **config: Any) -> Any:
@@ -90,19 +75,9 @@ def build(name: str, config: dict[str, Any] | None = None) -> Capabilities:
     Raises:
         The errors of :func:`make_recognizer`.
     """
-    factory, _ = _factory(name)
+    factory = RECOGNIZERS.get(name)
     kwargs = check_kwargs(factory, dict(config or {}), f"recognizer {name!r}")
     return capabilities(factory(**kwargs), name, kwargs)
-
-
-def _factory(name: str) -> tuple[Callable[..., Any], str]:
-    targets = {**_entry_point_targets(), **_LOCAL}
-    if name not in targets:
-        raise UnknownRecognizerError(
-            f"unknown recognizer {name!r}; available: {', '.join(sorted(targets)) or 'none'}"
-        )
-    target = targets[name]
-    return (load_target(target), target) if isinstance(target, str) else (target, repr(target))
 
 
 def recognizer_info(name: str) -> Info:
@@ -111,5 +86,5 @@ def recognizer_info(name: str) -> Info:
     Raises:
         UnknownRecognizerError: For unregistered names.
     """
-    factory, _ = _factory(name)
+    factory = RECOGNIZERS.get(name)
     return info(factory, name)

@@ -21,8 +21,8 @@ from typing import Callable
 import numpy as np
 from scipy.special import erf, softmax
 
-from grail_bench.core import plugins
 from grail_bench.core.errors import UserError
+from grail_bench.core.registry import Registry
 
 EPS = 1e-8
 GROUP = "grail_bench.scorers"
@@ -274,22 +274,30 @@ class UnknownScorerError(UserError):
     """No scorer is registered under the requested name."""
 
 
+def _checked(obj: object, target: str) -> Scorer:
+    if not isinstance(obj, Scorer):
+        raise UserError(f"scorer entry point {target} is not a grail_bench.Scorer")
+    return obj
+
+
+#: Every scorer: the built-in ones and those of the ``grail_bench.scorers`` entry points.
+SCORERS: Registry[Scorer] = Registry("scorer", GROUP, check=_checked, unknown=UnknownScorerError)
+for _name, _scorer in BUILTIN.items():
+    SCORERS.add(_name, _scorer)
+
+
 def available_scorers() -> dict[str, str]:
     """Scorer names and what provides them (plugins are not imported)."""
-    return plugins.available(GROUP, BUILTIN, "scorer")
+    return SCORERS.targets()
 
 
 def get_scorer(name: str) -> Scorer:
-    """The scorer registered under ``name``."""
-    if name in BUILTIN:
-        return BUILTIN[name]
-    found = plugins.load(GROUP, name)
-    if found is None:
-        raise UnknownScorerError(f"unknown scorer {name!r}; available: {', '.join(available_scorers())}")
-    scorer, target = found
-    if not isinstance(scorer, Scorer):
-        raise UserError(f"scorer entry point {target} is not a grail_bench.Scorer")
-    return scorer
+    """The scorer registered under ``name``.
+
+    Raises:
+        UnknownScorerError: For an unregistered name.
+    """
+    return SCORERS.get(name)
 
 
 def check_scorer(name: str, exposes: frozenset[str], recognizer: str) -> Scorer:

@@ -14,11 +14,10 @@ may import the domain's simulator.
 
 from __future__ import annotations
 
-from functools import lru_cache
 from typing import TYPE_CHECKING, Any, Mapping, Protocol, Sequence, runtime_checkable
 
-from grail_bench.core import plugins
 from grail_bench.core.errors import UserError
+from grail_bench.core.registry import Registry
 from grail_bench.core.trajectory import Goal
 
 if TYPE_CHECKING:
@@ -96,14 +95,19 @@ class Domain(Protocol):
         ...
 
 
-@lru_cache(maxsize=1)
-def _registered() -> dict[str, str]:
-    return plugins.available(GROUP, (), "domain")
+def _checked(domain: object, target: str) -> Domain:
+    if not isinstance(domain, Domain):
+        raise UserError(f"domain entry point {target} does not satisfy grail_bench.task.domain.Domain")
+    return domain
+
+
+#: Every domain, the built-in ones included, through the ``grail_bench.domains`` entry points.
+DOMAINS: Registry[Domain] = Registry("domain", GROUP, check=_checked)
 
 
 def available_domains() -> list[str]:
     """Names of every registered domain, sorted (nothing is imported)."""
-    return sorted(_registered())
+    return DOMAINS.names()
 
 
 def get_domain(name: str) -> Domain:
@@ -112,18 +116,7 @@ def get_domain(name: str) -> Domain:
     Raises:
         UserError: For unknown names, listing the known ones, or an entry point that is not a :class:`Domain`.
     """
-    if not isinstance(name, str) or name not in _registered():
-        raise UserError(f"unknown domain {name!r}; known domains: {', '.join(available_domains())}")
-    return _load(name)
-
-
-@lru_cache(maxsize=None)
-def _load(name: str) -> Domain:
-    target = _registered()[name]
-    domain = plugins.load_target(target)
-    if not isinstance(domain, Domain):
-        raise UserError(f"domain entry point {target} does not satisfy grail_bench.task.domain.Domain")
-    return domain
+    return DOMAINS.get(name)
 
 
 def stored_params(domain: Domain, params: Mapping[str, Any]) -> dict[str, Any]:

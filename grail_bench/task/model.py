@@ -13,6 +13,7 @@ from grail_bench.core.seeding import DEMOS, goal_rng
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.task.domain import Domain, get_domain
 from grail_bench.task.observation import BUILTIN, ROUNDINGS, available_protocols, protocol_label
+from grail_bench.task.overrides import TaskOverrides, freeze
 
 if TYPE_CHECKING:
     import gymnasium as gym
@@ -178,6 +179,21 @@ class GRTask:
             return dataclasses.replace(self, params=params, env_params=env_params, **fields)
         except TaskFieldError as exc:
             raise UserError(f"{self.id}: {exc}") from None
+
+    def settings(self) -> dict[str, Any]:
+        """Every parameter an override can set, by name: regime and env parameters, the demonstration counts
+        and ``demos`` (empty for the generator)."""
+        return {**self.params, **self.env_params, "n_demos": self.n_demos, "n_train": self.n_train,
+                "demos": self.demos}
+
+    def overrides_against(self, base: GRTask) -> TaskOverrides:
+        """How this task differs from ``base`` (usually its card's task): the settings whose values differ.
+
+        ``base.with_overrides(**task.overrides_against(base).as_dict())`` is this task again.
+        """
+        theirs = base.settings()
+        return TaskOverrides.of({k: v for k, v in self.settings().items()
+                                 if k not in theirs or freeze(theirs[k]) != freeze(v)})
 
     def _dataset_fields(self, source: Any) -> dict[str, Any]:
         """``demos`` and the demonstration counts a dataset gives this task (read from the dataset, checked)."""

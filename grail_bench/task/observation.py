@@ -23,12 +23,11 @@ import itertools
 import math
 import warnings
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import TYPE_CHECKING, Hashable, Iterable, Iterator, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
-from grail_bench.core import plugins
+from grail_bench.core.registry import Registry
 from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import cell_rng
 from grail_bench.core.trajectory import goal_horizon
@@ -172,9 +171,22 @@ class UnknownProtocolError(UserError):
     """No protocol of that name is built in or registered."""
 
 
+def _checked(protocol: object, target: str) -> ProtocolLike:
+    if not isinstance(protocol, ProtocolLike):
+        raise UserError(f"protocol entry point {target} lacks name, description, leaks_goal or select")
+    return protocol
+
+
+#: Every observation protocol: the built-in ones and those of the ``grail_bench.protocols`` entry points.
+PROTOCOLS: Registry[ProtocolLike] = Registry("observation protocol", GROUP, check=_checked,
+                                             unknown=UnknownProtocolError)
+for _protocol in BUILTIN.values():
+    PROTOCOLS.add(_protocol.name, _protocol)
+
+
 def available_protocols() -> dict[str, str]:
     """Protocol names and what provides them (plugins are not imported)."""
-    return plugins.available(GROUP, BUILTIN, "protocol")
+    return PROTOCOLS.targets()
 
 
 def canonical_name(name: str) -> str:
@@ -192,24 +204,9 @@ def get_protocol(name: str) -> ProtocolLike:
     Raises:
         UnknownProtocolError: For names neither built in nor registered.
     """
-    if not isinstance(name, str):
-        raise UnknownProtocolError(f"an observation protocol is named by a string, got {name!r}")
-    name = canonical_name(name)
-    if name in BUILTIN:
-        return BUILTIN[name]
-    return _plugin_protocol(name)
-
-
-@lru_cache(maxsize=None)
-def _plugin_protocol(name: str) -> ProtocolLike:
-    found = plugins.load(GROUP, name)
-    if found is None:
-        raise UnknownProtocolError(f"unknown observation protocol {name!r}; available: "
-                                   f"{', '.join(available_protocols())}")
-    protocol, target = found
-    if not isinstance(protocol, ProtocolLike):
-        raise UserError(f"protocol entry point {target} lacks name, description, leaks_goal or select")
-    return protocol
+    if isinstance(name, str):
+        name = canonical_name(name)
+    return PROTOCOLS.get(name)
 
 
 def protocol_label(name: str, rounding: str = "ceil") -> str:

@@ -10,11 +10,13 @@ A new mode is one module defining a :class:`~.base.Mode` and one entry here.
 
 from __future__ import annotations
 
-from grail_bench.core.errors import UserError
+from grail_bench.core.registry import Registry
 from grail_bench.harness.modes import offline, online, open_set, zero_shot
 from grail_bench.harness.modes.base import Column, Mode, Record, Run, SeedRun
 
-MODES: dict[str, Mode] = {m.name: m for m in (offline.MODE, online.MODE, open_set.MODE, zero_shot.MODE)}
+MODES: Registry[Mode] = Registry("mode")
+for _mode in (offline.MODE, online.MODE, open_set.MODE, zero_shot.MODE):
+    MODES.add(_mode.name, _mode)
 
 ResultRow, OnlineRow, OpenSetRow = offline.ResultRow, online.OnlineRow, open_set.OpenSetRow
 ZeroShotRow = zero_shot.ZeroShotRow
@@ -27,10 +29,7 @@ def get_mode(name: str) -> Mode:
     Raises:
         UserError: For an unknown name, listing the known ones.
     """
-    try:
-        return MODES[name]
-    except (KeyError, TypeError):
-        raise UserError(f"unknown mode {name!r}; choose one of {', '.join(MODES)}") from None
+    return MODES.get(name)
 
 
 def mode_of(row_type: type) -> Mode:
