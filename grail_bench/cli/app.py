@@ -434,6 +434,51 @@ def ceiling(
             write_text(json_path, json.dumps([c.as_dict() for c in results], indent=2) + "\n", "ceilings")
 
 
+@app.command()
+def study(
+    name: Optional[str] = typer.Argument(None, help="The study to run (without one: the list)."),
+    show_list: bool = typer.Option(False, "--list", help="List the studies."),
+    store_path: Optional[Path] = typer.Option(
+        None, "--store", help="Results database the study reads (causes; default: $GRAIL_BENCH_STORE or "
+                              "~/.local/share/grail-bench/results.sqlite)."),
+    task: Optional[List[str]] = typer.Option(
+        None, "--task", "-t", help="A task to study; repeatable (off-route: required; causes, readings: a subset "
+                                   "of their six)."),
+    params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, as for `run` (off-route)."),
+    seeds: Optional[int] = typer.Option(None, "--seeds", "-s", min=1, help="Seeds 0..N-1 (off-route; default 10)."),
+    samples: Optional[int] = typer.Option(
+        None, "--samples", min=2, help="Monte Carlo samples of each ceiling (causes, readings; default 2000)."),
+) -> None:
+    """Run a study behind leaderboard/README.md and print its Markdown table (`--list` names them)."""
+    from grail_bench.report.studies import STUDIES, get_study, study_options
+    from grail_bench.report.text import names_table
+
+    if show_list or name is None:
+        console.print(names_table("studies (grail-bench study NAME)",
+                                  [(n, text) for n, (_, text) in STUDIES.items()], "what it reports"))
+        return
+    if name not in STUDIES:
+        raise fail(f"unknown study {name!r}; choose one of {', '.join(STUDIES)} (`grail-bench study --list`)")
+    flags = {"store": "--store", "tasks": "--task", "params": "--param", "seeds": "--seeds", "samples": "--samples"}
+    with errors():
+        given = {"store": store_path, "tasks": tuple(task) if task else None,
+                 "params": parse_params(params) if params else None, "seeds": seeds, "samples": samples}
+        takes = study_options(name)  # argument -> whether required
+        for key, value in given.items():
+            if value is not None and key not in takes:
+                raise fail(f"study {name} takes no {flags[key]}")
+            if value is None and takes.get(key) and key != "store":
+                raise fail(f"study {name} needs {flags[key]}")
+        options = {k: v for k, v in given.items() if k != "store" and v is not None}
+        with console.status(f"study {name}"):
+            if "store" in takes:
+                with open_store(store_path, must_exist=True) as store:
+                    text = get_study(name)(store=store, **options)
+            else:
+                text = get_study(name)(**options)
+    typer.echo(text, nl=False)
+
+
 def main() -> None:
     """Console-script entry point."""
     one_line_warnings()

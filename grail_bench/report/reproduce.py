@@ -12,7 +12,8 @@ each value in turn, optionally at its own ``observability`` levels and
 ``seeds``; a scaling study (``vary = {tasks = "n_goals"}``) runs its tasks,
 one per goal count, and fits each method's fit-cost exponent. Those sections
 write ``BUDGETS.md`` and ``budgets.png`` instead of joining the paper's tables. A section's ``config`` sets hyperparameters of all
-its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant). The grid runs
+its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant); its ``protocol`` and
+``rounding`` (e.g. ``protocol = "prefix"``, ``rounding = "floor"``) replace each task's default. The grid runs
 through :func:`grail_bench.harness.sweep.run_sweep` (resumable through the
 store), then :func:`write_outputs` renders everything (tables, figures, the web
 page) from the store alone, so the outputs never depend on which units ran now.
@@ -107,17 +108,20 @@ class Section:
     observability: tuple[float, ...] = ()
     seeds: int | None = None
     config: Mapping[str, Any] = field(default_factory=dict)  # hyperparameters for every recognizer of the section
+    protocol: str | None = None  # None: each task's default
+    rounding: str | None = None  # None: each task's default
 
     def requests(self, seeds: int, config: Mapping[str, Mapping[str, Any]]) -> list[Request]:
-        """This section's requests: each task's default protocol and rounding; its levels unless the section's."""
+        """This section's requests: its protocol, rounding and levels where it sets them, else each task's."""
         out = []
         for task_id in self.tasks:
             for params, configs in self._variants(config):
                 task = make_task(task_id, **params)
                 levels = (self.observability or task.observability) if get_mode(self.mode).takes_levels else ()
                 specs = tuple(RecognizerSpec(r, c, self.scorers) for r, c in configs)
-                out.append(Request(task.id, specs, tuple(range(self.seeds or seeds)),
-                                   ObservationSpec.resolve(task.protocol, task.rounding, levels), params, self.mode))
+                observation = ObservationSpec.resolve(self.protocol or task.protocol, self.rounding or task.rounding,
+                                                      levels)
+                out.append(Request(task.id, specs, tuple(range(self.seeds or seeds)), observation, params, self.mode))
         return out
 
     def _variants(self, config: Mapping[str, Mapping[str, Any]]) -> list[tuple[dict[str, Any], list]]:
@@ -156,9 +160,9 @@ class Profile:
 
     def requests(self, only: Sequence[str] = (), recognizers: Sequence[str] = (),
                  seeds: int | None = None) -> list[Request]:
-        """The sweep's requests: each task's default protocol and levels (online: none), every section unless
-        ``only``, every recognizer of those sections unless ``recognizers``, each section's seeds unless
-        ``seeds`` (then seeds ``0 .. seeds - 1`` of every section)."""
+        """The sweep's requests: each section's protocol, rounding and levels (else the task's; online: no
+        levels), every section unless ``only``, every recognizer of those sections unless ``recognizers``, each
+        section's seeds unless ``seeds`` (then seeds ``0 .. seeds - 1`` of every section)."""
         unknown = set(only) - {s.name for s in self.sections}
         if unknown:
             raise UserError(f"profile {self.name!r} has no section {sorted(unknown)[0]!r}; it has "
@@ -214,7 +218,8 @@ def load_profile(name_or_path: str) -> Profile:
             dict(s.get("params", {})), str(s.get("mode", "offline")),
             Vary.parse(s["vary"], f"profile {name_or_path}: section {s['name']!r}") if "vary" in s else None,
             parse_observability(s["observability"]) if "observability" in s else (),
-            int(s["seeds"]) if "seeds" in s else None, dict(s.get("config", {}))) for s in data["section"])
+            int(s["seeds"]) if "seeds" in s else None, dict(s.get("config", {})),
+            _optional_name(s, "protocol"), _optional_name(s, "rounding")) for s in data["section"])
         seeds = int(data["seeds"])
         config = {k: dict(v) for k, v in data.get("config", {}).items()}
     except (KeyError, TypeError, ValueError) as exc:
@@ -224,6 +229,11 @@ def load_profile(name_or_path: str) -> Profile:
     for section in sections:
         if section.vary is not None and section.vary.of == "tasks" and len(section.tasks) < 2:
             raise UserError(f"profile {name_or_path}: section {section.name!r} varies its tasks; list two or more")
+        if section.protocol is not None or section.rounding is not None:
+            try:
+                ObservationSpec.resolve(section.protocol or "subset", section.rounding or "ceil")
+            except UserError as exc:
+                raise UserError(f"profile {name_or_path}: section {section.name!r}: {exc}") from None
         if section.mode not in MODES:
             raise UserError(f"profile {name_or_path}: section {section.name!r} has mode {section.mode!r}; "
                             f"choose one of {', '.join(MODES)}")
@@ -232,6 +242,18 @@ def load_profile(name_or_path: str) -> Profile:
                 raise UserError(f"profile {name_or_path}: section {section.name!r} needs {field_name} as a list of "
                                 "names")
     return Profile(name, str(data.get("description", "")), seeds, sections, config)
+
+
+def _optional_name(section: Mapping[str, Any], key: str) -> str | None:
+    """A section's optional name-valued field (``protocol``, ``rounding``), or None where it has none.
+
+    Raises:
+        TypeError: For a value that is not a string.
+    """
+    value = section.get(key)
+    if value is not None and not isinstance(value, str):
+        raise TypeError(f"{key} must be a name, got {value!r}")
+    return value
 
 
 def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executor: Any, started: datetime,
