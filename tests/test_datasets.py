@@ -2,21 +2,25 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
-import os
 import pickle
-import subprocess
-import sys
+import shutil
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 import grail_bench
+from grail_bench.cli import app
 from grail_bench.harness.api import evaluate
-from grail_bench.task.datasets import dataset_id, export, load_demos
+from grail_bench.harness.store import ResultsStore
+from grail_bench.task import export as export_module
+from grail_bench.task.datasets import load_demos
+from grail_bench.task.export import dataset_id, export
 
-BIN = Path(sys.executable).parent
 TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=0.5)
 
 
@@ -24,6 +28,45 @@ TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=0.5)
 def exported(tmp_path_factory):
     out = tmp_path_factory.mktemp("datasets")
     return out, export(TASK, [0, 1], out)
+
+
+def copy_of(path: Path, where: Path) -> Path:
+    """A copy of one exported dataset, to tamper with."""
+    return Path(shutil.copytree(path, where))
+
+
+def without_metadata(path: Path) -> Path:
+    """``path`` with its grail_bench metadata removed: a dataset as one recorded elsewhere has it."""
+    meta_file = path / "data" / "metadata.json"
+    meta = json.loads(meta_file.read_text())
+    del meta["grail_bench"]
+    meta_file.write_text(json.dumps(meta))
+    return path
+
+
+def with_metadata(path: Path, **changes) -> Path:
+    """``path`` with fields of its grail_bench metadata changed."""
+    meta_file = path / "data" / "metadata.json"
+    meta = json.loads(meta_file.read_text())
+    meta["grail_bench"] = json.dumps({**json.loads(meta["grail_bench"]), **changes})
+    meta_file.write_text(json.dumps(meta))
+    return path
+
+
+def with_episode(path: Path, episode: int, key: str, step: int, value) -> Path:
+    """``path`` with one step of one episode's observations or actions overwritten."""
+    with h5py.File(path / "data" / "main_data.hdf5", "a") as f:
+        f[f"episode_{episode}"][key][step] = value
+    return path
+
+
+def cli(*args: str):
+    return CliRunner().invoke(app, list(args), env={"COLUMNS": "200"})
+
+
+def one_error_line(result, message: str) -> None:
+    lines = result.stderr.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1 and message in lines[0], result.stderr
 
 
 def test_one_dataset_per_seed_with_goals_splits_and_the_task(exported):
@@ -55,6 +98,19 @@ def test_read_back_they_are_the_generators_demonstrations(exported):
                 assert [i["is_success"] for i in mine.infos] == [i["is_success"] for i in theirs.infos]
 
 
+def test_a_task_with_a_dataset_round_trips_its_overrides(exported):
+    out, _ = exported
+    base = grail_bench.make_task(TASK.id)
+    task = grail_bench.make_task(TASK.id, turn_prob=0.5, demos=str(out))
+    assert (task.demos, task.n_train, task.n_demos) == (str(out), 7, 10)
+    assert task.overrides_against(base).as_dict() == {"demos": str(out), "turn_prob": 0.5}
+    assert base.with_overrides(**task.overrides_against(base).as_dict()) == task
+    # Counts are the dataset's: another one given beside it is refused, the same one accepted.
+    assert grail_bench.make_task(TASK.id, turn_prob=0.5, demos=str(out), n_train=7) == task
+    with pytest.raises(grail_bench.UserError, match="n_train=5, but the dataset .* gives 7"):
+        grail_bench.make_task(TASK.id, turn_prob=0.5, demos=str(out), n_train=5)
+
+
 def test_a_run_from_the_datasets_gives_the_generators_f1(exported, monkeypatch):
     out, _ = exported
     real_loads = pickle.loads
@@ -67,37 +123,134 @@ def test_a_run_from_the_datasets_gives_the_generators_f1(exported, monkeypatch):
     assert from_data[0].config_hash != generated[0].config_hash  # the dataset's content keys its results
 
 
-def test_datasets_that_do_not_fit_the_task_are_one_line(exported, tmp_path):
-    out, paths = exported
-    env = {**os.environ, "COLUMNS": "200", "GRAIL_BENCH_STORE": str(tmp_path / "s.sqlite")}
-
-    def run(*args):
-        return subprocess.run([str(BIN / "grail-bench"), "run", "-r", "bc", "--seeds", "1", "--no-progress", *args],
-                              capture_output=True, text=True, env=env, timeout=600)
-
-    for args, message in (
-        (["-t", "GRAIL/PandaReach-Optimal-v0", "--demos", str(paths[0])], "observation space"),
-        (["-t", "GRAIL/MiniGrid-Optimal-4Goals-v0", "--demos", str(paths[0])], "needs training and test episodes"),
-        (["-t", TASK.id, "--demos", str(tmp_path / "nothing")], "no Minari dataset"),
-        (["-t", TASK.id, "--param", "turn_prob=0.5", "--demos", str(out), "--seeds", "3"],
-         "no dataset exported with seed 2 (seeds there: [0, 1])"),
-    ):
-        out_ = run(*args)
-        lines = out_.stderr.strip().splitlines()
-        assert out_.returncode == 2 and len(lines) == 1 and message in lines[0], out_.stderr
-    assert not (tmp_path / "s.sqlite").exists()  # refused before the store was opened, let alone written
+@pytest.mark.parametrize("task_id, params, changes, message", [
+    ("GRAIL/MiniGrid-Optimal-v0", {}, {}, 'its task = "GRAIL/MiniGrid-Suboptimal-v0", not "GRAIL/MiniGrid-Optimal-v0"'),
+    (TASK.id, {}, {}, "its params.turn_prob = 0.5, not 1.0"),
+    (TASK.id, {"turn_prob": 0.5, "max_steps": 80}, {}, "its env.max_steps = 60, not 80"),
+    (TASK.id, {"turn_prob": 0.5}, {"regime": "optimal"}, 'its regime = "optimal", not "suboptimal"'),
+    (TASK.id, {"turn_prob": 0.5}, {"goals": [[7, 1], [7, 3]]}, "its goals = [[7, 1], [7, 3]], not [[7, 1], [7, 7]]"),
+])
+def test_a_dataset_exported_from_another_task_is_refused_naming_the_field(exported, tmp_path, task_id, params,
+                                                                          changes, message):
+    _, paths = exported
+    path = with_metadata(copy_of(paths[0], tmp_path / "d"), **changes) if changes else paths[0]
+    with pytest.raises(grail_bench.UserError) as info:
+        grail_bench.make_task(task_id, demos=str(path), **params)
+    assert message in str(info.value) and "\n" not in str(info.value)
 
 
-def test_episodes_without_goal_labels_are_refused(tmp_path):
+def test_a_dataset_recorded_elsewhere_is_checked_by_spaces_and_goal_labels(exported, tmp_path):
+    _, paths = exported
+    path = without_metadata(copy_of(paths[0], tmp_path / "d"))
+    other = grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0", demos=str(path))  # same goals and spaces
+    assert (other.n_train, other.n_demos) == (7, 10) and other.generate_demos(0).keys() == set(other.goals)
+    with pytest.raises(grail_bench.UserError, match="needs training and test episodes"):
+        grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0", demos=str(path))
+    with pytest.raises(grail_bench.UserError, match="observation space"):
+        grail_bench.make_task("GRAIL/PandaReach-Optimal-v0", expert="scripted", demos=str(path))
+
+
+@pytest.mark.parametrize("key, episode, value, message", [
+    ("observations", 3, [99, 4, 0], "episode 3: observations lie outside the env's space MultiDiscrete([9 9 4])"),
+    ("actions", 12, 7, "episode 12: actions lie outside the env's space Discrete(4)"),
+])
+def test_observations_or_actions_outside_the_spaces_are_refused_naming_the_episode(exported, tmp_path, key,
+                                                                                   episode, value, message):
+    _, paths = exported
+    path = with_episode(copy_of(paths[0], tmp_path / "d"), episode, key, 2, value)
+    with pytest.raises(grail_bench.UserError) as info:
+        load_demos(TASK, str(path), 0)
+    assert message in str(info.value) and str(info.value).endswith("at step 2") and "\n" not in str(info.value)
+
+
+def test_episodes_without_goal_labels_are_refused(exported, tmp_path):
     import minari
 
-    (path,) = export(TASK, [0], tmp_path)
+    _, paths = exported
+    path = copy_of(paths[0], tmp_path / "d")
     storage = minari.MinariDataset(path / "data").storage
     storage.update_episode_metadata([{"split": "train"}] * storage.total_episodes)  # goals gone
-    import h5py
-
     with h5py.File(path / "data" / "main_data.hdf5", "a") as f:
         for i in range(storage.total_episodes):
             f[f"episode_{i}"].attrs.pop("goal", None)
     with pytest.raises(grail_bench.UserError, match="has no goal label"):
         load_demos(TASK, str(path), 0)
+
+
+@pytest.fixture(scope="module")
+def store(exported, tmp_path_factory):
+    """A results store holding one run from the datasets."""
+    out, _ = exported
+    path = tmp_path_factory.mktemp("store") / "results.sqlite"
+    with ResultsStore(path) as results:
+        evaluate(TASK.id, [("bc", {"n_epochs": 1})], seeds=1, observability=[0.5], store=results,
+                 task_params={"turn_prob": 0.5, "demos": str(out)})
+    return path
+
+
+def contents(folder: Path) -> dict[str, str]:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def test_run_refuses_what_does_not_fit_in_one_line_and_leaves_the_store_alone(exported, store, tmp_path):
+    out, paths = exported
+    recorded = without_metadata(copy_of(paths[0], tmp_path / "recorded"))
+    off_space = with_episode(copy_of(paths[0], tmp_path / "off"), 3, "observations", 0, [99, 4, 0])
+    before = contents(store.parent)
+    for args, message in (
+        (["-t", "GRAIL/MiniGrid-Optimal-v0", "--demos", str(paths[0])], 'its task = "GRAIL/MiniGrid-Suboptimal-v0"'),
+        (["-t", TASK.id, "--demos", str(paths[0])], "its params.turn_prob = 0.5, not 1.0"),
+        (["-t", TASK.id, "--param", "turn_prob=0.5", "--demos", str(off_space)], "episode 3: observations lie outside"),
+        (["-t", "GRAIL/PandaReach-Optimal-v0", "--demos", str(recorded)], "observation space"),
+        (["-t", "GRAIL/MiniGrid-Optimal-4Goals-v0", "--demos", str(recorded)], "needs training and test episodes"),
+        (["-t", TASK.id, "--demos", str(tmp_path / "nothing")], "no Minari dataset"),
+        (["-t", TASK.id, "--param", "turn_prob=0.5", "--demos", str(out), "--seeds", "3"],
+         "no dataset exported with seed 2 (seeds there: [0, 1])"),
+        (["-t", "GRAIL/Nope-v0"], "unknown task 'GRAIL/Nope-v0'"),
+        (["-t", TASK.id, "--param", "max_steps=-1"], "env.max_steps: expected a positive integer, got -1"),
+    ):
+        result = cli("run", "-r", "bc", "--seeds", "1", "--no-progress", "--store", str(store), *args)
+        one_error_line(result, message)
+    assert contents(store.parent) == before
+
+
+def test_export_into_a_relative_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    result = cli("export", "-t", TASK.id, "--param", "turn_prob=0.5", "--out", "datasets/")
+    assert result.exit_code == 0, result.output
+    path = tmp_path / "datasets" / dataset_id(TASK, 0)
+    assert (path / "data" / "main_data.hdf5").is_file()
+    assert load_demos(TASK, "datasets/", 0).n_train == 7  # relative sources read as well
+
+
+def test_a_failed_export_leaves_nothing_behind(tmp_path, monkeypatch):
+    real_write = export_module._write
+
+    def write_one_then_fail(minari, task, seed, ident, spec, out):
+        if seed == 1:
+            raise OSError(28, "No space left on device", str(out / ident))
+        real_write(minari, task, seed, ident, spec, out)
+
+    monkeypatch.setattr(export_module, "_write", write_one_then_fail)
+    out = tmp_path / "out"
+    with pytest.raises(OSError):
+        export(TASK, [0, 1], out)
+    assert not out.exists()  # the seed 0 dataset, the namespace folder and the folder itself are gone
+    out.mkdir()
+    (out / "mine.txt").write_text("kept")
+    result = cli("export", "-t", TASK.id, "--param", "turn_prob=0.5", "--seeds", "2", "--out", str(out))
+    one_error_line(result, "No space left on device")
+    assert [p.name for p in out.iterdir()] == ["mine.txt"]  # what was there before stays
+
+
+def test_export_checks_its_output_before_any_work(tmp_path, monkeypatch):
+    monkeypatch.setattr(export_module, "_write", lambda *a: pytest.fail("a dataset was written"))
+    (tmp_path / "file").write_text("")
+    with pytest.raises(grail_bench.UserError, match="cannot write the folder .*file: it is a file"):
+        export(TASK, [0], tmp_path / "file")
+    (tmp_path / "out" / dataset_id(TASK, 1)).mkdir(parents=True)
+    with pytest.raises(grail_bench.UserError, match=r"seed1-v0 exists already"):
+        export(TASK, [0, 1], tmp_path / "out")  # seed 0 is not written before seed 1 is found taken
+    with pytest.raises(grail_bench.UserError, match="seeds"):
+        export(TASK, [-1], tmp_path / "out")
+    one_error_line(cli("export", "-t", TASK.id, "--out", str(tmp_path / "file")), "it is a file")

@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -110,17 +111,91 @@ def test_make_task_rejects_overrides_it_cannot_apply():
     assert (task.params["turn_prob"], task.env_params["max_steps"], task.n_demos) == (0.5, 80, 12)
 
 
-@pytest.mark.parametrize("bad_id", ["GRAIL/MiniGrid-Nope-v0", "GRAIL/MiniGrid-Biased-v9", "NOPE/MiniGrid-Biased-v0"])
-def test_unknown_ids_raise_gymnasiums_error(bad_id):
+@pytest.mark.parametrize("bad_id, hint", [
+    ("GRAIL/MiniGrid-Nope-v0", ""),
+    ("GRAIL/MiniGrid-Biased-v9", "; did you mean GRAIL/MiniGrid-Biased-v0"),
+    ("NOPE/MiniGrid-Biased-v0", "; did you mean GRAIL/MiniGrid-Biased-v0"),
+])
+def test_unknown_ids_are_one_line_with_close_ids(bad_id, hint):
     with pytest.raises(gym.error.Error):
-        gym.make(bad_id)
-    with pytest.raises(gym.error.Error):
+        gym.make(bad_id)  # gymnasium's own lookup, as for any ID
+    with pytest.raises(grail_bench.UserError) as info:
         grail_bench.make_task(bad_id)
+    assert str(info.value).startswith(f"unknown task {bad_id!r}{hint}") and "\n" not in str(info.value)
+    assert grail_bench.task.find_task(bad_id) is None
+
+
+def test_unknown_task_on_the_command_line_is_one_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from grail_bench.cli import app
+
+    result = CliRunner().invoke(app, ["export", "-t", "GRAIL/Nope-v0", "--out", str(tmp_path)], env={"COLUMNS": "200"})
+    assert result.exit_code == 2 and result.stderr.count("\n") == 1 and "unknown task 'GRAIL/Nope-v0'" in result.stderr
 
 
 def test_non_grail_id_is_not_a_task():
     with pytest.raises(ValueError, match="not a GRAIL/ task"):
         grail_bench.make_task("CartPole-v1")
+    with pytest.raises(grail_bench.UserError, match="a task ID is a string"):
+        grail_bench.make_task(3)
+
+
+@pytest.mark.parametrize("task_id, name, value, why", [
+    ("GRAIL/MiniGrid-Biased-v0", "max_steps", -1, "expected a positive integer, got -1"),
+    ("GRAIL/MiniGrid-Biased-v0", "max_steps", 0, "expected a positive integer, got 0"),
+    ("GRAIL/MiniGrid-Biased-v0", "max_steps", 5.5, "expected an integer, got 5.5"),
+    ("GRAIL/MiniGrid-Biased-v0", "max_steps", True, "expected an integer, got True"),
+    ("GRAIL/MiniGrid-Biased-v0", "size", "9", "expected an integer, got '9'"),
+    ("GRAIL/MiniGrid-Biased-v0", "fixed_horizon", 1, "expected true or false, got 1"),
+    ("GRAIL/MiniGrid-Biased-v0", "start", 3, "expected a list, got 3"),
+    ("GRAIL/PandaReach-Optimal-v0", "max_steps", 0, "expected a positive integer, got 0"),
+    ("GRAIL/PandaReach-Optimal-v0", "distance_threshold", float("nan"), "expected a finite number, got nan"),
+    ("GRAIL/PointMaze-Optimal-v0", "reward_type", 1, "expected a string, got 1"),
+])
+def test_env_parameters_are_checked_like_the_cards(task_id, name, value, why):
+    message = f"{task_id}: env.{name}: {why}"
+    with pytest.raises(grail_bench.UserError) as info:
+        grail_bench.make_task(task_id, **{name: value})
+    assert str(info.value) == message
+    if task_id.startswith("GRAIL/MiniGrid"):
+        with pytest.raises(grail_bench.UserError, match=f"env.{name}: "):
+            gym.make(task_id, **{name: value})
+
+
+def test_env_parameters_of_the_right_kind_pass():
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0", max_steps=80, start=[1, 3])
+    assert (task.env_params["max_steps"], task.env_params["start"]) == (80, [1, 3])
+    assert grail_bench.make_task("GRAIL/PandaReach-Optimal-v0", distance_threshold=1).env_params["distance_threshold"] == 1
+
+
+@pytest.mark.parametrize("task_id, overrides", [
+    ("GRAIL/MiniGrid-Suboptimal-v0", {}),
+    ("GRAIL/MiniGrid-Suboptimal-v0", {"turn_prob": 0.5, "max_steps": 80, "n_demos": 12, "n_train": 9}),
+    ("GRAIL/MiniGrid-Biased-v0", {"routes": ["EN", "ES"], "obstacles": []}),
+    ("GRAIL/PandaReach-Gaussian-0.1-v0", {"expert": "scripted", "sigma": 0.3}),
+])
+def test_overrides_round_trip_and_name_the_variant(task_id, overrides):
+    base = grail_bench.make_task(task_id)
+    task = grail_bench.make_task(task_id, **overrides)
+    diff = task.overrides_against(base)
+    assert base.with_overrides(**diff.as_dict()) == task
+    assert set(diff) == {k for k, v in overrides.items() if base.settings()[k] != v}
+    assert grail_bench.task.variant(base, dict(overrides)) == diff.label()
+
+
+def test_variant_reads_like_the_overrides():
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0")
+    assert grail_bench.task.variant(task, {"turn_prob": 0.5, "route_choice": "fixed"}) == \
+        'route_choice="fixed" turn_prob=0.5'
+    assert grail_bench.task.variant(task, {"turn_prob": 1.0}) == ""
+    assert grail_bench.task.variant(task, {"turn_prob": 7}) == ""  # not a task any more: no reading
+
+
+def test_the_task_layer_has_no_import_circle():
+    out = subprocess.run([str(Path(sys.executable).parent / "lint-imports"), "--contract", "task-layers"],
+                         capture_output=True, text=True, timeout=120, cwd=Path(__file__).parents[1])
+    assert out.returncode == 0 and "the task layer is acyclic KEPT" in out.stdout, out.stdout + out.stderr
 
 
 def test_registration_is_idempotent():

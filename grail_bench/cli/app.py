@@ -372,7 +372,7 @@ def export(
 ) -> None:
     """Write a task's demonstrations as Minari datasets, one per seed (goals and splits in episode metadata)."""
     from grail_bench.task import make_task
-    from grail_bench.task.datasets import export as export_datasets
+    from grail_bench.task.export import export as export_datasets
 
     with errors():
         outputs(folders=[out])

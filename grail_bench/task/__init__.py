@@ -3,11 +3,18 @@
 * :mod:`.model`: :class:`GRTask`, validated on construction.
 * :mod:`.domain`: the :class:`Domain` protocol a task needs and the domain registry.
 * :mod:`.observation`: observation protocols, :class:`ObservationSpec` and :func:`observe`.
+* :mod:`.overrides`: :class:`TaskOverrides`, a task's parameters set over its card.
 * :mod:`.cards`: the TOML task cards; :mod:`.registration`: gymnasium IDs and :func:`make_task`.
+* :mod:`.demos`: where demonstrations come from (the generator, :mod:`.demo_cache`, or a Minari dataset read
+  by :mod:`.datasets`); :mod:`.export`: demonstrations written as Minari datasets.
 
-Everything here is light (no torch): it runs on ``import gymnasium``.
+The modules form layers, each importing only those below it (``lint-imports`` checks the contract in
+``pyproject.toml``): export; registration, demos; cards, datasets, demo_cache; model; domain, observation,
+overrides. The model reaches demonstrations through the source :mod:`.demos` installs, which importing this
+package does. Everything here is light (no torch): it runs on ``import gymnasium``.
 """
 
+import grail_bench.task.demos  # noqa: F401 - installs the model's demonstration source
 from grail_bench.task.model import GRTask, TaskFieldError
 from grail_bench.task.registration import (
     find_task,

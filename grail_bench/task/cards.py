@@ -13,6 +13,13 @@ A card file describes one domain and lists its tasks::
     goals = [[7, 1], [7, 7]]
     params = { routes = ["NE", "ES"] }
 
+A task's fields: ``id``, ``regime``, ``goals`` (required); ``params`` (regime
+parameters), ``env`` (env parameters), ``n_demos``, ``n_train``,
+``observability``, ``protocol``, ``rounding``, ``description``, and ``demos``:
+a Minari dataset to take the demonstrations from instead of the generator (a
+folder, relative to the card's folder, or a dataset ID; read when the task is
+made, see :mod:`grail_bench.task.demos`).
+
 Parsing builds :class:`~grail_bench.task.model.GRTask` objects, which validate every
 field (regime parameters included, through the domain); errors read
 ``file: task[i].field: why``. A task ID defined twice, in one card or two, is
@@ -36,8 +43,10 @@ ID_PATTERN = re.compile(r"^GRAIL/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
 FILE_KEYS = {"domain", "description", "defaults", "task"}
 TASK_KEYS = {
     "id", "regime", "goals", "params", "env", "n_demos", "n_train",
-    "observability", "protocol", "rounding", "description",
+    "observability", "protocol", "rounding", "description", "demos",
 }
+#: A Minari dataset ID (``namespace/name-v0``): a card's ``demos`` that is no folder beside the card is one.
+DATASET_ID = re.compile(r"^([\w.-]+/)?[\w.-]+-v\d+$")
 DEFAULT_FIELDS = {"n_demos": 10, "n_train": 7, "observability": [0.1, 0.2, 0.3], "protocol": "subset",
                   "rounding": "ceil"}
 
@@ -50,7 +59,21 @@ def _fail(source: str, where: str, why: str) -> CardError:
     return CardError(f"{source}: {where}: {why}")
 
 
-def _task(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: str, where: str) -> GRTask:
+def _demos_source(value: Any, folder: Path | None) -> Any:
+    """A card's ``demos``: a relative folder resolved against the card's folder (a dataset ID kept as it is)."""
+    if not isinstance(value, str) or not value or folder is None:
+        return value
+    path = Path(value).expanduser()
+    if path.is_absolute():
+        return str(path)
+    beside = folder / path
+    if beside.exists() or not DATASET_ID.match(value):
+        return str(beside.absolute())
+    return value
+
+
+def _task(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: str, where: str,
+          folder: Path | None) -> GRTask:
     unknown = set(raw) - TASK_KEYS
     if unknown:
         raise _fail(source, f"{where}.{sorted(unknown)[0]}", f"unknown field (known: {', '.join(sorted(TASK_KEYS))})")
@@ -64,17 +87,20 @@ def _task(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: st
             params=merged.get("params", {}), env_params=merged.get("env", {}), n_demos=merged["n_demos"],
             n_train=merged["n_train"], observability=merged["observability"], protocol=merged["protocol"],
             rounding=merged["rounding"], description=merged.get("description", ""), source=source,
+            demos=_demos_source(merged.get("demos", ""), folder),
         )
     except TaskFieldError as exc:
         raise _fail(source, f"{where}.{exc.field}", exc.why) from None
 
 
-def parse_card(text: str, source: str) -> list[GRTask]:
+def parse_card(text: str, source: str, folder: Path | None = None) -> list[GRTask]:
     """Parse and validate one card file's text.
 
     Args:
         text: TOML text of the card.
         source: Name used in error messages (usually the file name).
+        folder: The card's folder, which relative ``demos`` folders are resolved against (None: the working
+            directory's).
 
     Returns:
         The tasks the card defines.
@@ -98,7 +124,7 @@ def parse_card(text: str, source: str) -> list[GRTask]:
     tasks = data.get("task")
     if not isinstance(tasks, list) or not tasks:
         raise _fail(source, "task", "expected at least one [[task]] table")
-    return unique([_task(raw, domain, defaults, source, f"task[{i}]") for i, raw in enumerate(tasks)])
+    return unique([_task(raw, domain, defaults, source, f"task[{i}]", folder) for i, raw in enumerate(tasks)])
 
 
 def unique(tasks: Iterable[GRTask]) -> list[GRTask]:
@@ -121,11 +147,12 @@ def load_cards(paths: Iterable[Path] | None = None) -> list[GRTask]:
     """Load every shipped card (parsed once per process), or the given files, in a stable order."""
     if paths is None:
         return list(_shipped_cards())
-    return unique(t for p in paths for t in parse_card(Path(p).read_text(encoding="utf-8"), str(p)))
+    return unique(t for p in map(Path, paths) for t in parse_card(p.read_text(encoding="utf-8"), str(p), p.parent))
 
 
 @lru_cache(maxsize=1)
 def _shipped_cards() -> tuple[GRTask, ...]:
     root = files("grail_bench.tasks")
     entries = sorted((p for p in root.iterdir() if p.name.endswith(".toml")), key=lambda p: p.name)
-    return tuple(unique(t for p in entries for t in parse_card(p.read_text(encoding="utf-8"), p.name)))
+    folder = root if isinstance(root, Path) else None  # a package read from an archive has no folder
+    return tuple(unique(t for p in entries for t in parse_card(p.read_text(encoding="utf-8"), p.name, folder)))

@@ -1,138 +1,57 @@
-"""Demonstrations as Minari datasets, both ways: a task's demonstrations exported, or a dataset's taken as a task's.
+"""Minari datasets read as a task's demonstrations (a card's ``demos`` field, ``run --demos``).
 
-Export (:func:`export`, ``grail-bench export``): one dataset per task and
-seed, ID ``grail-bench/<task name>-seed<s>-v0`` (Minari's ``namespace/name-vN``),
-with every goal's demonstrations as episodes. Each episode's metadata records
-its ``goal`` and ``split`` (``train`` or ``test``); the dataset's metadata
-records, under ``grail_bench``, the task ID, regime, parameters, env
-parameters, goals, default protocol, rounding and levels, the seed and the grail-bench
-version. Its ``env_spec`` and ``eval_env_spec`` are the task's gymnasium spec,
-so ``dataset.recover_environment()`` rebuilds the GRAIL env.
+A source is a dataset folder, a folder of datasets (those :mod:`grail_bench.task.export`
+writes: the one exported with the run's seed is read), or a dataset ID under
+``$MINARI_DATASETS_PATH``. Every input is checked before a demonstration is used:
 
-Import (:func:`load_demos`, a card's ``demos`` field or ``run --demos``): a
-dataset folder, a folder of exported datasets (the one whose seed is the run's
-seed is used), or a dataset ID under ``$MINARI_DATASETS_PATH``. Episodes need a
-``goal`` in their metadata (every task goal with at least one ``train`` and
-one ``test`` episode, the same number of training episodes per goal); spaces
-must be the task's. Minari's HDF5 storage holds arrays, JSON and attributes
-only: loading unpickles nothing. Minari is imported only here, when a dataset
-is read or written (``pip install 'grail-bench[minari]'``, which ``make test``
-installs).
+* a dataset exported by grail-bench records, under ``grail_bench`` in its
+  metadata, the task ID, regime, parameters, env parameters and goals it was
+  made for: each must be the task's (the first that differs is named);
+* the dataset's observation and action spaces must be the task env's, and
+  every episode's observations and actions must lie within them;
+* episodes need a ``goal`` and a ``split`` (``train`` or ``test``) in their
+  metadata: every task goal with at least one ``train`` and one ``test``
+  episode, the same number of training episodes per goal. Datasets recorded
+  elsewhere (no ``grail_bench`` metadata) are checked by these two alone.
+
+Minari's HDF5 storage holds arrays, JSON and attributes only: loading unpickles
+nothing. Minari is imported only when a dataset is read or written
+(``pip install 'grail-bench[minari]'``, which ``make test`` installs).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
-import os
-import warnings
-from contextlib import contextmanager
 from dataclasses import dataclass
-from importlib.metadata import version
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Demos, Goal
+from grail_bench.task.domain import stored_params
+from grail_bench.task.overrides import freeze
 
 if TYPE_CHECKING:
     from grail_bench.task.model import GRTask
 
-NAMESPACE = "grail-bench"
 SPLITS = ("train", "test")
+METADATA = "grail_bench"  # the dataset metadata key grail-bench's exports write
 
 
-def _minari() -> Any:
+def minari_module() -> Any:
+    """Minari, imported.
+
+    Raises:
+        UserError: When it is not installed, naming the extra that installs it.
+    """
     try:
         import minari
     except ImportError:
         raise UserError("Minari datasets need minari: pip install 'grail-bench[minari]'") from None
     return minari
-
-
-def dataset_id(task: GRTask, seed: int) -> str:
-    """``grail-bench/MiniGrid-Biased-seed0-v0``: the exported dataset of a task and seed."""
-    name = task.id.removeprefix("GRAIL/").rsplit("-v", 1)[0]
-    return f"{NAMESPACE}/{name}-seed{seed}-v0"
-
-
-@contextmanager
-def _datasets_path(root: Path) -> Iterator[None]:
-    """Minari writes under ``$MINARI_DATASETS_PATH``: point it at ``root`` for the block."""
-    before = os.environ.get("MINARI_DATASETS_PATH")
-    os.environ["MINARI_DATASETS_PATH"] = str(root)
-    try:
-        yield
-    finally:
-        if before is None:
-            os.environ.pop("MINARI_DATASETS_PATH", None)
-        else:
-            os.environ["MINARI_DATASETS_PATH"] = before
-
-
-def _buffer(traj: Any, index: int) -> Any:
-    from minari.data_collector import EpisodeBuffer
-
-    acts = np.asarray(traj.acts)
-    success = [False] + [bool(i.get("is_success")) for i in (traj.infos if traj.infos is not None else [{}] * len(acts))]
-    return EpisodeBuffer(id=index, observations=list(np.asarray(traj.obs)), actions=list(acts),
-                         rewards=[0.0] * len(acts), terminations=[False] * len(acts),
-                         truncations=[False] * (len(acts) - 1) + [True], infos={"is_success": success})
-
-
-def _spec_of(task: GRTask) -> Any:
-    """The gymnasium spec that rebuilds ``task``: its registered ID with the parameters it overrides."""
-    from gymnasium.envs.registration import spec as gym_spec
-
-    from grail_bench.task.registration import make_task
-
-    base = make_task(task.id)
-    mine = {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
-    default = {**base.params, **base.env_params, "n_demos": base.n_demos, "n_train": base.n_train}
-    registered = gym_spec(task.id)
-    return dataclasses.replace(registered, kwargs={**registered.kwargs,
-                                                   **{k: v for k, v in mine.items() if default.get(k) != v}})
-
-
-def export(task: GRTask, seeds: Sequence[int], out: Path) -> list[Path]:
-    """Write one Minari dataset per seed of ``task``'s demonstrations into ``out``; returns their folders.
-
-    Raises:
-        UserError: If a dataset of that ID already exists in ``out``.
-    """
-    minari = _minari()
-    out = Path(out)
-    written = []
-    for seed in seeds:
-        demos = task.generate_demos(seed)
-        train, test = task.split(demos)
-        labelled = [(goal, split, traj) for goal in task.goals
-                    for split, part in (("train", train), ("test", test)) for traj in part[goal]]
-        ident = dataset_id(task, seed)
-        if (out / ident).exists():
-            raise UserError(f"{out / ident} exists already; export into another folder or remove it")
-        spec = _spec_of(task)
-        with _datasets_path(out), warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message="`author", category=UserWarning)
-            dataset = minari.create_dataset_from_buffers(
-                ident, [_buffer(traj, i) for i, (_, _, traj) in enumerate(labelled)], env=spec, eval_env=spec,
-                algorithm_name=f"grail-bench {task.regime} demonstrator", code_permalink="", author="grail-bench",
-                description=f"Demonstrations of {task.id} (seed {seed}) by grail-bench: {task.description}",
-                requirements=[f"grail-bench=={version('grail-bench')}"], data_format="hdf5")
-        storage = dataset.storage
-        storage.update_episode_metadata([{"goal": list(map(float, goal)), "split": split}
-                                         for goal, split, _ in labelled])
-        storage.update_metadata({"grail_bench": json.dumps({
-            "task": task.id, "regime": task.regime, "params": dict(task.params), "env": dict(task.env_params),
-            "goals": [list(map(float, g)) for g in task.goals], "protocol": task.protocol,
-            "rounding": task.rounding, "observability": list(task.observability), "n_demos": task.n_demos,
-            "n_train": task.n_train,
-            "seed": int(seed), "version": version("grail-bench")}, sort_keys=True)})
-        written.append(out / ident)
-    return written
 
 
 @dataclass(frozen=True)
@@ -156,7 +75,7 @@ class Loaded:
 
 def _datasets_in(source: str) -> list[Path]:
     """The dataset folders a source names (a dataset, a folder of datasets, or an ID)."""
-    _minari()
+    minari_module()
     path = Path(source).expanduser()
     if path.is_dir():
         if (path / "data" / "metadata.json").is_file():
@@ -197,45 +116,106 @@ def check_seeds(source: str, seeds: Sequence[int]) -> None:
     folders = _datasets_in(source)
     if len(folders) < 2:
         return
-    have = {_seed_of(MinariStorage.read(folder)) for folder in folders}
+    have = {_seed_of(MinariStorage.read(folder), source) for folder in folders}
     missing = [s for s in seeds if s not in have]
     if missing:
         raise UserError(f"{source}: no dataset exported with seed {missing[0]} (seeds there: "
                         f"{sorted(s for s in have if s is not None)})")
 
 
-def _seed_of(storage: Any) -> int | None:
-    raw = storage.metadata.get("grail_bench")
-    try:
-        return int(json.loads(raw)["seed"]) if raw else None
-    except (ValueError, KeyError, TypeError):
+def _exported(storage: Any, source: str) -> dict[str, Any] | None:
+    """The ``grail_bench`` metadata of a dataset grail-bench exported (None for datasets recorded elsewhere).
+
+    Raises:
+        UserError: When it is there but not a JSON object.
+    """
+    raw = storage.metadata.get(METADATA)
+    if raw is None:
         return None
+    try:
+        meta = json.loads(raw)
+    except (TypeError, ValueError):
+        meta = None
+    if not isinstance(meta, dict):
+        raise UserError(f"{source}: the dataset's {METADATA} metadata is not a JSON object")
+    return meta
+
+
+def _seed_of(storage: Any, source: str) -> int | None:
+    seed = (_exported(storage, source) or {}).get("seed")
+    return seed if isinstance(seed, int) and not isinstance(seed, bool) else None
+
+
+_ABSENT = object()
+
+
+def _origin_fields(task: GRTask, meta: dict[str, Any]) -> list[tuple[str, Any, Any]]:
+    """``(field, the dataset's, the task's)`` for every field an exported dataset records of its task, in the
+    order they are checked: task ID, regime, regime parameters, env parameters, goals."""
+    out: list[tuple[str, Any, Any]] = [("task", meta.get("task", _ABSENT), task.id),
+                                       ("regime", meta.get("regime", _ABSENT), task.regime)]
+    theirs = meta.get("params")
+    theirs = stored_params(task.spec, theirs) if isinstance(theirs, dict) else {}
+    for name in sorted({*theirs, *task.params}):
+        out.append((f"params.{name}", theirs.get(name, _ABSENT), task.params.get(name, _ABSENT)))
+    theirs = meta.get("env") if isinstance(meta.get("env"), dict) else {}
+    for name in sorted({*theirs, *task.env_params}):
+        out.append((f"env.{name}", theirs.get(name, _ABSENT), task.env_params.get(name, _ABSENT)))
+    out.append(("goals", meta.get("goals", _ABSENT), [list(g) for g in task.goals]))
+    return out
+
+
+def _show(value: Any) -> str:
+    return "absent" if value is _ABSENT else json.dumps(value, default=str)
+
+
+def _check_origin(task: GRTask, storage: Any, source: str) -> None:
+    """Refuse a dataset grail-bench exported from another task (or the same one with other parameters).
+
+    Raises:
+        UserError: Naming the first field that differs.
+    """
+    meta = _exported(storage, source)
+    if meta is None:
+        return
+    for name, theirs, ours in _origin_fields(task, meta):
+        if theirs is _ABSENT or ours is _ABSENT or freeze(theirs) != freeze(ours):
+            raise UserError(f"{source}: the dataset was exported from another task than {task.id}: its {name} = "
+                            f"{_show(theirs)}, not {_show(ours)}")
 
 
 def _check_space(what: str, theirs: Any, ours: Any, source: str) -> None:
     if theirs != ours:
-        raise UserError(f"{source}: the dataset's {what} space {theirs} is not the task's {ours}")
+        raise UserError(_one_line(f"{source}: the dataset's {what} space {theirs} is not the task's {ours}"))
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
 
 
 def load_demos(task: GRTask, source: str, seed: int | None) -> Loaded:
     """The demonstrations a Minari dataset gives ``task`` for ``seed`` (see the module docstring).
 
-    With several datasets, the one exported with ``seed`` is read (``None``: the lowest seed's).
+    With several datasets, the one exported with ``seed`` is read (``None``: the lowest seed's); every one
+    of them must have been exported from this task.
 
     Raises:
-        UserError: For a source that holds no dataset, no dataset of this seed among several, spaces other
-            than the task's, or episodes without goal labels, of unknown goals or without both splits.
+        UserError: For a source that holds no dataset, no dataset of this seed among several, a dataset
+            exported from another task, spaces other than the task's, observations or actions outside them,
+            or episodes without goal labels, of unknown goals or without both splits.
     """
-    _minari()
+    minari_module()
     from minari.dataset.minari_storage import MinariStorage
 
     folders = _datasets_in(source)
     try:
         storages = [MinariStorage.read(folder) for folder in folders]
     except Exception as exc:  # noqa: BLE001 - any unreadable dataset is bad input, said in one line
-        raise UserError(f"{source}: cannot read the Minari dataset ({type(exc).__name__}: {exc})") from None
+        raise UserError(_one_line(f"{source}: cannot read the Minari dataset ({type(exc).__name__}: {exc})")) from None
+    for storage in storages:
+        _check_origin(task, storage, source)
     if len(storages) > 1:
-        seeds = [_seed_of(s) for s in storages]
+        seeds = [_seed_of(s, source) for s in storages]
         wanted = min((s for s in seeds if s is not None), default=None) if seed is None else seed
         storages = [s for s, own in zip(storages, seeds) if own == wanted]
         if len(storages) != 1:
@@ -244,17 +224,45 @@ def load_demos(task: GRTask, source: str, seed: int | None) -> Loaded:
     storage = storages[0]
     env = task.make_env()
     try:
-        _check_space("observation", storage.observation_space, env.observation_space, source)
-        _check_space("action", storage.action_space, env.action_space, source)
+        spaces = env.observation_space, env.action_space
     finally:
         env.close()
+    _check_space("observation", storage.observation_space, spaces[0], source)
+    _check_space("action", storage.action_space, spaces[1], source)
     indices = range(storage.total_episodes)
-    labels = list(storage.get_episode_metadata(indices))
-    episodes = list(storage.get_episodes(indices))
-    return _labelled(task, source, labels, episodes, _seed_of(storage))
+    try:
+        labels = list(storage.get_episode_metadata(indices))
+        episodes = list(storage.get_episodes(indices))
+    except Exception as exc:  # noqa: BLE001 - a corrupt file is bad input too
+        raise UserError(_one_line(f"{source}: cannot read the dataset's episodes ({type(exc).__name__}: {exc})")) from None
+    return _labelled(task, source, labels, episodes, spaces, _seed_of(storage, source))
 
 
-def _labelled(task: GRTask, source: str, labels: list[dict], episodes: list[dict], seed: int | None) -> Loaded:
+def _check_episode(source: str, index: int, obs: np.ndarray, acts: np.ndarray, spaces: tuple[Any, Any]) -> None:
+    """Refuse an episode whose observations or actions are not of the task env's spaces.
+
+    Raises:
+        UserError: Naming the episode and the first offending value.
+    """
+    from grail_bench.core.spaces import check_within
+
+    where = f"{source}: episode {index}"
+    obs_space, act_space = spaces
+    if obs.ndim < 1 or obs.shape[1:] != tuple(obs_space.shape or ()):
+        raise UserError(f"{where}: observations of shape {obs.shape[1:]}, the task's are {obs_space.shape}")
+    if acts.ndim < 1 or acts.shape[1:] != tuple(act_space.shape or ()):
+        raise UserError(f"{where}: actions of shape {acts.shape[1:]}, the task's are {act_space.shape}")
+    if len(obs) != len(acts) + 1:
+        raise UserError(f"{where}: {len(obs)} observations for {len(acts)} actions (expected one more)")
+    try:
+        check_within(obs, obs_space, "observations")
+        check_within(acts, act_space, "actions")
+    except UserError as exc:
+        raise UserError(_one_line(f"{where}: {exc}")) from None
+
+
+def _labelled(task: GRTask, source: str, labels: list[dict], episodes: list[dict], spaces: tuple[Any, Any],
+              seed: int | None) -> Loaded:
     from imitation.data.types import Trajectory
 
     goals = {tuple(float(c) for c in g): g for g in task.goals}
@@ -268,6 +276,7 @@ def _labelled(task: GRTask, source: str, labels: list[dict], episodes: list[dict
             raise UserError(f"{source}: episode {i} is labelled with goal {list(key)}, not a goal of {task.id} "
                             f"({[list(g) for g in task.goals]})")
         obs, acts = np.asarray(episode["observations"]), np.asarray(episode["actions"])
+        _check_episode(source, i, obs, acts, spaces)
         success = np.asarray((episode.get("infos") or {}).get("is_success", np.zeros(len(acts) + 1, bool)))
         infos = np.array([{"is_success": bool(s)} for s in success[1:]], dtype=object)
         parts[goals[key]][label["split"]].append(Trajectory(obs=obs, acts=acts, infos=infos, terminal=True))

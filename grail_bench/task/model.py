@@ -5,11 +5,12 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import math
+import numbers
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 from grail_bench.core.errors import UserError
-from grail_bench.core.seeding import DEMOS, goal_rng
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.task.domain import Domain, get_domain
 from grail_bench.task.observation import BUILTIN, ROUNDINGS, available_protocols, protocol_label
@@ -17,7 +18,6 @@ from grail_bench.task.overrides import TaskOverrides, freeze
 
 if TYPE_CHECKING:
     import gymnasium as gym
-    from imitation.data.types import Trajectory
 
 ENV_ONLY = ("render_mode", "goal")  # gym.make arguments that shape one env, not the task
 
@@ -41,6 +41,63 @@ def _count(value: Any) -> bool:
 
 def _number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _env_value_error(value: Any, default: Any) -> str | None:
+    """Why an env parameter's value cannot stand for its default, or None.
+
+    The value must have the default's JSON type (an integer, a number, a string, a boolean, a list or a
+    table); an integer whose default is positive is a count (``max_steps``) and must be positive. Domains
+    check what their values mean; this catches what no domain may be handed (``max_steps=-1``, ``5.5``).
+    """
+    if isinstance(default, bool):
+        return None if isinstance(value, bool) else f"expected true or false, got {value!r}"
+    if isinstance(default, numbers.Integral):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            return f"expected an integer, got {value!r}"
+        if default >= 1 and value < 1:
+            return f"expected a positive integer, got {value!r}"
+        return None
+    if isinstance(default, numbers.Real):
+        ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+        return None if ok else f"expected a finite number, got {value!r}"
+    for kind, name in ((str, "a string"), ((list, tuple), "a list"), (Mapping, "a table")):
+        if isinstance(default, kind):
+            return None if isinstance(value, kind) else f"expected {name}, got {value!r}"
+    return None
+
+
+@dataclass(frozen=True)
+class DemoSource:
+    """Where tasks take their demonstrations from, installed by :mod:`grail_bench.task.demos`.
+
+    The model imports nothing above it, so it reaches the generator, the demonstration cache and Minari
+    datasets through this: importing :mod:`grail_bench.task` installs the one source
+    (:func:`install_demo_source`).
+
+    Attributes:
+        generate: ``generate(task, seed, n_demos)``: the task's demonstrations, per goal.
+        with_dataset: ``with_dataset(task, source)``: the task taking its demonstrations from the dataset
+            ``source`` (its counts read from it, the dataset checked against the task); ``""``: the generator.
+    """
+
+    generate: Callable[[GRTask, int, int | None], Demos]
+    with_dataset: Callable[[GRTask, str], GRTask]
+
+
+_demo_source: DemoSource | None = None
+
+
+def install_demo_source(source: DemoSource) -> None:
+    """Make ``source`` where every task's demonstrations come from (:mod:`grail_bench.task.demos` calls this)."""
+    global _demo_source
+    _demo_source = source
+
+
+def _demos() -> DemoSource:
+    if _demo_source is None:  # only when grail_bench.task's __init__ did not run to its end
+        raise RuntimeError("no demonstration source is installed; import grail_bench.task")
+    return _demo_source
 
 
 @dataclass(frozen=True)
@@ -67,7 +124,7 @@ class GRTask:
         description: One line for humans.
         source: The card file that defines the task.
         demos: A Minari dataset (a folder, a folder of datasets, or an ID) to take the demonstrations from
-            instead of the generator (see :mod:`grail_bench.task.datasets`); empty for the generator.
+            instead of the generator (see :mod:`grail_bench.task.demos`); empty for the generator.
     """
 
     id: str
@@ -108,6 +165,10 @@ class GRTask:
                 raise TaskFieldError(f"{name}.{extra[0]}", f"unknown parameter (known: {', '.join(allowed) or 'none'})")
         object.__setattr__(self, "params", {**spec.regimes[self.regime], **self.params})
         object.__setattr__(self, "env_params", {**spec.env_defaults, **self.env_params})
+        for name, default in spec.env_defaults.items():
+            why = _env_value_error(self.env_params[name], default)
+            if why:
+                raise TaskFieldError(f"env.{name}", why)
         for name in ("n_demos", "n_train"):
             if not _count(getattr(self, name)):
                 raise TaskFieldError(name, f"expected a positive integer, got {getattr(self, name)!r}")
@@ -154,11 +215,12 @@ class GRTask:
 
         Names are routed to where they belong (``turn_prob`` to :attr:`params`,
         ``max_steps`` to :attr:`env_params`). ``demos`` names a Minari dataset
-        to take the demonstrations from; its training and test episodes set
-        ``n_train`` and ``n_demos``.
+        to take the demonstrations from (``""``: the generator); its training
+        and test episodes set ``n_train`` and ``n_demos``, and it is checked
+        against the task with the other overrides applied.
 
         Raises:
-            UserError: For a name the task cannot apply, or an invalid value.
+            UserError: For a name the task cannot apply, an invalid value, or a dataset that does not fit.
         """
         spec = self.spec
         params, env_params, fields = dict(self.params), dict(self.env_params), {}
@@ -166,7 +228,7 @@ class GRTask:
             if name in ("n_demos", "n_train"):
                 fields[name] = value
             elif name == "demos":
-                fields |= self._dataset_fields(value)
+                continue  # applied last, to the task it is for
             elif name in spec.regimes[self.regime]:
                 params[name] = value
             elif name in spec.env_defaults:
@@ -176,9 +238,17 @@ class GRTask:
                 known = sorted({*spec.regimes[self.regime], *spec.env_defaults, "n_demos", "n_train", "demos"})
                 raise UserError(f"{self.id} cannot apply parameter {name!r}{hint}; known: {', '.join(known)}")
         try:
-            return dataclasses.replace(self, params=params, env_params=env_params, **fields)
+            task = dataclasses.replace(self, params=params, env_params=env_params, **fields)
         except TaskFieldError as exc:
             raise UserError(f"{self.id}: {exc}") from None
+        if "demos" not in overrides:
+            return task
+        task = _demos().with_dataset(task, overrides["demos"])
+        for name, value in fields.items():
+            if task.demos and value != getattr(task, name):
+                raise UserError(f"{self.id}: {name}={value!r}, but the dataset {task.demos} gives "
+                                f"{getattr(task, name)} per goal; leave {name} to the dataset")
+        return task
 
     def settings(self) -> dict[str, Any]:
         """Every parameter an override can set, by name: regime and env parameters, the demonstration counts
@@ -194,15 +264,6 @@ class GRTask:
         theirs = base.settings()
         return TaskOverrides.of({k: v for k, v in self.settings().items()
                                  if k not in theirs or freeze(theirs[k]) != freeze(v)})
-
-    def _dataset_fields(self, source: Any) -> dict[str, Any]:
-        """``demos`` and the demonstration counts a dataset gives this task (read from the dataset, checked)."""
-        if not isinstance(source, str) or not source:
-            raise UserError(f"{self.id}: demos must name a Minari dataset (a folder or an ID), got {source!r}")
-        from grail_bench.task.datasets import load_demos
-
-        loaded = load_demos(self, source, seed=None)
-        return {"demos": source, "n_train": loaded.n_train, "n_demos": loaded.n_demos}
 
     def goal_index(self, goal: Sequence[float]) -> int:
         """Position of ``goal`` in :attr:`goals`; raises :class:`UserError` if absent."""
@@ -241,15 +302,16 @@ class GRTask:
         return json.dumps({"domain": self.domain, "env": dict(self.env_params)}, sort_keys=True)
 
     def generate_demos(self, seed: int, n_demos: int | None = None) -> Demos:
-        """Generate demonstrations for every goal.
+        """The task's demonstrations for every goal: from :attr:`demos`' dataset, or generated.
 
-        The same seed always gives identical demonstrations. Each goal draws
+        Generated demonstrations are the same for the same seed. Each goal draws
         from a stream keyed by ``(seed, goal)`` (:mod:`grail_bench.core.seeding`),
-        so a goal's demonstrations are the same in every task that has it.
+        so a goal's demonstrations are the same in every task that has it
+        (see :mod:`grail_bench.task.demos`).
 
         Args:
-            seed: Seed of the demonstration generator.
-            n_demos: Per goal; defaults to :attr:`n_demos`.
+            seed: Seed of the demonstration generator (or of the dataset, in a folder of per-seed datasets).
+            n_demos: Per goal; defaults to :attr:`n_demos` (a dataset gives what it holds).
 
         Returns:
             ``{goal: [Trajectory, ...]}`` in the order of :attr:`goals`.
@@ -257,27 +319,7 @@ class GRTask:
         Raises:
             UserError: When :attr:`demos` names a dataset that does not fit the task.
         """
-        if self.demos:
-            from grail_bench.task.datasets import load_demos
-
-            loaded = load_demos(self, self.demos, seed)
-            if loaded.n_train != self.n_train:
-                raise UserError(f"{self.demos}: {loaded.n_train} training demonstrations per goal for seed {seed}, "
-                                f"the task expects {self.n_train}")
-            return loaded.demos
-        n = self.n_demos if n_demos is None else n_demos
-        return {goal: self._goal_demos(goal, n, seed) for goal in self.goals}
-
-    def _goal_demos(self, goal: Goal, n: int, seed: int) -> list[Trajectory]:
-        """One goal's demonstrations, from its own stream; through the disk cache where the domain asks for it."""
-        def generate() -> list[Trajectory]:
-            return self.spec.generate_demos(self, goal, n, goal_rng(seed, goal, DEMOS))
-
-        if not getattr(self.spec, "cache_demos", False):
-            return generate()
-        from grail_bench.task.demo_cache import goal_demos  # here: task cards load on `import gymnasium`
-
-        return goal_demos(self, self.spec, goal, n, seed, generate)
+        return _demos().generate(self, seed, n_demos)
 
     def split(self, demos: Demos) -> tuple[Demos, Demos]:
         """Split each goal's demonstrations into the first ``n_train`` and the rest."""

@@ -7,7 +7,7 @@ and import nothing heavier than the task cards.
 
 from __future__ import annotations
 
-import json
+import difflib
 from typing import TYPE_CHECKING, Any
 
 from grail_bench.core.errors import UserError
@@ -65,36 +65,49 @@ def make_registered_env(task_id: str, **kwargs: Any) -> gym.Env:
 def make_task(task_id: str, **overrides: Any) -> GRTask:
     """Return the :class:`GRTask` of a registered ID without building an env.
 
+    A card's ``demos`` dataset is read here (its counts set ``n_train`` and ``n_demos``) unless ``demos`` is
+    overridden.
+
     Args:
         task_id: A ``GRAIL/`` gymnasium ID.
-        **overrides: Regime or env parameters, ``n_demos`` or ``n_train``.
+        **overrides: Regime or env parameters, ``n_demos``, ``n_train`` or ``demos``.
 
     Raises:
-        gymnasium.error.Error: For unknown IDs (gymnasium's own message).
-        UserError: For a gymnasium ID that is not a GRAIL/ task, or an override it cannot apply.
+        UserError: For an ID that is not a GRAIL/ task (close IDs suggested), or an override it cannot apply.
     """
-    from gymnasium.envs.registration import spec as gym_spec
-
     tasks = shipped_tasks()
-    env_spec = gym_spec(task_id)
-    if env_spec.entry_point != ENTRY_POINT or task_id not in tasks:
-        raise UserError(f"{task_id} is a gymnasium env but not a GRAIL/ task")
-    return tasks[task_id].with_overrides(**overrides)
+    card = tasks.get(task_id) if isinstance(task_id, str) else None
+    if card is None:
+        raise UserError(_unknown(task_id, list(tasks)))
+    if card.demos and "demos" not in overrides:
+        overrides = {"demos": card.demos, **overrides}
+    return card.with_overrides(**overrides)
+
+
+def _unknown(task_id: Any, known: list[str]) -> str:
+    """One line saying ``task_id`` is no GRAIL/ task, with the closest IDs when there are some."""
+    from gymnasium.envs.registration import registry
+
+    if not isinstance(task_id, str):
+        return f"a task ID is a string like 'GRAIL/MiniGrid-Biased-v0', got {task_id!r}"
+    if task_id in registry:
+        return f"{task_id} is a gymnasium env but not a GRAIL/ task"
+    close = difflib.get_close_matches(task_id, known, n=3, cutoff=0.6)
+    hint = f"; did you mean {', '.join(close)}?" if close else ""
+    return f"unknown task {task_id!r}{hint} (`grail-bench tasks` lists them)"
 
 
 def find_task(task_id: str, params: dict[str, Any] | None = None) -> GRTask | None:
     """The registered task with the parameters a stored run used (parameters added since the run filled in as
     its domain declares, see :func:`~grail_bench.task.domain.stored_params`), or None when its card is gone (or
     no longer accepts those parameters): reports of old stores show such rows without the task's details."""
-    from gymnasium.error import Error as GymError
-
     try:
         task = make_task(task_id)
         if params is None:
             return task
-        return task.with_overrides(**{k: v for k, v in stored_params(task.spec, params).items()
-                                      if k in task.params or k in task.env_params or k in ("n_demos", "n_train")})
-    except (GymError, UserError):
+        settable = set(task.settings()) - {"demos"}
+        return task.with_overrides(**{k: v for k, v in stored_params(task.spec, params).items() if k in settable})
+    except UserError:
         return None
 
 
@@ -102,8 +115,4 @@ def variant(task: GRTask, params: dict[str, Any]) -> str:
     """How a stored run's parameters differ from the task's defaults, e.g. ``route_choice="uniform"`` (empty when
     they do not)."""
     run = find_task(task.id, params)
-    if run is None:
-        return ""
-    mine = {**run.params, **run.env_params, "n_demos": run.n_demos, "n_train": run.n_train}
-    defaults = {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
-    return " ".join(f"{k}={json.dumps(v)}" for k, v in sorted(mine.items()) if defaults.get(k) != v)
+    return run.overrides_against(task).label() if run is not None else ""

@@ -1,0 +1,137 @@
+"""A task's demonstrations exported as Minari datasets (``grail-bench export``).
+
+One dataset per task and seed, ID ``grail-bench/<task name>-seed<s>-v0``
+(Minari's ``namespace/name-vN``), with every goal's demonstrations as episodes.
+Each episode's metadata records its ``goal`` and ``split`` (``train`` or
+``test``); the dataset's metadata records, under ``grail_bench``, the task ID,
+regime, parameters, env parameters, goals, default protocol, rounding and
+levels, the seed and the grail-bench version (what
+:mod:`grail_bench.task.datasets` checks a dataset against when a task reads it).
+Its ``env_spec`` and ``eval_env_spec`` are the task's gymnasium spec, so
+``dataset.recover_environment()`` rebuilds the GRAIL env.
+
+An export is all or nothing: the output folder is checked before any
+demonstration is generated, and if writing any dataset fails, every folder the
+export created is removed before the error is raised.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import warnings
+from contextlib import contextmanager
+from importlib.metadata import version
+from pathlib import Path
+from typing import Any, Iterator, Sequence
+
+import numpy as np
+
+from grail_bench.core.errors import UserError
+from grail_bench.core.paths import check_writable
+from grail_bench.core.seeding import seed_list
+from grail_bench.task.datasets import METADATA, minari_module
+from grail_bench.task.model import GRTask
+from grail_bench.task.registration import make_task
+
+NAMESPACE = "grail-bench"
+
+
+def dataset_id(task: GRTask, seed: int) -> str:
+    """``grail-bench/MiniGrid-Biased-seed0-v0``: the exported dataset of a task and seed."""
+    name = task.id.removeprefix("GRAIL/").rsplit("-v", 1)[0]
+    return f"{NAMESPACE}/{name}-seed{seed}-v0"
+
+
+def export(task: GRTask, seeds: int | Sequence[int], out: str | Path) -> list[Path]:
+    """Write one Minari dataset per seed of ``task``'s demonstrations into ``out``; returns their folders.
+
+    Args:
+        task: The task (with its overrides).
+        seeds: A count (seeds ``0..n-1``) or the seeds.
+        out: The folder the datasets go into (created; relative to the working directory if relative).
+
+    Raises:
+        UserError: Before any work, for seeds that are not seeds, an ``out`` that cannot be written, or a
+            dataset of the same ID already in ``out``.
+    """
+    minari = minari_module()
+    seeds = list(dict.fromkeys(seed_list(seeds)))
+    spec = _spec_of(task)
+    out = Path(out).expanduser().absolute()  # Minari resolves a relative $MINARI_DATASETS_PATH wrongly
+    idents = [dataset_id(task, seed) for seed in seeds]
+    for ident in idents:
+        if (out / ident).exists():
+            raise UserError(f"{out / ident} exists already; export into another folder or remove it")
+    # What this export creates, removed again if it fails: the datasets, and the folders holding them.
+    created = [out / ident for ident in idents] + [p for p in (out / NAMESPACE, out) if not p.exists()]
+    check_writable(out, folder=True)
+    try:
+        for seed, ident in zip(seeds, idents):
+            _write(minari, task, seed, ident, spec, out)
+    except BaseException:
+        for path in created:
+            shutil.rmtree(path, ignore_errors=True)
+        raise
+    return [out / ident for ident in idents]
+
+
+def _write(minari: Any, task: GRTask, seed: int, ident: str, spec: Any, out: Path) -> None:
+    """Write the dataset of one seed."""
+    train, test = task.split(task.generate_demos(seed))
+    labelled = [(goal, split, traj) for goal in task.goals
+                for split, part in (("train", train), ("test", test)) for traj in part[goal]]
+    with _datasets_path(out), warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="`author", category=UserWarning)
+        dataset = minari.create_dataset_from_buffers(
+            ident, [_buffer(traj, i) for i, (_, _, traj) in enumerate(labelled)], env=spec, eval_env=spec,
+            algorithm_name=f"grail-bench {task.regime} demonstrator", code_permalink="", author="grail-bench",
+            description=f"Demonstrations of {task.id} (seed {seed}) by grail-bench: {task.description}",
+            requirements=[f"grail-bench=={version('grail-bench')}"], data_format="hdf5")
+    storage = dataset.storage
+    storage.update_episode_metadata([{"goal": list(map(float, goal)), "split": split}
+                                     for goal, split, _ in labelled])
+    storage.update_metadata({METADATA: json.dumps({
+        "task": task.id, "regime": task.regime, "params": dict(task.params), "env": dict(task.env_params),
+        "goals": [list(map(float, g)) for g in task.goals], "protocol": task.protocol,
+        "rounding": task.rounding, "observability": list(task.observability), "n_demos": task.n_demos,
+        "n_train": task.n_train, "seed": int(seed), "version": version("grail-bench")}, sort_keys=True)})
+
+
+@contextmanager
+def _datasets_path(root: Path) -> Iterator[None]:
+    """Minari writes under ``$MINARI_DATASETS_PATH``: point it at ``root`` (absolute) for the block."""
+    before = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(root)
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("MINARI_DATASETS_PATH", None)
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = before
+
+
+def _buffer(traj: Any, index: int) -> Any:
+    from minari.data_collector import EpisodeBuffer
+
+    acts = np.asarray(traj.acts)
+    success = [False] + [bool(i.get("is_success")) for i in (traj.infos if traj.infos is not None else [{}] * len(acts))]
+    return EpisodeBuffer(id=index, observations=list(np.asarray(traj.obs)), actions=list(acts),
+                         rewards=[0.0] * len(acts), terminations=[False] * len(acts),
+                         truncations=[False] * (len(acts) - 1) + [True], infos={"is_success": success})
+
+
+def _spec_of(task: GRTask) -> Any:
+    """The gymnasium spec that rebuilds ``task``'s env: its registered ID with the parameters it overrides.
+
+    ``demos`` is left out: the env does not need the dataset.
+    """
+    from gymnasium.envs.registration import spec as gym_spec
+
+    overrides = task.overrides_against(make_task(task.id)).as_dict()
+    overrides.pop("demos", None)
+    registered = gym_spec(task.id)
+    return dataclasses.replace(registered, kwargs={**registered.kwargs, **overrides})
