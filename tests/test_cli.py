@@ -123,7 +123,7 @@ def test_corrupt_store_is_one_line_and_untouched(tmp_path):
     for args in (["run", "-r", "bc"], ["leaderboard"]):
         out = cli(args, tmp_path)
         assert out.returncode == 2
-        assert out.stderr.count("\n") == 1 and "cannot use results store" in out.stderr
+        assert out.stderr.count("\n") == 1 and "is not a grail-bench results store" in out.stderr
     assert store.read_bytes() == before
 
 

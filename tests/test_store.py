@@ -1,14 +1,38 @@
-"""The SQLite results store: idempotent writes, concurrency, corrupt files."""
+"""The SQLite results store: idempotent writes, concurrency, corrupt files, read-only opening, write checks."""
 
 from __future__ import annotations
 
 import dataclasses
 import multiprocessing as mp
+import os
 import sqlite3
+from pathlib import Path
 
 import pytest
 
-from grail_bench.harness.store import ResultRow, ResultsStore, StoreError, default_store_path
+from grail_bench.harness.store import (
+    SCHEMA_VERSION,
+    ResultRow,
+    ResultsStore,
+    StoreError,
+    check_store_writable,
+    default_store_path,
+)
+
+
+def chmod_stops_writes() -> bool:
+    """Whether a file without write permission refuses this process (not so for root, with its capabilities)."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        probe = Path(folder) / "probe"
+        probe.write_text("")
+        probe.chmod(0o444)
+        try:
+            probe.open("a").close()
+        except PermissionError:
+            return True
+        return False
 
 
 def row(seed: int = 0, observability: float = 0.1, f1: float = 0.5, recognizer: str = "bc") -> ResultRow:
@@ -69,7 +93,7 @@ def test_corrupt_file_is_reported_and_left_alone(tmp_path):
     path = tmp_path / "r.sqlite"
     path.write_bytes(b"this is not a database, but it is somebody's file" * 100)
     before = path.read_bytes()
-    with pytest.raises(StoreError, match="cannot use results store"):
+    with pytest.raises(StoreError, match="is not a grail-bench results store"):
         ResultsStore(path)
     assert path.read_bytes() == before
 
@@ -128,3 +152,173 @@ def test_schema_4_store_gains_the_online_and_open_set_tables(tmp_path):
         assert store.add([online, row(seed=5)]) == 2  # one transaction, each row into its own table
         assert store.select(OnlineRow) == [online] and len(store.rows()) == 3
         assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix", OnlineRow) == {(0, None)}
+
+
+# --- reading without writing ----------------------------------------------------------------------------------
+
+
+def snapshot(folder: Path) -> dict[str, tuple[bytes, int] | None]:
+    """Everything under ``folder``: each file's bytes and modification time (ns), each folder as ``None``."""
+    return {str(f.relative_to(folder)): None if f.is_dir() else (f.read_bytes(), f.stat().st_mtime_ns)
+            for f in sorted(folder.rglob("*"))}
+
+
+def stored(folder: Path, rows: int = 2) -> Path:
+    """A closed store of ``rows`` rows in ``folder``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "r.sqlite"
+    with ResultsStore(path) as store:
+        store.add([row(seed=s) for s in range(rows)])
+    return path
+
+
+def test_read_only_store_reads_and_leaves_every_file_as_it_was(tmp_path):
+    path = stored(tmp_path / "pub")
+    before = snapshot(path.parent)
+    with ResultsStore(path, read_only=True) as store:
+        assert [r.seed for r in store.rows()] == [0, 1]
+        assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix") == {(0, 0.1), (1, 0.1)}
+        with pytest.raises(StoreError, match="read-only"):
+            store.add([row(seed=7)])
+    assert snapshot(path.parent) == before  # no -wal, -shm or -journal left beside it, bytes and mtime as they were
+
+
+def test_read_only_folder_and_file_are_readable(tmp_path):
+    """chmod does not stop root, so what is checked is that nothing at all is written: same files, bytes, mtimes."""
+    path = stored(tmp_path / "ro")
+    os.chmod(path, 0o444)
+    os.chmod(path.parent, 0o555)
+    try:
+        before = snapshot(path.parent)
+        with ResultsStore(path, read_only=True) as store:
+            assert len(store.rows()) == 2
+        assert snapshot(path.parent) == before
+    finally:
+        os.chmod(path.parent, 0o755)
+
+
+def test_read_only_sees_the_rows_of_a_store_being_written(tmp_path):
+    path = stored(tmp_path)
+    with ResultsStore(path) as writer:  # open: its -wal holds rows not yet in the main file
+        writer.add([row(seed=5)])
+        with ResultsStore(path, read_only=True) as reader:
+            assert [r.seed for r in reader.rows()] == [0, 1, 5]
+        writer.add([row(seed=6)])
+    with ResultsStore(path, read_only=True) as reader:
+        assert [r.seed for r in reader.rows()] == [0, 1, 5, 6]
+
+
+def test_read_only_old_schema_is_upgraded_in_memory_only(tmp_path):
+    path = stored(tmp_path)
+    conn = sqlite3.connect(path)  # a schema-2 file: no provenance column, no other tables
+    conn.execute("ALTER TABLE results DROP COLUMN provenance")
+    for table in ("online", "open_set", "zero_shot", "fits"):
+        conn.execute(f"DROP TABLE IF EXISTS {table}")
+    conn.execute("PRAGMA user_version = 2")
+    conn.commit()
+    conn.close()
+    before = snapshot(tmp_path)
+    from grail_bench.harness.store import OnlineRow
+
+    with ResultsStore(path, read_only=True) as store:
+        assert len(store.rows()) == 2 and all(r.provenance is None for r in store.rows())
+        assert store.select(OnlineRow) == []
+    assert snapshot(tmp_path) == before
+    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == 2
+
+
+@pytest.mark.parametrize("content", [b"", b"not a database" * 100, None], ids=["empty", "garbage", "folder"])
+def test_read_only_refuses_what_is_not_a_store_and_leaves_it(tmp_path, content):
+    path = tmp_path / "r.sqlite"
+    if content is None:
+        path.mkdir()
+    else:
+        path.write_bytes(content)
+    before = snapshot(tmp_path)
+    with pytest.raises(StoreError, match="not a grail-bench results store"):
+        ResultsStore(path, read_only=True)
+    assert snapshot(tmp_path) == before
+
+
+def test_read_only_refuses_a_foreign_sqlite_file_and_a_missing_one(tmp_path):
+    path = tmp_path / "other.sqlite"
+    conn = sqlite3.connect(path)
+    conn.execute("CREATE TABLE notes (x TEXT)")
+    conn.commit()
+    conn.close()
+    before = snapshot(tmp_path)
+    with pytest.raises(StoreError, match="an SQLite file but not a grail-bench results store"):
+        ResultsStore(path, read_only=True)
+    with pytest.raises(StoreError, match="no results store at"):
+        ResultsStore(tmp_path / "missing.sqlite", read_only=True)
+    assert snapshot(tmp_path) == before
+
+
+def newer(path: Path) -> Path:
+    conn = sqlite3.connect(path)
+    conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION + 1}")
+    conn.commit()
+    conn.close()
+    return path
+
+
+def test_newer_schema_is_refused_either_way_and_left_alone(tmp_path):
+    path = newer(stored(tmp_path))
+    before = snapshot(tmp_path)
+    for read_only in (True, False):
+        with pytest.raises(StoreError, match="newer grail-bench"):
+            ResultsStore(path, read_only=read_only)
+    assert snapshot(tmp_path) == before
+
+
+# --- checking a store can be written, before a run ------------------------------------------------------------
+
+
+def test_check_store_writable_creates_nothing(tmp_path):
+    path = tmp_path / "sub" / "r.sqlite"
+    assert check_store_writable(path) == path
+    assert path.parent.is_dir() and list(path.parent.iterdir()) == []  # the folder, as a run would make it
+    empty = tmp_path / "empty.sqlite"
+    empty.write_bytes(b"")
+    check_store_writable(empty)  # an empty file is an empty database, as SQLite reads it
+    assert empty.read_bytes() == b""
+    existing = stored(tmp_path / "s")
+    before = snapshot(existing.parent)
+    check_store_writable(existing)
+    assert {name: data for name, (data, _) in snapshot(existing.parent).items()} == \
+        {name: data for name, (data, _) in before.items()}  # the write probe may touch the mtime, not the bytes
+
+
+def test_check_store_writable_refuses_what_a_run_could_not_write(tmp_path):
+    garbage = tmp_path / "g.sqlite"
+    garbage.write_bytes(b"somebody's notes" * 50)
+    foreign = tmp_path / "f.sqlite"
+    conn = sqlite3.connect(foreign)
+    conn.execute("CREATE TABLE notes (x TEXT)")
+    conn.commit()
+    conn.close()
+    newest = newer(stored(tmp_path / "n"))
+    (tmp_path / "folder.sqlite").mkdir()
+    (tmp_path / "a_file").write_text("x")
+    before = snapshot(tmp_path)
+    cases = {garbage: "is not a grail-bench results store", foreign: "not a grail-bench results store",
+             newest: "newer grail-bench", tmp_path / "folder.sqlite": "it is a folder",
+             tmp_path / "a_file" / "r.sqlite": "cannot write"}
+    for path, message in cases.items():
+        with pytest.raises(StoreError, match=message):
+            check_store_writable(path)
+        with pytest.raises(StoreError, match=message):
+            ResultsStore(path)
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.skipif(not chmod_stops_writes(), reason="this user (root) writes read-only files")
+def test_read_only_file_is_refused_for_writing_at_once(tmp_path):
+    path = stored(tmp_path)
+    os.chmod(path, 0o444)
+    with pytest.raises(StoreError, match="cannot write"):
+        check_store_writable(path)
+    with pytest.raises(StoreError, match="cannot write"):
+        ResultsStore(path)
+    with ResultsStore(path, read_only=True) as store:
+        assert len(store.rows()) == 2

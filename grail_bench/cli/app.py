@@ -10,6 +10,7 @@ from typing import List, Optional
 import typer
 
 from grail_bench.cli.inputs import (
+    check_store,
     console,
     err_console,
     errors,
@@ -127,6 +128,7 @@ def run(
     names = list(dict.fromkeys(recognizer or DEFAULT_RECOGNIZERS))
     with errors():
         outputs(files=[json_path])
+        check_store(store_path)
         config = parse_settings(settings or [], names)
         scorers = tuple(dict.fromkeys(scorer or []))
         req = request(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
@@ -293,6 +295,7 @@ def reproduce(
     from datetime import datetime, timezone
 
     from grail_bench.core.provenance import git_commit
+    from grail_bench.core.seeding import seed_list
     from grail_bench.harness.diagnostics import FitRow
     from grail_bench.harness.modes import MODES
     from grail_bench.harness.sweep import run_sweep
@@ -301,6 +304,9 @@ def reproduce(
     started, commit = datetime.now(timezone.utc), git_commit()
     with errors():
         outputs(folders=[out])
+        check_store(store_path or out / "results.sqlite")
+        if seeds is not None:
+            seed_list(seeds)  # bounded before the profile builds its seeds
         chosen_profile = load_profile(profile)
         requests = chosen_profile.requests(only or (), recognizer or (), seeds)
         with open_store(store_path or out / "results.sqlite") as store, \
@@ -371,6 +377,7 @@ def export(
     out: Path = typer.Option(..., "--out", help="Folder the datasets are written into (as Minari lays them out)."),
 ) -> None:
     """Write a task's demonstrations as Minari datasets, one per seed (goals and splits in episode metadata)."""
+    from grail_bench.core.seeding import seed_list
     from grail_bench.task import make_task
     from grail_bench.task.export import export as export_datasets
 
@@ -378,7 +385,7 @@ def export(
         outputs(folders=[out])
         gr_task = make_task(task, **parse_params(params or []))
         with console.status(f"exporting {gr_task.id}"):
-            written = export_datasets(gr_task, list(range(seeds)), out)
+            written = export_datasets(gr_task, seed_list(seeds), out)
     for path in written:
         say(f"wrote {path}")
 

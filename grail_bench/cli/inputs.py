@@ -3,8 +3,10 @@
 Bad input (every :class:`~grail_bench.core.errors.UserError`, and gymnasium's
 own errors for unknown IDs) is one ``error:`` line and exit status 2; a dead
 worker is one line and exit status 1; Ctrl-C during a sweep says how many
-units were kept and exits with 130. Anything else is a bug and shows its
-traceback.
+units were kept, elsewhere (while planning, say) just that it interrupted, and
+exits with 130. Anything else is a bug and shows its traceback. Commands that
+read the results store open it read-only; commands that write it check, before
+any work, that it can be written.
 """
 
 from __future__ import annotations
@@ -58,6 +60,9 @@ def errors() -> Iterator[None]:
         err_console.print(f"interrupted: {exc.summary.done} unit(s) of this run were kept in the store "
                           f"({exc.summary.skipped} were there already); run the same command again to resume",
                           highlight=False, markup=False, soft_wrap=True)
+        raise typer.Exit(EXIT_INTERRUPTED) from None
+    except KeyboardInterrupt:
+        err_console.print("interrupted", highlight=False, markup=False, soft_wrap=True)
         raise typer.Exit(EXIT_INTERRUPTED) from None
     except OSError as exc:
         if exc.filename is None:
@@ -138,28 +143,50 @@ def params(items: Sequence[str]) -> dict[str, Any]:
 
 @contextlib.contextmanager
 def executor(name: Optional[str], workers: Optional[int], address: Optional[str]) -> Iterator[Any]:
-    """The chosen executor, shut down (its unfinished units cancelled) however the block ends."""
+    """The chosen executor, shut down however the block ends: its units not started cancelled, and when the
+    block raises (Ctrl-C included), its running units abandoned too (nothing would store their rows)."""
     from grail_bench.harness.executors import make_executor
 
     chosen = make_executor(name, workers, address)
     try:
         yield chosen
-    finally:
-        chosen.close()
+    except BaseException:
+        chosen.close(abandon=True)
+        raise
+    chosen.close()
 
 
 def open_store(path: Optional[Path], must_exist: bool = False) -> Any:
     """The results store at ``path`` (default: ``$GRAIL_BENCH_STORE`` or the user's data folder).
 
+    Args:
+        path: The store's file.
+        must_exist: Read an existing store, read-only (the reading commands):
+            nothing is created or changed. Otherwise open it for writing
+            (created if missing).
+
     Raises:
-        UserError: With ``must_exist``, when there is no store there yet.
+        UserError: With ``must_exist``, when there is no store there yet; for
+            a file that is not a results store or (writing) cannot be written.
     """
     from grail_bench.harness.store import ResultsStore, default_store_path
 
     path = path or default_store_path()
     if must_exist and not Path(path).exists():
         raise UserError(f"no results store at {path}; run `grail-bench run` first")
-    return ResultsStore(path)
+    return ResultsStore(path, read_only=must_exist)
+
+
+def check_store(path: Optional[Path]) -> Path:
+    """Check, before any planning or training, that a run can write its rows to the store at ``path`` (default
+    as :func:`open_store`); nothing is created or changed but its folder.
+
+    Raises:
+        UserError: Naming the store and why it cannot be written.
+    """
+    from grail_bench.harness.store import check_store_writable, default_store_path
+
+    return check_store_writable(path or default_store_path())
 
 
 def one_line_warnings() -> None:

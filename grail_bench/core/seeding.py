@@ -11,8 +11,11 @@ fresh or resumed, draws the same observations.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
+import numbers
 import zlib
+from collections.abc import Iterable
 from typing import Sequence
 
 import numpy as np
@@ -20,6 +23,8 @@ import numpy as np
 from grail_bench.core.errors import UserError
 
 DEMOS, TRAINING, EXPERT = 0, 1, 2  # streams derived from one (seed, goal)
+MAX_SEEDS = 10_000  #: most seeds one run takes (the paper uses 10)
+MAX_SEED = 2**32 - 1  #: largest seed value: numpy's seed range
 
 
 def goal_words(goal: Sequence[float]) -> list[int]:
@@ -55,19 +60,39 @@ def cell_rng(seed: int, level: float, label: str) -> np.random.Generator:
     return np.random.default_rng([int(seed), int(round(level * 1_000_000)), zlib.crc32(label.encode())])
 
 
-def seed_list(seeds: int | Sequence[int]) -> list[int]:
+def seed_list(seeds: int | Iterable[int]) -> list[int]:
     """``n`` means seeds ``0..n-1``; a sequence is used as given.
 
+    Sizes are checked before anything is built, so a mistyped ``--seeds
+    100000000`` is refused at once instead of filling memory: a run takes at
+    most :data:`MAX_SEEDS` seeds, each an integer in ``0..``:data:`MAX_SEED`
+    (numpy's seed range, which the store's integer column also holds).
+
     Raises:
-        UserError: For no seeds or a negative one.
+        UserError: For no seeds, more than :data:`MAX_SEEDS`, or a seed that is
+            not an integer in ``0..MAX_SEED``.
     """
-    if isinstance(seeds, int):
-        if seeds < 1:
-            raise UserError(f"need at least one seed, got {seeds}")
-        return list(range(seeds))
-    out = [int(s) for s in seeds]
-    if not out:
+    if isinstance(seeds, bool):
+        raise UserError(f"seeds are a count or a list of integers, got {seeds!r}")
+    if isinstance(seeds, numbers.Integral):
+        n = int(seeds)
+        if n < 1:
+            raise UserError(f"need at least one seed, got {n}")
+        if n > MAX_SEEDS:
+            raise UserError(f"at most {MAX_SEEDS:,} seeds per run, got {n:,}")
+        return list(range(n))
+    if isinstance(seeds, (str, bytes)) or not isinstance(seeds, Iterable):
+        raise UserError(f"seeds are a count or a list of integers, got {seeds!r}")
+    given = list(itertools.islice(seeds, MAX_SEEDS + 1))  # never more than one past the limit
+    if len(given) > MAX_SEEDS:
+        raise UserError(f"at most {MAX_SEEDS:,} seeds per run, got more")
+    if not given:
         raise UserError("need at least one seed")
-    if min(out) < 0:
-        raise UserError(f"seeds must be non-negative integers, got {min(out)}")
+    out = []
+    for s in given:
+        if isinstance(s, bool) or not isinstance(s, numbers.Integral):
+            raise UserError(f"seeds must be integers, got {s!r}")
+        if not 0 <= int(s) <= MAX_SEED:
+            raise UserError(f"seeds must be integers in 0..{MAX_SEED}, got {int(s)}")
+        out.append(int(s))
     return out

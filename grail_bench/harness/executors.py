@@ -9,7 +9,11 @@ oversubscribing them.
 * ``serial``: in this process, in order (the reference every other executor
   must match row for row).
 * ``local``: :class:`concurrent.futures.ProcessPoolExecutor` with ``spawn``
-  workers (fresh interpreters: no forked torch or OpenMP state).
+  workers (fresh interpreters: no forked torch or OpenMP state). Workers die
+  with the process that started them, even one killed with ``kill -9``
+  (:func:`die_with_parent`), and a driver stopped by an exception (Ctrl-C
+  included) kills its workers instead of waiting for their units, whose rows
+  it would no longer store.
 * ``ray``: Ray tasks of one CPU each, on the cluster at ``address`` or on a
   local instance started for the sweep (``pip install grail-bench[ray]``).
 """
@@ -17,12 +21,17 @@ oversubscribing them.
 from __future__ import annotations
 
 import os
+import signal
+import sys
+import threading
 from typing import Any, Callable, Iterator, Protocol, Sequence
 
 from grail_bench.core.errors import UserError
 
 EXECUTORS = ("serial", "local", "ray")
 _THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
+PARENT_POLL_SECONDS = 0.5  #: how often a worker's watchdog checks that its parent lives
 
 
 class WorkerLost(RuntimeError):
@@ -38,8 +47,8 @@ class Executor(Protocol):
     def map_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[Any, Any]]:
         """Yield ``(item, fn(item))`` as each finishes; raise :class:`WorkerLost` if a worker dies."""
 
-    def close(self) -> None:
-        """Stop the workers (cancelling units not yet started)."""
+    def close(self, abandon: bool = False) -> None:
+        """Stop the workers (cancelling units not yet started); with ``abandon``, also the units running."""
 
 
 def one_thread() -> None:
@@ -49,6 +58,39 @@ def one_thread() -> None:
     import torch
 
     torch.set_num_threads(1)
+
+
+def die_with_parent(parent: int) -> None:
+    """Make this process exit as soon as process ``parent``, which started it, is gone.
+
+    On Linux the kernel sends it ``SIGKILL`` when its parent dies
+    (``prctl(PR_SET_PDEATHSIG)``); everywhere, a daemon thread polls
+    :func:`os.getppid` (a process whose parent died is adopted by another)
+    and exits it. A parent already gone when this runs is noticed at once.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass  # no prctl: the watchdog alone
+    if os.getppid() != parent:
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent,), name="grail-bench-parent-watch", daemon=True).start()
+
+
+def _watch_parent(parent: int) -> None:
+    event = threading.Event()
+    while not event.wait(PARENT_POLL_SECONDS):
+        if os.getppid() != parent:
+            os._exit(1)  # the driver that would store this unit's rows is gone
+
+
+def _worker_init(parent: int) -> None:
+    """Initializer of every local worker: dies with the driver, runs numeric libraries on one thread."""
+    die_with_parent(parent)
+    one_thread()
 
 
 class SerialExecutor:
@@ -61,7 +103,7 @@ class SerialExecutor:
         for item in items:
             yield item, fn(item)
 
-    def close(self) -> None:
+    def close(self, abandon: bool = False) -> None:
         pass
 
 
@@ -70,7 +112,9 @@ class LocalExecutor:
 
     Starting the pool costs seconds (each spawned worker imports torch and the
     suite), so a map of a single item runs in this process instead and starts
-    no pool: one unit cannot run faster in parallel.
+    no pool: one unit cannot run faster in parallel. Linux ties each worker's
+    life to the thread that started it, so map from a thread that outlives the
+    executor (the main thread, as every command does).
     """
 
     name = "local"
@@ -84,8 +128,8 @@ class LocalExecutor:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            self._pool = ProcessPoolExecutor(max_workers=self.workers,
-                                             mp_context=multiprocessing.get_context("spawn"), initializer=one_thread)
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_worker_init, initargs=(os.getpid(),))
         return self._pool
 
     def map_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[Any, Any]]:
@@ -107,9 +151,19 @@ class LocalExecutor:
                     raise WorkerLost(f"a worker process died; {len(pending) + 1} unit(s) did not finish") from None
                 yield item, result
 
-    def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
+    def close(self, abandon: bool = False) -> None:
+        if self._pool is None:
+            return
+        # the pool's own processes: concurrent.futures offers no public way to stop a running call
+        running = list((getattr(self._pool, "_processes", None) or {}).values()) if abandon else []
+        self._pool.shutdown(wait=not running, cancel_futures=True)
+        for process in running:
+            process.kill()
+        for process in running:
+            process.join()
+        if running:
+            self._pool.shutdown(wait=True)
+        self._pool = None
 
 
 class RayExecutor:
@@ -156,7 +210,7 @@ class RayExecutor:
             for ref in pending:
                 ray.cancel(ref, force=True)
 
-    def close(self) -> None:
+    def close(self, abandon: bool = False) -> None:
         if self._started:
             self._ray.shutdown()
 

@@ -14,6 +14,12 @@ transaction per fitted seed with ``INSERT OR IGNORE``, in WAL mode with a busy
 timeout, so an interrupted run keeps what it finished and concurrent writers
 lose nothing.
 
+Commands that only read (the leaderboard, studies) open a store with
+``read_only=True``: the file must already be a grail-bench store, and nothing
+is created or changed beside it, so a store in a read-only folder, or one
+committed to a repository, reads as it is. Commands that write learn before any
+work (:func:`check_store_writable`) that the store can take their rows.
+
 Default location: ``$GRAIL_BENCH_STORE``, else
 ``$XDG_DATA_HOME/grail-bench/results.sqlite`` (``~/.local/share/...``).
 """
@@ -27,14 +33,16 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from grail_bench.core.errors import UserError
-from grail_bench.core.paths import data_dir
+from grail_bench.core.paths import check_writable, data_dir
 from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
 
 SCHEMA_VERSION = 7
 __all__ = ["SCHEMA_VERSION", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
-           "ZeroShotRow", "default_store_path"]
+           "ZeroShotRow", "check_store_writable", "default_store_path"]
+_HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite database file
+_SIDECARS = ("-wal", "-journal")  # present while a connection has the store open (or after a crash)
 
 
 class StoreError(UserError):
@@ -75,39 +83,83 @@ class ResultsStore:
 
     Args:
         path: Database file (created with its folder if missing), or ``":memory:"``.
+        read_only: Read an existing store without creating or changing any
+            file: a store of an older schema is upgraded in memory only, and
+            :meth:`add` is refused.
 
     Raises:
-        StoreError: If the file is not a grail-bench results database.
+        StoreError: If the file is not a grail-bench results database, was
+            written by a newer grail-bench, or (unless ``read_only``) cannot be
+            written; with ``read_only``, also if there is no file.
     """
 
-    def __init__(self, path: str | Path = ":memory:") -> None:
+    def __init__(self, path: str | Path = ":memory:", read_only: bool = False) -> None:
         self.path = str(path)
+        self.read_only = read_only
         try:
-            if self.path != ":memory:":
-                Path(self.path).expanduser().parent.mkdir(parents=True, exist_ok=True)
-            self._conn = sqlite3.connect(self.path, timeout=60.0)
-            version = self._conn.execute("PRAGMA user_version").fetchone()[0]
-            tables = {r[0] for r in self._conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-            if tables and "results" not in tables:
-                raise StoreError(f"{self.path} is an SQLite file but not a grail-bench results store")
-            if version > SCHEMA_VERSION:
-                raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
-            if self.path != ":memory:":
-                self._conn.execute("PRAGMA journal_mode=WAL")
-            missing = {table for table, _ in _tables().values()} - tables
-            if version < SCHEMA_VERSION or missing:  # else nothing to write: reading leaves the file as it was
-                with self._conn:
-                    if tables and version < 2:
-                        _migrate_v1(self._conn)
-                    if tables and version < SCHEMA_VERSION:
-                        _add_missing_columns(self._conn)
-                    for kind, (table, key) in _tables().items():
-                        self._conn.execute(_create(kind, table, key))
-                    self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+            if self.path == ":memory:":
+                self._conn = sqlite3.connect(self.path)
+                self._upgrade(set(), 0)
+            elif read_only:
+                self._conn = _connect_read_only(Path(self.path).expanduser())
+                self._checked(read_only=True, fresh=False)
+            else:
+                file = _check_writable_path(Path(self.path).expanduser())
+                fresh = not file.exists() or file.stat().st_size == 0  # an empty file is an empty database
+                if not fresh:
+                    _check_header(file)
+                self._conn = sqlite3.connect(file, timeout=60.0)
+                self._checked(read_only=False, fresh=fresh)
         except sqlite3.Error as exc:
             raise StoreError(f"cannot use results store {self.path}: {exc}") from None
         except OSError as exc:
-            raise StoreError(f"cannot create results store {self.path}: {exc.strerror}") from None
+            raise StoreError(f"cannot use results store {self.path}: {exc.strerror or exc}") from None
+
+    def _checked(self, read_only: bool, fresh: bool) -> None:
+        """:meth:`_open`, closing the connection if the file is refused."""
+        try:
+            self._open(read_only, fresh)
+        except BaseException:
+            self._conn.close()
+            raise
+
+    def _open(self, read_only: bool, fresh: bool) -> None:
+        """Check the opened file (``fresh``: new or empty) is a store this version can use, then bring its schema
+        up to date (in memory only when ``read_only``; a writable store that needs nothing written is probed for
+        write access instead)."""
+        version = self._conn.execute("PRAGMA user_version").fetchone()[0]
+        tables = {r[0] for r in self._conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        if not fresh and "results" not in tables:
+            what = "an SQLite file but " if tables else ""
+            raise StoreError(f"{self.path} is {what}not a grail-bench results store")
+        if version > SCHEMA_VERSION:
+            raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
+        current = version >= SCHEMA_VERSION and not {table for table, _ in _tables().values()} - tables
+        if read_only:
+            if not current:  # an older schema: read a copy upgraded in memory, the file stays as it was
+                memory = sqlite3.connect(":memory:")
+                self._conn.backup(memory)
+                self._conn.close()
+                self._conn = memory
+                self._upgrade(tables, version)
+            return
+        self._conn.execute("PRAGMA journal_mode=WAL")
+        if current:  # nothing to write: reading leaves the file as it was, but a run must learn now if it can write
+            self._conn.execute("BEGIN IMMEDIATE")
+            self._conn.execute("ROLLBACK")
+        else:
+            self._upgrade(tables, version)
+
+    def _upgrade(self, tables: set[str], version: int) -> None:
+        """Migrate an older schema and create the missing tables, in one transaction."""
+        with self._conn:
+            if tables and version < 2:
+                _migrate_v1(self._conn)
+            if tables and version < SCHEMA_VERSION:
+                _add_missing_columns(self._conn)
+            for kind, (table, key) in _tables().items():
+                self._conn.execute(_create(kind, table, key))
+            self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
 
     def close(self) -> None:
         self._conn.close()
@@ -124,6 +176,8 @@ class ResultsStore:
         Returns:
             How many rows were new.
         """
+        if self.read_only:
+            raise StoreError(f"results store {self.path} was opened read-only")
         by_kind: dict[type, list[tuple]] = {}
         for r in rows:
             by_kind.setdefault(type(r), []).append(tuple(asdict(r).values()))
@@ -172,6 +226,72 @@ class ResultsStore:
         return {(r.seed, getattr(r, "observability", None)) for r in
                 self.select(kind, task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash,
                             protocol=protocol)}
+
+
+def check_store_writable(path: str | Path) -> Path:
+    """Check, before any work, that a run can store its rows at ``path``; create and change nothing there.
+
+    Its folder must be writable (it is created if missing, as a run would),
+    and an existing file must be a grail-bench store this version reads
+    that can be written.
+
+    Returns:
+        The path, ``~`` expanded.
+
+    Raises:
+        StoreError: Naming the path and why a run could not write to it.
+    """
+    file = _check_writable_path(Path(path).expanduser())
+    if file.exists() and file.stat().st_size:
+        ResultsStore(file, read_only=True).close()  # a grail-bench store, not a newer one
+        try:
+            conn = sqlite3.connect(f"{file.resolve().as_uri()}?mode=rw", uri=True, timeout=60.0)
+            try:
+                conn.execute("BEGIN IMMEDIATE")  # the write lock: refused on a file opened read-only
+                conn.execute("ROLLBACK")
+            finally:
+                conn.close()
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot write to results store {file}: {exc}") from None
+    return file
+
+
+def _check_writable_path(file: Path) -> Path:
+    """``file``, once its folder (created if missing) takes new files and the file itself, if any, is writable."""
+    try:
+        return check_writable(file)
+    except UserError as exc:
+        raise StoreError(str(exc)) from None
+
+
+def _check_header(file: Path) -> None:
+    """Refuse a file that is not an SQLite database (an empty one included) before SQLite opens it."""
+    with open(file, "rb") as handle:
+        if handle.read(len(_HEADER)) != _HEADER:
+            raise StoreError(f"{file} is not a grail-bench results store")
+
+
+def _connect_read_only(file: Path) -> sqlite3.Connection:
+    """A connection that can only read ``file`` and creates no file beside it.
+
+    While another connection has the store open (or after a crash) its
+    ``-wal`` or ``-journal`` file is there: SQLite's read-only mode then reads
+    the committed rows through it. Otherwise nobody is writing the store, and
+    it is opened ``immutable``: no lock, no ``-wal`` or ``-shm`` file (which a
+    read-only connection to a WAL store would leave behind), so a read-only
+    folder or a committed store reads as it is.
+
+    Raises:
+        StoreError: For a missing file, a folder, or a file that is not an SQLite database.
+    """
+    if not file.exists():
+        raise StoreError(f"no results store at {file}")
+    if file.is_dir():
+        raise StoreError(f"{file} is a folder, not a grail-bench results store")
+    _check_header(file)
+    busy = any(Path(f"{file}{suffix}").exists() for suffix in _SIDECARS)
+    return sqlite3.connect(f"{file.resolve().as_uri()}?{'mode=ro' if busy else 'immutable=1'}", uri=True,
+                           timeout=60.0)
 
 
 def _migrate_v1(conn: sqlite3.Connection) -> None:

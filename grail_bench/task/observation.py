@@ -38,16 +38,18 @@ if TYPE_CHECKING:  # imitation imports torch; task registration reads this modul
 GROUP = "grail_bench.protocols"
 ROUNDINGS = ("ceil", "floor")
 LEGACY_NAMES = {"random": "subset"}  # the deprecated ``--sampling random``
+LEVEL_DECIMALS = 6  # levels are stored, and key their cells' random streams, to this many decimals
 
 
 def parse_observability(values: Iterable[float] | str) -> tuple[float, ...]:
-    """Validate observability fractions (accepts ``"0.1,0.2"``).
+    """Validate observability fractions (accepts ``"0.1,0.2"``), rounded to :data:`LEVEL_DECIMALS` decimals.
 
     Raises:
-        ValueError: Unless every value is a number in (0, 1].
+        ValueError: Unless every value is a number in (0, 1] that is not 0 at that precision, and no two
+            different values are the same level at it.
     """
     items = values.split(",") if isinstance(values, str) else list(values)
-    out = []
+    out: dict[float, float] = {}  # level as stored -> the value given
     for item in items:
         try:
             p = float(item)
@@ -55,10 +57,15 @@ def parse_observability(values: Iterable[float] | str) -> tuple[float, ...]:
             raise UserError(f"observability {item!r} is not a number") from None
         if not 0.0 < p <= 1.0 or math.isnan(p):
             raise UserError(f"observability {p:g} must be a fraction in (0, 1]")
-        out.append(round(p, 6))
+        level = round(p, LEVEL_DECIMALS)
+        if level == 0.0:
+            raise UserError(f"observability {p} is 0 at the {LEVEL_DECIMALS} decimals levels are stored to")
+        if out.setdefault(level, p) != p:
+            raise UserError(f"observabilities {out[level]} and {p} are the same level, {level}, at the "
+                            f"{LEVEL_DECIMALS} decimals levels are stored to")
     if not out:
         raise UserError("at least one observability level is needed")
-    return tuple(dict.fromkeys(out))
+    return tuple(out)
 
 
 @dataclass(frozen=True)
