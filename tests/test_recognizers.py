@@ -245,6 +245,7 @@ def test_draco_identity_holds_only_the_chosen_algorithms_budget(monkeypatch):
     stored results and cached models valid."""
     from grail_bench.harness.planning import RecognizerSpec, plan
     from grail_bench.recognizers import draco
+    from grail_bench.recognizers.contract import settings_key
 
     task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", expert="scripted")
     action_space = task.make_env().action_space
@@ -253,7 +254,7 @@ def test_draco_identity_holds_only_the_chosen_algorithms_budget(monkeypatch):
         return plan(task, RecognizerSpec("draco", config, ()), action_space).config_hash
 
     sac = make_recognizer("draco", algorithm="sac")
-    assert sac.config == {"algorithm": "sac", "sac_steps": draco.STEPS["sac"], "net_arch": [64, 64]}
+    assert settings_key(sac.config) == {"algorithm": "sac", "sac_steps": draco.STEPS["sac"], "net_arch": [64, 64]}
     assert identity() != identity(algorithm="sac")
     before = identity(algorithm="sac"), identity(algorithm="sac", sac_steps=5000)
     monkeypatch.setitem(draco.STEPS, "ppo", draco.STEPS["ppo"] + 1)

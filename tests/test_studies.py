@@ -22,7 +22,7 @@ def study(*args: str):
 
 
 def result_row(task, planned, seed: int, level: float, f1: float, config_hash: str | None = None) -> ResultRow:
-    return ResultRow(task.id, "bc", planned.scorers[0], config_hash or planned.config_hash, seed, level,
+    return ResultRow(task.id, "bc", planned.labels[0], config_hash or planned.config_hash, seed, level,
                      task.protocol_label, f1, f1, f1, f1, 6, 0, 0.1, 1.0, planned.config, "{}")
 
 

@@ -79,7 +79,7 @@ def test_a_seed_starts_with_one_unit_of_each_group_that_shares_models(tmp_path):
              "GRAIL/PandaReach-Aligned-Gaussian-0.1-v0")
     requests = [Request(t, specs, (0, 1), ObservationSpec("subset", "ceil", (0.02,))) for t in tasks]
     units, _ = plan_sweep(requests, ResultsStore(tmp_path / "s.sqlite"))
-    order = [(u.seed, u.task_id.removeprefix("GRAIL/PandaReach-"), json.loads(u.planned.config)["config"]["algorithm"])
+    order = [(u.seed, u.task.id.removeprefix("GRAIL/PandaReach-"), json.loads(u.planned.config)["config"]["algorithm"])
              for u in units]
     assert order == [(s, t, a) for s in (0, 1) for t, a in [
         ("Aligned-Gaussian-0.1-v0", "ppo"), ("Aligned-Gaussian-0.1-v0", "sac"),  # each goal set and algorithm
@@ -247,7 +247,7 @@ def test_reproduce_runs_the_online_and_open_set_sections(tmp_path):
     (["--profile", "quick", "--only", "atari"], "profile 'quick' has no section 'atari'"),
     (["--profile", "paper", "--only", "panda-sac", "-r", "gail"],
      "no section of profile 'paper' chosen runs recognizer 'gail'; they run draco"),
-    (["--profile", "quick", "--seeds", "0"], "--seeds must be at least 1, got 0"),
+    (["--profile", "quick", "--seeds", "0"], "need at least one seed, got 0"),
 ])
 def test_reproduce_bad_input_is_one_line(tmp_path, args, message):
     out = cli(["reproduce", "--out", str(tmp_path / "o"), *args], tmp_path)

@@ -136,8 +136,8 @@ def run(
                       rounding=rounding, task_params=parse_params(params or []) | ({"demos": demos} if demos else {}),
                       mode=mode)
         with open_store(store_path) as store, make_executor(executor, workers, address) as chosen:
-            run_sweep([req], store, chosen, progress=progress, description=f"{req.task_id} ({mode})")
-            records, where = collect(req, store), store.path
+            summary = run_sweep([req], store, chosen, progress=progress, description=f"{req.task_id} ({mode})")
+            records, where = collect(req, store, summary.planned[0][1]), store.path
             _show(records, MODES[mode], chosen)
         say(f"results stored in {where}")
         if json_path is not None:
@@ -319,7 +319,7 @@ def reproduce(
             fits = store.select(FitRow, task=tasks)
             with console.status("tables, figures and web page"):
                 written = write_outputs(rows, chosen_profile, out, meta, only or (), site=site, fits=fits,
-                                        executor=chosen)
+                                        executor=chosen, plans=summary.planned)
     say(f"{summary.units} units ({summary.skipped} already stored) in {summary.seconds:.0f} s on {chosen.name} x "
         f"{chosen.workers}; models trained {summary.trained}, reused from the cache {summary.reused}, a run "
         f"without reuse would train {summary.naive}")

@@ -9,6 +9,7 @@ expects what. Parameters without an annotation it understands pass unchanged.
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import math
 import types
@@ -35,6 +36,10 @@ def _convert(value: Any, annotation: Any) -> Any:
             except _Mismatch:
                 continue
         raise _Mismatch
+    if origin is typing.Literal:
+        if isinstance(value, bool) or value not in args:
+            raise _Mismatch
+        return value
     if annotation is type(None):
         if value is None:
             return None
@@ -62,7 +67,8 @@ def _convert(value: Any, annotation: Any) -> Any:
     if origin in (list, tuple, AbcSequence) and args:
         if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
             raise _Mismatch
-        return [_convert(v, args[0]) for v in value]
+        converted = [_convert(v, args[0]) for v in value]
+        return tuple(converted) if origin is tuple else converted
     return value  # an annotation this check does not read: the callable checks it itself
 
 
@@ -70,6 +76,8 @@ def _describe(annotation: Any) -> str:
     origin, args = typing.get_origin(annotation), typing.get_args(annotation)
     if origin in (typing.Union, types.UnionType):
         return " or ".join("null" if a is type(None) else _describe(a) for a in args)
+    if origin is typing.Literal:
+        return "one of " + ", ".join(repr(a) for a in args)
     if origin in (list, tuple, AbcSequence) and args:
         return f"a list of {_describe(args[0]).removeprefix('an ').removeprefix('a ')}s"
     return _NAMES.get(annotation, getattr(annotation, "__name__", str(annotation)))
@@ -79,8 +87,17 @@ def _declared(factory: Callable[..., Any]) -> tuple[dict[str, inspect.Parameter]
     """The keyword parameters a callable declares, their type hints, and whether it takes any keyword at all.
 
     A class whose ``__init__`` passes ``**kwargs`` on to its base is read through the base classes too,
-    so their parameters count as declared.
+    so their parameters count as declared. A class with a settings dataclass ``Config`` (the recognizers'
+    convention) declares that dataclass's fields and the keyword parameters its own ``__init__`` names.
     """
+    settings = getattr(factory, "Config", None) if inspect.isclass(factory) else None
+    if dataclasses.is_dataclass(settings) and inspect.isclass(settings):
+        params, hints, _ = _declared(settings)
+        for name, param in inspect.signature(factory.__init__).parameters.items():
+            if param.kind in (param.POSITIONAL_OR_KEYWORD, param.KEYWORD_ONLY) and name not in params | {"self": 0}:
+                params[name] = param
+                hints[name] = typing.get_type_hints(factory.__init__).get(name, inspect.Parameter.empty)
+        return params, hints, False
     targets = [c.__init__ for c in inspect.getmro(factory) if "__init__" in vars(c)] if inspect.isclass(factory) \
         else [factory]
     params: dict[str, inspect.Parameter] = {}

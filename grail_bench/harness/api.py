@@ -12,16 +12,42 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import seed_list
 from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import Record, ResultRow, SeedRun, get_mode
-from grail_bench.harness.planning import RecognizerSpec, plan
+from grail_bench.harness.planning import Planned, RecognizerSpec
 from grail_bench.harness.store import ResultsStore
 from grail_bench.harness.sweep import Request, plan_request, run_sweep
 from grail_bench.recognizers.contract import FitDiagnostics
 from grail_bench.task import GRTask, make_task
 from grail_bench.task.datasets import check_seeds
 from grail_bench.task.observation import ObservationSpec
+from grail_bench.task.overrides import TaskOverrides
 
 
-def request(task_id: str, recognizers: Sequence[str | RecognizerSpec | tuple[str, Mapping[str, Any]]], *,
+RecognizerLike = str | RecognizerSpec | tuple[str, Mapping[str, Any]]
+
+
+def _specs(recognizers: RecognizerLike | Sequence[RecognizerLike]) -> tuple[RecognizerSpec, ...]:
+    """The recognizers asked for, as specs: one name, spec or ``(name, config)`` pair, or a sequence of them.
+
+    Raises:
+        UserError: For none, or an item that is none of those.
+    """
+    if isinstance(recognizers, (str, RecognizerSpec)):
+        recognizers = [recognizers]
+    elif isinstance(recognizers, tuple) and len(recognizers) == 2 and isinstance(recognizers[1], Mapping):
+        recognizers = [recognizers]
+    if not isinstance(recognizers, Sequence) or not recognizers:
+        raise UserError("name at least one recognizer (a name, a (name, config) pair or a RecognizerSpec)")
+    specs = []
+    for item in recognizers:
+        valid_pair = (isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str)
+                      and isinstance(item[1], Mapping))
+        if not isinstance(item, (str, RecognizerSpec)) and not valid_pair:
+            raise UserError(f"a recognizer is a name, a (name, config) pair or a RecognizerSpec, got {item!r}")
+        specs.append(RecognizerSpec.of(item))
+    return tuple(specs)
+
+
+def request(task_id: str, recognizers: RecognizerLike | Sequence[RecognizerLike], *,
             seeds: int | Sequence[int] = 3, observability: Iterable[float] | str | None = None,
             protocol: str | None = None, rounding: str | None = None, task_params: Mapping[str, Any] | None = None,
             mode: str = "offline") -> Request:
@@ -31,24 +57,25 @@ def request(task_id: str, recognizers: Sequence[str | RecognizerSpec | tuple[str
         UserError: For anything :func:`evaluate` would refuse, before any work.
     """
     chosen = get_mode(mode)
-    task = make_task(task_id, **dict(task_params or {}))
+    if not isinstance(task_id, str):
+        raise UserError(f"a task is named by its GRAIL/ ID, got {task_id!r}")
+    overrides = TaskOverrides.of(task_params)
+    task = make_task(task_id, **overrides.as_dict())
     if observability is not None:
         levels = observability
     else:
         levels = task.observability if chosen.takes_levels else ()
-    specs = tuple(RecognizerSpec.of(r) for r in recognizers)
-    if not specs:
-        raise UserError("name at least one recognizer")
+    specs = _specs(recognizers)
     observation = ObservationSpec.resolve(protocol or task.protocol, rounding or task.rounding, levels)
     seeds = tuple(seed_list(seeds))
     if task.demos:
         check_seeds(task.demos, seeds)
-    return Request(task.id, specs, seeds, observation, dict(task_params or {}), chosen.name)
+    return Request(task.id, specs, seeds, observation, overrides, chosen.name, task=task)
 
 
 def evaluate(
     task_id: str,
-    recognizers: Sequence[str | RecognizerSpec | tuple[str, Mapping[str, Any]]],
+    recognizers: RecognizerLike | Sequence[RecognizerLike],
     *,
     seeds: int | Sequence[int] = 3,
     observability: Iterable[float] | str | None = None,
@@ -67,8 +94,8 @@ def evaluate(
 
     Args:
         task_id: A ``GRAIL/`` ID.
-        recognizers: Names, ``(name, config)`` pairs or :class:`RecognizerSpec`
-            (which also selects scorers).
+        recognizers: A name, a ``(name, config)`` pair or a :class:`RecognizerSpec` (which also selects
+            scorers), or a sequence of them.
         seeds: ``n`` for seeds ``0..n-1``, or explicit seeds.
         observability: Fractions observed; defaults to the task's.
         protocol: Observation protocol; defaults to the task's (``subset`` for
@@ -93,18 +120,21 @@ def evaluate(
     req = request(task_id, recognizers, seeds=seeds, observability=observability, protocol=protocol,
                   rounding=rounding, task_params=task_params, mode=mode)
     store = store if store is not None else ResultsStore(":memory:")
-    run_sweep([req], store, executor, progress=progress, description=f"{req.task_id} ({mode})")
-    return collect(req, store)
+    summary = run_sweep([req], store, executor, progress=progress, description=f"{req.task_id} ({mode})")
+    return collect(req, store, summary.planned[0][1])
 
 
-def collect(req: Request, store: ResultsStore) -> list[Record]:
-    """The records of a request's rows in ``store`` (and no other rows)."""
+def collect(req: Request, store: ResultsStore, planned: Sequence[Planned]) -> list[Record]:
+    """The records of a request's rows in ``store`` (and no other rows).
+
+    Args:
+        planned: The request's recognizers as its sweep planned them (``run_sweep(...).planned``).
+    """
     mode = get_mode(req.mode)
-    planned, _, _ = plan_request(req, store)
     levels = req.observation.levels or (None,)
     rows = []
     for p in planned:
-        rows += [r for r in store.select(mode, task=req.task_id, recognizer=p.name, scorer=list(p.scorers),
+        rows += [r for r in store.select(mode, task=req.task_id, recognizer=p.name, scorer=list(p.labels),
                                          config_hash=p.config_hash, protocol=req.label, seed=list(req.seeds))
                  if getattr(r, "observability", None) in levels]
     return mode.aggregate(rows)
@@ -144,10 +174,8 @@ def inspect_fit(task_id: str, recognizer: str, seed: int = 0, config: Mapping[st
     """
     req = request(task_id, [RecognizerSpec(recognizer, dict(config or {}))], seeds=[seed], protocol=protocol,
                   task_params=task_params)
-    task = make_task(req.task_id, **dict(req.task_params))
-    env = task.make_env()
-    planned = plan(task, req.specs[0], env.action_space)
-    env.close()
+    (planned,), _, _ = plan_request(req, ResultsStore(":memory:"))
+    task = req.task
     job = SeedRun(task=task, planned=planned, seed=seed, observation=req.observation, versions="{}",
                   demos=task.generate_demos(seed))
     rows, fitted = get_mode("offline").run(job)

@@ -46,23 +46,34 @@ class RecognizerSpec:
 
 
 @dataclass(frozen=True)
+class ScorerPlan:
+    """One scorer a planned recognizer is judged with.
+
+    Attributes:
+        label: The scorer column its rows are stored under.
+        arg: What ``score`` gets: the registered scorer's name, or None for the recognizer's own scoring.
+        posterior: Whether its scores give a posterior over goals (Brier score and NLL are then recorded).
+    """
+
+    label: str
+    arg: str | None
+    posterior: bool
+
+
+@dataclass(frozen=True)
 class Planned:
     """A recognizer as the run loop uses it: checked, identified and hashed once.
 
     Attributes:
         spec: What was asked for, its hyperparameters converted to their declared types.
-        scorers: Scorer labels the rows are stored under.
-        score_args: Per scorer, what ``score`` gets (``None`` for the recognizer's own scoring).
-        posterior: Per scorer, whether its scores give a posterior over goals.
+        scorers: The scorers it is judged with.
         config: JSON of the fitted configuration (recognizer and task parameters).
         config_hash: Its hash, the store's key.
         scores_unfitted: Whether it can score goals it was not fitted on (it has ``set_goals``).
     """
 
     spec: RecognizerSpec
-    scorers: tuple[str, ...]
-    score_args: tuple[str | None, ...]
-    posterior: tuple[bool, ...]
+    scorers: tuple[ScorerPlan, ...]
     config: str
     config_hash: str
     scores_unfitted: bool = False
@@ -70,6 +81,11 @@ class Planned:
     @property
     def name(self) -> str:
         return self.spec.name
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """The scorer columns its rows are stored under."""
+        return tuple(s.label for s in self.scorers)
 
 
 def config_hash(payload: dict[str, Any]) -> str:
@@ -106,8 +122,8 @@ def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
         config["task"]["demos"] = source_digest(task.demos)
     return Planned(
         spec=RecognizerSpec(spec.name, dict(caps.kwargs), scorers),
-        scorers=scorers, score_args=tuple(None if s == own else s for s in scorers),
-        posterior=tuple(s in registered and get_scorer(s).posterior for s in scorers),
+        scorers=tuple(ScorerPlan(s, None if s == own else s, s in registered and get_scorer(s).posterior)
+                      for s in scorers),
         config=json.dumps(config, sort_keys=True, default=str), config_hash=config_hash(config),
         scores_unfitted=caps.has_set_goals,
     )

@@ -19,17 +19,19 @@ import json
 import time
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
-from typing import Any, Mapping, Sequence
+from typing import Any, Sequence
 
 from grail_bench.core.provenance import package_versions, stamp
 from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.executors import Executor, SerialExecutor
 from grail_bench.harness.modes import Row, SeedRun, get_mode
+from grail_bench.core.trajectory import Demos
 from grail_bench.harness.planning import Planned, RecognizerSpec, plan
 from grail_bench.harness.store import ResultsStore
 from grail_bench.task import GRTask, make_task
 from grail_bench.task.observation import ObservationSpec
+from grail_bench.task.overrides import TaskOverrides
 
 
 @dataclass(frozen=True)
@@ -41,24 +43,26 @@ class Request:
         specs: The recognizers (with configs and scorers).
         seeds: Seeds to run.
         observation: Protocol, rounding and levels (online: no levels), resolved.
-        task_params: Task overrides, as ``gym.make`` takes them.
-        mode: ``offline``, ``online`` or ``open-set``.
+        overrides: Task parameters set over the card (a mapping is taken as :class:`TaskOverrides`).
+        mode: ``offline``, ``online``, ``open-set`` or ``zero-shot``.
+        task: The task with its overrides, built once here (given by a caller that has it already).
+
+    Raises:
+        grail_bench.core.errors.UserError: For an unknown task or an override it cannot apply.
     """
 
     task_id: str
     specs: tuple[RecognizerSpec, ...]
     seeds: tuple[int, ...]
     observation: ObservationSpec
-    task_params: Mapping[str, Any] = field(default_factory=dict)
+    overrides: TaskOverrides = TaskOverrides()
     mode: str = "offline"
+    task: GRTask | None = field(default=None, compare=False, repr=False)
 
-    def planned(self) -> list[Planned]:
-        """Each recognizer as planning checks and hashes it (what identifies this request's stored rows)."""
-        task = make_task(self.task_id, **dict(self.task_params))
-        env = task.make_env()
-        action_space = env.action_space
-        env.close()
-        return [plan(task, spec, action_space) for spec in self.specs]
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "overrides", TaskOverrides.of(self.overrides))
+        if self.task is None:
+            object.__setattr__(self, "task", make_task(self.task_id, **self.overrides.as_dict()))
 
     def owns(self, row: Any, planned: Sequence[Planned]) -> bool:
         """Whether a stored row is one of this request's (its task, protocol, mode, recognizer and config)."""
@@ -73,10 +77,12 @@ class Request:
 
 @dataclass(frozen=True)
 class Unit:
-    """One recognizer, fitted on one seed of one task and scored at every level."""
+    """One recognizer, fitted on one seed of one task and scored at every level.
 
-    task_id: str
-    task_params: str  # JSON, so units hash and pickle plainly
+    It carries the task and the planned recognizer as the driver built them, so a worker builds neither again.
+    """
+
+    task: GRTask
     planned: Planned
     seed: int
     observation: ObservationSpec
@@ -84,7 +90,7 @@ class Unit:
     mode: str = "offline"
 
     def describe(self) -> str:
-        return f"{self.task_id.removeprefix('GRAIL/')} {self.planned.name} seed {self.seed}"
+        return f"{self.task.id.removeprefix('GRAIL/')} {self.planned.name} seed {self.seed}"
 
 
 @dataclass(frozen=True)
@@ -98,9 +104,11 @@ class UnitResult:
 
 @dataclass
 class SweepSummary:
-    """Counts of a sweep (models: one per goal, recognizer and seed).
+    """Counts of a sweep (models: one per goal, recognizer and seed), and what it planned.
 
     Attributes:
+        planned: Per request, its recognizers as planning checked and hashed them (what identifies the
+            request's stored rows: :func:`grail_bench.harness.api.collect` reads them, it does not plan again).
         units: Units in the sweep.
         skipped: Units already in the store.
         done: Units run and stored by this sweep.
@@ -121,6 +129,7 @@ class SweepSummary:
     reused: int = 0
     naive: int = 0
     seconds: float = 0.0
+    planned: list[tuple[Request, list[Planned]]] = field(default_factory=list)
 
 
 class Interrupted(KeyboardInterrupt):
@@ -136,14 +145,9 @@ class Interrupted(KeyboardInterrupt):
 
 
 @lru_cache(maxsize=4)
-def _task(task_id: str, task_params: str) -> GRTask:
-    return make_task(task_id, **json.loads(task_params))
-
-
-@lru_cache(maxsize=4)
-def _demos(task_id: str, task_params: str, seed: int):
+def _demos(task: GRTask, seed: int) -> Demos:
     """A seed's demonstrations, generated once per process for every recognizer run on them."""
-    return _task(task_id, task_params).generate_demos(seed)
+    return task.generate_demos(seed)
 
 
 @lru_cache(maxsize=1)
@@ -155,13 +159,12 @@ def run_unit(unit: Unit) -> UnitResult:
     """Run one unit (in a worker or in this process); deterministic given the unit."""
     from grail_bench.core.torchutil import single_thread  # here: planning and storing need no torch
 
-    job = SeedRun(task=_task(unit.task_id, unit.task_params), planned=unit.planned, seed=unit.seed,
-                  observation=unit.observation, versions=_versions(),
-                  demos=_demos(unit.task_id, unit.task_params, unit.seed))
+    job = SeedRun(task=unit.task, planned=unit.planned, seed=unit.seed, observation=unit.observation,
+                  versions=_versions(), demos=_demos(unit.task, unit.seed))
     with single_thread():  # as every worker does: the same arithmetic wherever a unit runs
         rows, fitted = get_mode(unit.mode).run(job)
     if fitted is not None and fitted.diagnostics is not None:
-        rows = [*rows, FitRow(unit.task_id, unit.planned.name, unit.planned.config_hash, unit.seed, unit.mode,
+        rows = [*rows, FitRow(unit.task.id, unit.planned.name, unit.planned.config_hash, unit.seed, unit.mode,
                               diagnostics.to_json(fitted.diagnostics))]
     report = fitted.report if fitted is not None else None
     if report is None:  # a recognizer that reports nothing trained every goal
@@ -179,22 +182,24 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
         grail_bench.core.errors.UserError: For unknown names, bad parameters or scorers, or a task or
             observation the mode cannot run.
     """
-    task = make_task(request.task_id, **dict(request.task_params))
+    task = request.task
     mode = get_mode(request.mode)
     mode.check(task, request.observation)
-    planned = request.planned()
+    env = task.make_env()
+    action_space = env.action_space
+    env.close()
+    planned = [plan(task, spec, action_space) for spec in request.specs]
     for p in planned:
         mode.check_recognizer(p)
-    params = json.dumps(dict(request.task_params), sort_keys=True)
     levels = request.observation.levels or (None,)  # an online row has no level
     units, skipped = [], 0
     for p in planned:
-        done = [store.completed(task.id, p.name, scorer, p.config_hash, request.label, mode) for scorer in p.scorers]
+        done = [store.completed(task.id, p.name, label, p.config_hash, request.label, mode) for label in p.labels]
         for seed in request.seeds:
             if all((seed, lv) in d for lv in levels for d in done):
                 skipped += 1
                 continue
-            units.append(Unit(task.id, params, p, seed, request.observation, mode.goals_fitted(task), mode.name))
+            units.append(Unit(task, p, seed, request.observation, mode.goals_fitted(task), mode.name))
     return planned, units, skipped
 
 
@@ -203,13 +208,12 @@ def order_units(units: Sequence[Unit]) -> list[Unit]:
     within a seed first one unit of each group that may share models: the same recognizer configuration,
     env and goals (e.g. DRACO or GRAQL on every regime of a goal set). Workers then start by training different
     models instead of waiting for each other's, and the rest of each group reuses them."""
-    ordered = sorted(units, key=lambda u: (u.seed, u.task_id, u.planned.name, u.mode))
+    ordered = sorted(units, key=lambda u: (u.seed, u.task.id, u.planned.name, u.mode))
     seen: set[tuple] = set()
     later = []
     for u in ordered:
-        task = _task(u.task_id, u.task_params)
         group = (u.seed, u.planned.name, json.dumps(u.planned.spec.config, sort_keys=True, default=str),
-                 task.env_key, json.dumps(sorted(map(list, task.goals)), default=float))
+                 u.task.env_key, tuple(sorted(u.task.goals)))
         later.append(group in seen)
         seen.add(group)
     return [u for _, u in sorted(zip(later, ordered), key=lambda pair: (pair[1].seed, pair[0]))]  # stable
@@ -220,7 +224,8 @@ def plan_sweep(requests: Sequence[Request], store: ResultsStore) -> tuple[list[U
     summary = SweepSummary()
     units: list[Unit] = []
     for request in requests:
-        _, todo, skipped = plan_request(request, store)
+        planned, todo, skipped = plan_request(request, store)
+        summary.planned.append((request, planned))
         units += todo
         summary.skipped += skipped
     summary.units = len(units) + summary.skipped
@@ -230,7 +235,8 @@ def plan_sweep(requests: Sequence[Request], store: ResultsStore) -> tuple[list[U
 
 def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Executor | None = None,
               progress: bool = False, description: str = "sweep") -> SweepSummary:
-    """Plan every request, run the missing units on ``executor`` and store their rows.
+    """Plan every request, run the missing units on ``executor`` and store their rows; returns the counts and
+    what was planned.
 
     Every request is checked before any unit runs. Rows are stored as each
     unit finishes, so a crash, a lost worker or Ctrl-C loses only the units in

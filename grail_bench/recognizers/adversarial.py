@@ -17,7 +17,8 @@ rounding) and a rollout's learned rewards computed in one call at its end
 from __future__ import annotations
 
 import warnings
-from typing import Any, Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, Callable, Literal, Sequence
 
 import numpy as np
 import torch
@@ -86,10 +87,11 @@ class _RewardedRolloutBuffer(RolloutBuffer):
         super().compute_returns_and_advantage(last_values, dones)
 
 
-class AdversarialRecognizer(PolicyRecognizer):
-    """Shared training loop of GAIL- and AIRL-GRAIL.
+@dataclass(frozen=True)
+class AdversarialConfig:
+    """The settings GAIL- and AIRL-GRAIL share (the paper's hyperparameters where it states them).
 
-    Args:
+    Attributes:
         total_timesteps: Generator environment steps per goal; each method's default is
             its budget study's plateau (README "Training budgets").
         n_envs: Parallel copies of the goal env feeding PPO.
@@ -106,34 +108,76 @@ class AdversarialRecognizer(PolicyRecognizer):
             :mod:`grail_bench.core.ppo_update`; ~4x faster on these networks, equal to SB3's to
             float32 rounding) or ``"torch"`` (SB3's own ``train()``). The numpy update mirrors discrete
             actions only: on continuous ones (PandaReach, PointMaze) both values run SB3's ``train()``.
-        scorer: Default ``"mse"``.
+    """
+
+    # budget-gail: 20 000 steps is on the plateau of both 6-goal MiniGrid tasks (5 seeds, 30 % observed)
+    total_timesteps: int = 20_000
+    n_envs: int = 8
+    n_steps: int = 64
+    batch_size: int = 32
+    gamma: float = 0.95
+    learning_rate: float = 3e-4
+    n_epochs: int = 10
+    n_disc_updates_per_round: int = 8
+    gen_replay_buffer_capacity: int = 512
+    demo_batch_size: int = 16
+    update: Literal["numpy", "torch"] = "numpy"
+
+    def __post_init__(self) -> None:
+        sizes = (self.total_timesteps, self.n_envs, self.n_steps, self.batch_size, self.n_epochs,
+                 self.demo_batch_size, self.n_disc_updates_per_round, self.gen_replay_buffer_capacity)
+        if min(sizes) < 1:
+            raise UserError("sizes and step counts must be positive")
+        if not 0 < self.gamma <= 1 or self.learning_rate <= 0:
+            raise UserError(f"gamma must be in (0, 1] and learning_rate > 0, got {self.gamma} and "
+                            f"{self.learning_rate}")
+        if self.update not in UPDATES:
+            raise UserError(f"update must be one of {', '.join(UPDATES)}, got {self.update!r}")
+
+
+@dataclass(frozen=True)
+class AIRLConfig(AdversarialConfig):
+    """AIRL-GRAIL's settings: :class:`AdversarialConfig`'s, with its own budget and the reward's shaping.
+
+    Attributes:
+        total_timesteps: 40 000, the plateau of its own study (``budget-airl``: 20 000 falls short on the
+            optimal 6-goal task).
+        shaping_discount: The discount of the reward's potential shaping. AIRL's shaping
+            ``g(s, a) + discount * h(s') - h(s)`` leaves the optimal policy unchanged only when its
+            discount is the generator's (Fu et al. 2018; Ng et al. 1999), so it defaults to ``gamma``
+            (imitation's own default, 0.99, would differ from the paper's 0.95).
+    """
+
+    total_timesteps: int = 40_000
+    shaping_discount: float | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        discount = self.gamma if self.shaping_discount is None else self.shaping_discount
+        if not 0 < discount <= 1:
+            raise UserError(f"shaping_discount must be in (0, 1], got {discount}")
+        object.__setattr__(self, "shaping_discount", float(discount))
+
+
+class AdversarialRecognizer(PolicyRecognizer):
+    """Shared training loop of GAIL- and AIRL-GRAIL (settings: :class:`AdversarialConfig`).
+
+    Its ``scorer`` defaults to ``"mse"``.
     """
 
     trainer_cls: type = GAIL
     reward_net_cls: type = BasicRewardNet
-
-    def __init__(self, *, total_timesteps: int, n_envs: int = 8, n_steps: int = 64, batch_size: int = 32,
-                 gamma: float = 0.95, learning_rate: float = 3e-4, n_epochs: int = 10,
-                 n_disc_updates_per_round: int = 8, gen_replay_buffer_capacity: int = 512,
-                 demo_batch_size: int = 16, update: str = "numpy", scorer: str | None = None) -> None:
-        if min(total_timesteps, n_envs, n_steps, batch_size, n_epochs, demo_batch_size) < 1:
-            raise UserError(f"{self.name}: sizes and step counts must be positive")
-        if update not in UPDATES:
-            raise UserError(f"{self.name}: update must be one of {', '.join(UPDATES)}, got {update!r}")
-        super().__init__(scorer, total_timesteps=total_timesteps, n_envs=n_envs, n_steps=n_steps,
-                         batch_size=batch_size, gamma=gamma, learning_rate=learning_rate, n_epochs=n_epochs,
-                         n_disc_updates_per_round=n_disc_updates_per_round,
-                         gen_replay_buffer_capacity=gen_replay_buffer_capacity, demo_batch_size=demo_batch_size,
-                         update=update)
+    Config = AdversarialConfig
+    config: AdversarialConfig
 
     def _generator(self, goal: Goal, env_factory: EnvFactory, n_envs: int, seed: int = 0) -> PPO:
         cfg = self.config
         # Monitored, so the generator's returns under the environment's own reward can be read (a curve).
         venv = vec_env(lambda: env_factory(goal), n_envs, seed)
-        optimizer = {**_GENERATOR_ADAM, **(_ADAM if cfg["update"] == "torch" else {})}  # numpy's update skips it
-        return UPDATES[cfg["update"]](
-            "MlpPolicy", venv, batch_size=cfg["batch_size"], gamma=cfg["gamma"], learning_rate=cfg["learning_rate"],
-            n_steps=cfg["n_steps"], n_epochs=cfg["n_epochs"], seed=seed, verbose=0, device="cpu",
+        optimizer = {**_GENERATOR_ADAM, **(_ADAM if cfg.update == "torch" else {})}  # numpy's update skips it
+        return UPDATES[cfg.update](
+            "MlpPolicy", venv, batch_size=cfg.batch_size, gamma=cfg.gamma, learning_rate=cfg.learning_rate,
+            n_steps=cfg.n_steps, n_epochs=cfg.n_epochs, seed=seed, verbose=0, device="cpu",
             policy_kwargs={"optimizer_kwargs": optimizer}, rollout_buffer_class=_RewardedRolloutBuffer)
 
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
@@ -142,29 +186,29 @@ class AdversarialRecognizer(PolicyRecognizer):
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
         cfg = self.config
-        generator = self._generator(goal, env_factory, cfg["n_envs"], seed)
+        generator = self._generator(goal, env_factory, cfg.n_envs, seed)
         venv = generator.get_env()
         reward_net = self.reward_net_cls(venv.observation_space, venv.action_space,
                                          normalize_input_layer=RunningNorm, **self.reward_net_kwargs())
-        demo_batch = min(cfg["demo_batch_size"], sum(len(t.acts) for t in demos))
+        demo_batch = min(cfg.demo_batch_size, sum(len(t.acts) for t in demos))
         with scratch_logger() as logger, unchecked_distributions(), warnings.catch_warnings():
             warnings.filterwarnings("ignore", category=UserWarning, module="stable_baselines3")
             trainer = self.trainer_cls(
                 demonstrations=list(demos), demo_batch_size=demo_batch, venv=venv, gen_algo=generator,
-                reward_net=reward_net, n_disc_updates_per_round=cfg["n_disc_updates_per_round"],
-                gen_replay_buffer_capacity=cfg["gen_replay_buffer_capacity"], custom_logger=logger,
+                reward_net=reward_net, n_disc_updates_per_round=cfg.n_disc_updates_per_round,
+                gen_replay_buffer_capacity=cfg.gen_replay_buffer_capacity, custom_logger=logger,
                 allow_variable_horizon=False, disc_opt_kwargs=_ADAM,
             )
             rewards = _RolloutRewards(trainer.venv_wrapped.reward_fn)
             trainer.venv_wrapped.reward_fn = rewards
             generator.rollout_buffer.rollout_rewards = rewards
             # imitation's train() draws its own progress bar; run its rounds directly.
-            rounds = max(1, cfg["total_timesteps"] // trainer.gen_train_timesteps)
+            rounds = max(1, cfg.total_timesteps // trainer.gen_train_timesteps)
             disc_acc, gen_return = [], []
             for _ in range(rounds):
                 trainer.train_gen(trainer.gen_train_timesteps)
                 stats = None
-                for _ in range(cfg["n_disc_updates_per_round"]):
+                for _ in range(cfg.n_disc_updates_per_round):
                     stats = trainer.train_disc()
                 if stats is not None:
                     disc_acc.append(float(stats["disc_acc"]))
@@ -180,43 +224,24 @@ class AdversarialRecognizer(PolicyRecognizer):
 
 
 class GAILRecognizer(AdversarialRecognizer):
-    """GAIL-GRAIL (imitation's ``GAIL``, a ``BasicRewardNet`` discriminator)."""
+    """GAIL-GRAIL (imitation's ``GAIL``, a ``BasicRewardNet`` discriminator; settings: :class:`AdversarialConfig`)."""
 
     name = "gail"
     paper_name = "GAIL-GRAIL"
     trainer_cls = GAIL
     reward_net_cls = BasicRewardNet
 
-    def __init__(self, *, total_timesteps: int = 20_000, **kwargs: Any) -> None:
-        # budget-gail: 20 000 steps is on the plateau of both 6-goal MiniGrid tasks (5 seeds, 30 % observed)
-        super().__init__(total_timesteps=total_timesteps, **kwargs)
-
 
 class AIRLRecognizer(AdversarialRecognizer):
-    """AIRL-GRAIL (imitation's ``AIRL``, a ``BasicShapedRewardNet`` with a state potential).
-
-    Args:
-        total_timesteps: Generator steps per goal; 40 000 is the plateau of its own study
-            (``budget-airl``: 20 000 falls short on the optimal 6-goal task).
-        shaping_discount: The discount of the reward's potential shaping. AIRL's shaping
-            ``g(s, a) + discount * h(s') - h(s)`` leaves the optimal policy unchanged only when its
-            discount is the generator's (Fu et al. 2018; Ng et al. 1999), so it defaults to ``gamma``
-            (imitation's own default, 0.99, would differ from the paper's 0.95).
-        **kwargs: As :class:`AdversarialRecognizer`.
-    """
+    """AIRL-GRAIL (imitation's ``AIRL``, a ``BasicShapedRewardNet`` with a state potential; settings:
+    :class:`AIRLConfig`)."""
 
     name = "airl"
     paper_name = "AIRL-GRAIL"
     trainer_cls = AIRL
     reward_net_cls = BasicShapedRewardNet
-
-    def __init__(self, *, total_timesteps: int = 40_000, shaping_discount: float | None = None,
-                 **kwargs: Any) -> None:
-        super().__init__(total_timesteps=total_timesteps, **kwargs)
-        discount = self.config["gamma"] if shaping_discount is None else shaping_discount
-        if not 0 < discount <= 1:
-            raise UserError(f"airl: shaping_discount must be in (0, 1], got {discount}")
-        self.config["shaping_discount"] = float(discount)
+    Config = AIRLConfig
+    config: AIRLConfig
 
     def reward_net_kwargs(self) -> dict[str, Any]:
-        return {"discount_factor": self.config["shaping_discount"]}
+        return {"discount_factor": self.config.shaping_discount}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -20,14 +21,11 @@ from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.stats.metrics import thin
 
 
-class BCRecognizer(PolicyRecognizer):
-    """BC-GRAIL with the paper's hyperparameters.
+@dataclass(frozen=True)
+class BCConfig:
+    """BC-GRAIL's settings (the paper's hyperparameters where it states them).
 
-    Each goal's policy is imitation's default BC policy (an SB3 actor-critic
-    MLP with two hidden layers of 32 tanh units) trained by supervised
-    learning on that goal's demonstrations, cut after the goal is reached.
-
-    Args:
+    Attributes:
         n_epochs: Passes over the demonstrations (the paper states none). 100 is the plateau of the
             budget study (README, "Training budgets"): the smallest budget whose F1 reaches the best
             budget's 95 % interval on both MiniGrid 6-goal tasks (2-6 s per goal there; 25, the
@@ -35,31 +33,44 @@ class BCRecognizer(PolicyRecognizer):
         batch_size: Paper: 8.
         learning_rate: Paper: 1e-3 (Adam).
         ent_weight: imitation's entropy regulariser weight (its default).
-        scorer: Default ``"mse"`` (the paper's); any scorer the policies can serve.
+    """
+
+    n_epochs: int = 100
+    batch_size: int = 8
+    learning_rate: float = 1e-3
+    ent_weight: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if self.n_epochs < 1 or self.batch_size < 1 or self.learning_rate <= 0:
+            raise UserError("n_epochs and batch_size must be positive, learning_rate > 0")
+
+
+class BCRecognizer(PolicyRecognizer):
+    """BC-GRAIL with the paper's hyperparameters (settings: :class:`BCConfig`).
+
+    Each goal's policy is imitation's default BC policy (an SB3 actor-critic
+    MLP with two hidden layers of 32 tanh units) trained by supervised
+    learning on that goal's demonstrations, cut after the goal is reached.
+    Its ``scorer`` defaults to ``"mse"`` (the paper's); any scorer the policies can serve.
     """
 
     name = "bc"
     paper_name = "BC-GRAIL"
-
-    def __init__(self, *, n_epochs: int = 100, batch_size: int = 8, learning_rate: float = 1e-3,
-                 ent_weight: float = 1e-3, scorer: str | None = None) -> None:
-        if n_epochs < 1 or batch_size < 1 or learning_rate <= 0:
-            raise UserError("bc: n_epochs and batch_size must be positive, learning_rate > 0")
-        super().__init__(scorer, n_epochs=n_epochs, batch_size=batch_size, learning_rate=learning_rate,
-                         ent_weight=ent_weight)
+    Config = BCConfig
+    config: BCConfig
 
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
         observation_space, action_space = spaces_of(env_factory, goal)
         return FeedForward32Policy(observation_space=observation_space, action_space=action_space,
-                                   lr_schedule=lambda _: self.config["learning_rate"])
+                                   lr_schedule=lambda _: self.config.learning_rate)
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
         transitions = rollout.flatten_trajectories([until_success(t) for t in demos])
         policy = self.new_policy(goal, env_factory)
-        return train_bc(policy, transitions, seed, batch_size=self.config["batch_size"],
-                        learning_rate=self.config["learning_rate"], ent_weight=self.config["ent_weight"],
-                        n_epochs=self.config["n_epochs"])
+        cfg = self.config
+        return train_bc(policy, transitions, seed, batch_size=cfg.batch_size, learning_rate=cfg.learning_rate,
+                        ent_weight=cfg.ent_weight, n_epochs=cfg.n_epochs)
 
 
 def train_bc(policy: ActorCriticPolicy, transitions: TransitionsMinimal, seed: int, *, batch_size: int,

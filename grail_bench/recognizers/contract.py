@@ -14,7 +14,8 @@ capability             what it is                                               
 =====================  ============================================================  =============================
 ``name``               the name it is registered under                               the registered name
 ``paper_name``         the method's published name, shown by the leaderboard         ``name``
-``config``             hyperparameters; they key stored results and cached models   the constructor's keywords
+``config``             settings (a frozen dataclass, or a mapping); they key         the constructor's keywords
+                       stored results and cached models
 ``default_scorer``     what ``score`` computes unless told otherwise                 ``"default"`` (its own)
 ``exposes(space)``     policy outputs registered scorers may use                     nothing (own scoring only)
 ``score(obs, scorer)`` a second argument: the registered scorer to use              only its own scoring
@@ -34,6 +35,7 @@ every optional member once, in this module, and returns a typed
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
@@ -86,7 +88,8 @@ class Recognizer(Protocol):
             seed: Seed for everything random in fitting.
 
         Returns:
-            What fitting cost; ``None`` lets the harness time the call.
+            What fitting cost, as a :class:`FitReport`; anything else (``None``, ``self``) lets the harness
+            time the call.
         """
         ...
 
@@ -222,13 +225,11 @@ class Capabilities:
         return frozenset(out)
 
     def fit(self, demos: Demos, env_factory: EnvFactory, seed: int, cache_key: str | None) -> FitReport | None:
-        """``fit`` with the cache key when the recognizer takes one."""
+        """``fit`` with the cache key when the recognizer takes one; its :class:`FitReport`, or None when it
+        returns anything else (``None``, ``self``, ...)."""
         extra = {"cache_key": cache_key} if self.takes_cache_key else {}
         report = self.recognizer.fit(demos, env_factory, seed=seed, **extra)
-        if report is not None and not isinstance(report, FitReport):
-            raise RecognizerError(f"recognizer {self.name!r}: fit() must return a FitReport or None, "
-                                  f"got {type(report).__name__}")
-        return report
+        return report if isinstance(report, FitReport) else None
 
     def score(self, observed: Trajectory, scorer: str | None = None) -> Mapping[Goal, float]:
         """``score`` with a registered scorer, or the recognizer's own scoring when ``scorer`` is None."""
@@ -265,6 +266,20 @@ class Capabilities:
         return out
 
 
+def settings_key(settings: Any) -> dict[str, Any]:
+    """A recognizer's settings as the plain dict that keys its stored results and cached models.
+
+    A settings dataclass gives its fields (tuples as lists, as JSON reads them back), less those whose
+    metadata says ``omit_none`` while they are None (settings added later, so earlier keys stay valid); a
+    mapping is taken as it is.
+    """
+    if dataclasses.is_dataclass(settings) and not isinstance(settings, type):
+        values = {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)
+                  if not (f.metadata.get("omit_none") and getattr(settings, f.name) is None)}
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()}
+    return dict(settings)
+
+
 def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = None) -> Capabilities:
     """Read a recognizer's capabilities, once (see the module docstring for each default).
 
@@ -283,10 +298,11 @@ def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = 
     config = getattr(recognizer, "config", None)
     if config is None:
         config = dict(kwargs or {})
-    if not isinstance(config, Mapping):
-        raise RecognizerError(f"recognizer {name!r}: config must be a mapping, got {type(config).__name__}")
+    if not isinstance(config, Mapping) and not dataclasses.is_dataclass(config):
+        raise RecognizerError(f"recognizer {name!r}: config must be a dataclass or a mapping, got "
+                              f"{type(config).__name__}")
     return Capabilities(
-        recognizer=recognizer, info=info(recognizer, name), config=dict(config), kwargs=dict(kwargs or {}),
+        recognizer=recognizer, info=info(recognizer, name), config=settings_key(config), kwargs=dict(kwargs or {}),
         takes_scorer=_accepts(recognizer.score, "scorer", positional=1),
         takes_cache_key=_accepts(recognizer.fit, "cache_key"),
         has_prefix_scores=callable(getattr(recognizer, "score_prefixes", None)),

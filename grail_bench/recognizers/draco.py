@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass, field
+from typing import Literal, Sequence
 
 from gymnasium import spaces
 from imitation.data.types import Trajectory
@@ -23,66 +24,85 @@ ALGORITHMS = ("ppo", "sac")
 STEPS = {"ppo": 150_000, "sac": 15_000}
 
 
-class DRACORecognizer(PolicyRecognizer):
-    """DRACO: PPO (as the paper trains it) or SAC per goal, on the env's own reward.
+@dataclass(frozen=True)
+class DRACOConfig:
+    """DRACO's settings.
 
-    It learns from interaction only (the demonstrations are ignored), so its
-    cached policies are reused by every regime of the domain.
-
-    Args:
+    Attributes:
         algorithm: ``"ppo"`` (the paper's: "trains each goal-directed policy via PPO", on discrete and
             continuous actions alike) or ``"sac"`` (continuous actions only; kept as a named configuration,
             ``--set draco.algorithm=sac``).
         sac_steps: SAC steps per goal (default 15 000, its budget study's plateau).
         ppo_steps: PPO steps per goal, over 8 env copies (default 150 000, its budget study's plateau).
-            Setting the budget of the algorithm not chosen is an error: it would train the chosen one at its
-            full default budget.
+            The chosen algorithm's budget is filled in; setting the other algorithm's is an error (it would
+            train the chosen one at its full default budget), and it stays None, out of the configuration's
+            key, so a change to the other algorithm's default leaves results and models valid.
         net_arch: Hidden layers of the policy.
-        scorer: Default ``"wasserstein"`` (DRACO's).
+    """
+
+    algorithm: Literal["ppo", "sac"] = "ppo"
+    sac_steps: int | None = field(default=None, metadata={"omit_none": True})
+    ppo_steps: int | None = field(default=None, metadata={"omit_none": True})
+    net_arch: tuple[int, ...] = (64, 64)
+
+    def __post_init__(self) -> None:
+        if self.algorithm not in ALGORITHMS:
+            raise UserError(f"algorithm must be one of {', '.join(ALGORITHMS)}, got {self.algorithm!r}")
+        given = {"ppo": self.ppo_steps, "sac": self.sac_steps}
+        for other, budget in given.items():
+            # A configuration stored by an older version repeats the other algorithm's default: accepted.
+            if other != self.algorithm and budget is not None and budget != STEPS[other]:
+                raise UserError(f"{other}_steps applies to algorithm={other}; with algorithm={self.algorithm} "
+                                f"set {self.algorithm}_steps")
+            if other != self.algorithm:
+                object.__setattr__(self, f"{other}_steps", None)
+        steps = STEPS[self.algorithm] if given[self.algorithm] is None else given[self.algorithm]
+        if steps < 1 or not self.net_arch or min(self.net_arch) < 1:
+            raise UserError("step budgets and hidden layer sizes must be positive")
+        object.__setattr__(self, f"{self.algorithm}_steps", steps)
+        object.__setattr__(self, "net_arch", tuple(self.net_arch))
+
+    @property
+    def steps(self) -> int:
+        """The chosen algorithm's budget."""
+        return self.ppo_steps if self.algorithm == "ppo" else self.sac_steps
+
+
+class DRACORecognizer(PolicyRecognizer):
+    """DRACO: PPO (as the paper trains it) or SAC per goal, on the env's own reward (settings:
+    :class:`DRACOConfig`).
+
+    It learns from interaction only (the demonstrations are ignored), so its
+    cached policies are reused by every regime of the domain. Its ``scorer`` defaults to
+    ``"wasserstein"`` (DRACO's).
     """
 
     name = "draco"
     paper_name = "DRACO"
     default_scorer = "wasserstein"
     uses_demos = False
-
-    def __init__(self, *, algorithm: str = "ppo", sac_steps: int | None = None, ppo_steps: int | None = None,
-                 net_arch: Sequence[int] = (64, 64), scorer: str | None = None) -> None:
-        if algorithm not in ALGORITHMS:
-            raise UserError(f"draco: algorithm must be one of {', '.join(ALGORITHMS)}, got {algorithm!r}")
-        given = {"ppo": ppo_steps, "sac": sac_steps}
-        for other, budget in given.items():
-            # A configuration stored by an older version repeats the other algorithm's default: accepted.
-            if other != algorithm and budget is not None and budget != STEPS[other]:
-                raise UserError(f"draco: {other}_steps applies to algorithm={other}; with algorithm={algorithm} "
-                                f"set {algorithm}_steps")
-        steps = STEPS[algorithm] if given[algorithm] is None else given[algorithm]
-        if steps < 1:
-            raise UserError("draco: step budgets must be positive")
-        # The configuration (the results' and the model cache's key) holds the chosen algorithm's budget only,
-        # so a change to the other algorithm's default leaves its results and models valid.
-        super().__init__(scorer, algorithm=algorithm, **{f"{algorithm}_steps": steps}, net_arch=list(net_arch))
+    Config = DRACOConfig
+    config: DRACOConfig
 
     def _algorithm(self, action_space: spaces.Space) -> str:
-        if self.config["algorithm"] == "sac" and not isinstance(action_space, spaces.Box):
+        if self.config.algorithm == "sac" and not isinstance(action_space, spaces.Box):
             raise UserError("draco: SAC needs continuous actions; use algorithm=ppo on this domain")
-        return self.config["algorithm"]
+        return self.config.algorithm
 
     def _model(self, goal: Goal, env_factory: EnvFactory, seed: int) -> BaseAlgorithm:
         env = env_factory(goal)
         if self._algorithm(env.action_space) == "sac":
-            return make_sac(env, self.config["net_arch"], seed)
+            return make_sac(env, list(self.config.net_arch), seed)
         env.close()
-        return make_ppo(lambda: env_factory(goal), self.config["net_arch"], seed)
+        return make_ppo(lambda: env_factory(goal), list(self.config.net_arch), seed)
 
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> BasePolicy:
         observation_space, action_space = spaces_of(env_factory, goal)
-        return empty_policy(self._algorithm(action_space), observation_space, action_space, self.config["net_arch"])
+        return empty_policy(self._algorithm(action_space), observation_space, action_space, list(self.config.net_arch))
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[BasePolicy, dict[str, list[float]]]:
         model = self._model(goal, env_factory, seed)
-        steps = self.config[f"{self.config['algorithm']}_steps"]
-        _, returns = learn(model, steps)
+        _, returns = learn(model, self.config.steps)
         model.get_env().close()
         return model.policy, {"return": thin(returns)}

@@ -21,6 +21,7 @@ towards a goal it never saw ("the goal is north: go north").
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from importlib.metadata import version
 from typing import Any, Callable, Mapping, Sequence
 
@@ -36,7 +37,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.torchutil import single_thread
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal, until_success
 from grail_bench.recognizers.bc import train_bc
-from grail_bench.recognizers.contract import FitReport
+from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy import demos_digest, spaces_of
 from grail_bench.recognizers.policy_bank import PolicyBank, preprocess
 from grail_bench.recognizers.scored import ScoredRecognizer
@@ -143,34 +144,49 @@ def _locator(env_factory: EnvFactory, goal: Goal) -> Callable[[Goal], np.ndarray
     return locate
 
 
-class GCBCRecognizer(ScoredRecognizer):
-    """GC-BC: one goal-conditioned BC policy (imitation's ``bc.BC``) trained on every goal's demonstrations.
+@dataclass(frozen=True)
+class GCBCConfig:
+    """GC-BC's settings.
 
-    Args:
+    Attributes:
         n_batches: Gradient steps; the budget, the same whatever the number of goals.
         batch_size: Transitions per step.
         learning_rate: Adam's step size.
         ent_weight: imitation's entropy regulariser weight (its default).
         hidden: Units of each of the two tanh hidden layers.
-        scorer: Default ``"mse"`` (as BC-GRAIL); any scorer the policy can serve.
+    """
+
+    n_batches: int = 4000
+    batch_size: int = 32
+    learning_rate: float = 1e-3
+    ent_weight: float = 1e-3
+    hidden: int = 64
+
+    def __post_init__(self) -> None:
+        if self.n_batches < 1 or self.batch_size < 1 or self.hidden < 1 or self.learning_rate <= 0:
+            raise UserError("n_batches, batch_size and hidden must be positive, learning_rate > 0")
+
+
+class GCBCRecognizer(ScoredRecognizer):
+    """GC-BC: one goal-conditioned BC policy (imitation's ``bc.BC``) trained on every goal's demonstrations.
+
+    Settings: :class:`GCBCConfig`. Its ``scorer`` defaults to ``"mse"`` (as BC-GRAIL); any scorer the
+    policy can serve.
     """
 
     name = "gc-bc"
     paper_name = "GC-BC"
+    Config = GCBCConfig
+    config: GCBCConfig
 
-    def __init__(self, *, n_batches: int = 4000, batch_size: int = 32, learning_rate: float = 1e-3,
-                 ent_weight: float = 1e-3, hidden: int = 64, scorer: str | None = None) -> None:
-        if n_batches < 1 or batch_size < 1 or hidden < 1 or learning_rate <= 0:
-            raise UserError("gc-bc: n_batches, batch_size and hidden must be positive, learning_rate > 0")
-        super().__init__(scorer)
-        self.config = {"n_batches": n_batches, "batch_size": batch_size, "learning_rate": learning_rate,
-                       "ent_weight": ent_weight, "hidden": hidden}
+    def __init__(self, scorer: str | None = None, **settings: Any) -> None:
+        super().__init__(scorer=scorer, **settings)
         self.encoder: GoalEncoder | None = None
         self.bank: PolicyBank | None = None
 
     def _new_policy(self, encoder: GoalEncoder, action_space: spaces.Space) -> ActorCriticPolicy:
-        hidden = self.config["hidden"]
-        return ActorCriticPolicy(encoder.space(), action_space, lambda _: self.config["learning_rate"],
+        hidden = self.config.hidden
+        return ActorCriticPolicy(encoder.space(), action_space, lambda _: self.config.learning_rate,
                                  net_arch=[hidden, hidden])
 
     def fit(self, demos: Demos, env_factory: EnvFactory | None = None, *, seed: int = 0,
@@ -191,9 +207,9 @@ class GCBCRecognizer(ScoredRecognizer):
         def train() -> tuple[dict[str, Any], dict[str, Any]]:
             torch.manual_seed(seed)
             policy, curves = train_bc(self._new_policy(encoder, action_space), self._transitions(encoder, demos, ordered),
-                                      seed, batch_size=self.config["batch_size"],
-                                      learning_rate=self.config["learning_rate"], ent_weight=self.config["ent_weight"],
-                                      n_batches=self.config["n_batches"])
+                                      seed, batch_size=self.config.batch_size,
+                                      learning_rate=self.config.learning_rate, ent_weight=self.config.ent_weight,
+                                      n_batches=self.config.n_batches)
             trained["policy"] = policy
             return policy.state_dict(), {"curves": curves}
 
@@ -204,7 +220,7 @@ class GCBCRecognizer(ScoredRecognizer):
                 _, extra = train()
                 seconds, reused = time.perf_counter() - start, False
             else:
-                key = {"recognizer": self.name, "config": self.config, "inputs": "state+goal+relative",
+                key = {"recognizer": self.name, "config": settings_key(self.config), "inputs": "state+goal+relative",
                        "env": cache_key, "seed": seed,
                        "goals": [list(g) for g in ordered], "demos": [demos_digest(demos[g]) for g in ordered],
                        "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}

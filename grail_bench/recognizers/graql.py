@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -16,12 +17,45 @@ from grail_bench.core.seeding import goal_seed
 from grail_bench.core.spaces import n_states, state_index
 from grail_bench.core.tabular import TabularDynamics
 from grail_bench.core.trajectory import EnvFactory, Goal
-from grail_bench.recognizers.contract import FitReport
+from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.recognizers.scoring import PolicyOutput
 from grail_bench.stats.metrics import thin
 
 _CHUNK = 4096  # exploration draws made at a time
+
+
+@dataclass(frozen=True)
+class GRAQLConfig:
+    """GRAQL's settings.
+
+    Attributes:
+        episodes: Q-learning episodes per goal.
+        alpha: Learning rate.
+        gamma: Discount factor.
+        epsilon_start: Initial exploration rate of the epsilon-greedy policy.
+        epsilon_end: Final exploration rate, reached after 80 % of the episodes.
+        temperature: Of the softmax turning Q-values into a policy.
+        max_episode_steps: Cut episodes after this many steps; ``None``: the env's own horizon (left out of
+            the configuration's key unless set).
+    """
+
+    episodes: int = 15_000
+    alpha: float = 0.5
+    gamma: float = 0.9
+    epsilon_start: float = 1.0
+    epsilon_end: float = 0.05
+    temperature: float = 1.0
+    max_episode_steps: int | None = field(default=None, metadata={"omit_none": True})
+
+    def __post_init__(self) -> None:
+        if self.episodes < 1 or not 0 < self.alpha <= 1 or not 0 < self.gamma <= 1 or self.temperature <= 0:
+            raise UserError("need episodes >= 1, alpha and gamma in (0, 1], temperature > 0")
+        if not 0 <= self.epsilon_end <= 1 or not 0 <= self.epsilon_start <= 1:
+            raise UserError(f"epsilon_start and epsilon_end must be in [0, 1], got {self.epsilon_start} "
+                            f"and {self.epsilon_end}")
+        if self.max_episode_steps is not None and self.max_episode_steps < 1:
+            raise UserError(f"max_episode_steps must be positive, got {self.max_episode_steps}")
 
 
 class GRAQLRecognizer(ScoredRecognizer):
@@ -43,38 +77,18 @@ class GRAQLRecognizer(ScoredRecognizer):
     reaches every goal on a shortest path; a discount of 0.95-0.99 or a smaller
     learning rate left some goals unreached.
 
-    Args:
-        episodes: Q-learning episodes per goal.
-        alpha: Learning rate.
-        gamma: Discount factor.
-        epsilon_start: Initial exploration rate of the epsilon-greedy policy.
-        epsilon_end: Final exploration rate, reached after 80 % of the episodes.
-        temperature: Of the softmax turning Q-values into a policy.
-        max_episode_steps: Cut episodes after this many steps; ``None``: the env's own horizon.
-        scorer: Default ``"kl"`` (GRAQL's); it exposes softmax(Q) probabilities and Q-values.
+    Settings: :class:`GRAQLConfig`. Its ``scorer`` defaults to ``"kl"`` (GRAQL's); it exposes softmax(Q)
+    probabilities and Q-values.
     """
 
     name = "graql"
     paper_name = "GRAQL"
     default_scorer = "kl"
+    Config = GRAQLConfig
+    config: GRAQLConfig
 
-    def __init__(self, *, episodes: int = 15_000, alpha: float = 0.5, gamma: float = 0.9,
-                 epsilon_start: float = 1.0, epsilon_end: float = 0.05, temperature: float = 1.0,
-                 max_episode_steps: int | None = None, scorer: str | None = None) -> None:
-        super().__init__(scorer)
-        if episodes < 1 or not 0 < alpha <= 1 or not 0 < gamma <= 1 or temperature <= 0:
-            raise UserError("graql: need episodes >= 1, alpha and gamma in (0, 1], temperature > 0")
-        if not 0 <= epsilon_end <= 1 or not 0 <= epsilon_start <= 1:
-            raise UserError(f"graql: epsilon_start and epsilon_end must be in [0, 1], got {epsilon_start} "
-                            f"and {epsilon_end}")
-        if max_episode_steps is not None and max_episode_steps < 1:
-            raise UserError(f"graql: max_episode_steps must be positive, got {max_episode_steps}")
-        self.config: dict[str, Any] = dict(
-            episodes=episodes, alpha=alpha, gamma=gamma, epsilon_start=epsilon_start,
-            epsilon_end=epsilon_end, temperature=temperature,
-        )
-        if max_episode_steps is not None:  # absent from the config (and its hash) unless set
-            self.config["max_episode_steps"] = max_episode_steps
+    def __init__(self, scorer: str | None = None, **settings: Any) -> None:
+        super().__init__(scorer=scorer, **settings)
         self.q: np.ndarray | None = None  # (K, S, A)
         self.visited: np.ndarray | None = None  # (K, S)
         self.probs: np.ndarray | None = None  # (K, S, A), the policy scoring reads, computed once per fit
@@ -100,7 +114,7 @@ class GRAQLRecognizer(ScoredRecognizer):
                     q, v, returns = self._q_learning(env, own_seed)
                     cost, hit = time.perf_counter() - start, False
                 else:
-                    key = {"recognizer": self.name, "config": self.config, "env": cache_key, "goal": list(goal),
+                    key = {"recognizer": self.name, "config": settings_key(self.config), "env": cache_key, "goal": list(goal),
                            "seed": own_seed}
                     entry = cached(f"policy-{self.name}", key, lambda: self._train(env, own_seed), arrays=True)
                     q, v, cost, hit = entry.state["q"], entry.state["visited"], entry.seconds, entry.reused
@@ -143,13 +157,13 @@ class GRAQLRecognizer(ScoredRecognizer):
         # Tiny random initial values break argmax ties without a per-step draw.
         q = rng.uniform(0, 1e-6, size=(n_states(obs_space), n_actions)).tolist()
         visited = np.zeros(n_states(obs_space), dtype=bool)
-        alpha, gamma = cfg["alpha"], cfg["gamma"]
-        decay_episodes = max(1, int(0.8 * cfg["episodes"]))
-        limit = cfg.get("max_episode_steps")
+        alpha, gamma = cfg.alpha, cfg.gamma
+        decay_episodes = max(1, int(0.8 * cfg.episodes))
+        limit = cfg.max_episode_steps
         returns = []
-        for episode in range(cfg["episodes"]):
+        for episode in range(cfg.episodes):
             frac = min(1.0, episode / decay_episodes)
-            epsilon = cfg["epsilon_start"] + frac * (cfg["epsilon_end"] - cfg["epsilon_start"])
+            epsilon = cfg.epsilon_start + frac * (cfg.epsilon_end - cfg.epsilon_start)
             s = reset(int(rng.integers(1 << 31)) if episode == 0 else None)
             t, episode_return = 0, 0.0
             while True:
@@ -170,7 +184,7 @@ class GRAQLRecognizer(ScoredRecognizer):
 
     def _softmax_policy(self, q: np.ndarray, visited: np.ndarray) -> np.ndarray:
         """Boltzmann policy of every state, ``(K, S, A)``; uniform in states never visited in training."""
-        probs = softmax(q / self.config["temperature"], axis=-1)
+        probs = softmax(q / self.config.temperature, axis=-1)
         probs[~visited] = 1.0 / probs.shape[-1]
         return probs
 

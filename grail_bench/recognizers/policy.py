@@ -19,7 +19,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import goal_seed
 from grail_bench.core.torchutil import single_thread
 from grail_bench.core.trajectory import EnvFactory, Goal
-from grail_bench.recognizers.contract import FitReport
+from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy_bank import PolicyBank
 from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.recognizers.scoring import PolicyOutput
@@ -41,9 +41,8 @@ class PolicyRecognizer(ScoredRecognizer):
     #: Whether the policies are learned from the demonstrations (their digest then keys the cache).
     uses_demos: bool = True
 
-    def __init__(self, scorer: str | None = None, **config: Any) -> None:
-        super().__init__(scorer)
-        self.config = dict(config)
+    def __init__(self, scorer: str | None = None, **settings: Any) -> None:
+        super().__init__(scorer=scorer, **settings)
         self.bank: PolicyBank | None = None
 
     @abc.abstractmethod
@@ -98,7 +97,7 @@ class PolicyRecognizer(ScoredRecognizer):
             start = time.perf_counter()
             policy, curves = self.train_policy(goal, demos, env_factory, seed)
             return policy, time.perf_counter() - start, False, curves
-        key = {"recognizer": self.name, "config": self.config, "env": cache_key, "goal": list(goal), "seed": seed,
+        key = {"recognizer": self.name, "config": settings_key(self.config), "env": cache_key, "goal": list(goal), "seed": seed,
                "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}
         if self.uses_demos:
             key["demos"] = demos_digest(demos)

@@ -3,18 +3,35 @@
 from __future__ import annotations
 
 import abc
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
+from grail_bench.core.errors import UserError
+from grail_bench.core.params import check_kwargs
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.recognizers.contract import FitDiagnostics, RecognizerBase, observed_arrays
 from grail_bench.recognizers.diagnostics import policy_diagnostics
 from grail_bench.recognizers.scoring import PolicyOutput, check_scorer, get_scorer
 
 
+@dataclass(frozen=True)
+class NoSettings:
+    """The settings of a recognizer that has none."""
+
+
 class ScoredRecognizer(RecognizerBase, abc.ABC):
     """Base of recognizers that expose :class:`~grail_bench.recognizers.scoring.PolicyOutput`.
+
+    A subclass declares its settings as a frozen dataclass, :attr:`Config`, and is built from keywords::
+
+        BCRecognizer(n_epochs=50, scorer="loglik")   # self.config == BCRecognizer.Config(n_epochs=50)
+
+    The settings are checked against the dataclass's field types (a value given as JSON, ``1e3`` for an
+    integer, is converted where it can be) and by its own validation; they key stored results and cached
+    models (:func:`~grail_bench.recognizers.contract.settings_key`). ``scorer`` is not a setting: it changes
+    how a fitted model is read, not what is fitted.
 
     Subclasses say what they expose for an action space and compute the
     outputs on states (:meth:`outputs_at`); scoring is then any registered
@@ -25,13 +42,23 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     Args:
         scorer: What :meth:`score` uses when no scorer is named; defaults to
             the class's :attr:`default_scorer` (the method's published one).
+        **settings: Fields of :attr:`Config`.
+
+    Raises:
+        UserError: For an unknown setting, a value of the wrong type or out of range, or an unknown scorer.
     """
 
     name: str = ""
     paper_name: str = ""
     default_scorer: str = "mse"
+    Config: ClassVar[type] = NoSettings
 
-    def __init__(self, scorer: str | None = None) -> None:
+    def __init__(self, scorer: str | None = None, **settings: Any) -> None:
+        checked = check_kwargs(self.Config, settings, f"recognizer {self.name!r}")
+        try:
+            self.config = self.Config(**checked)
+        except UserError as exc:
+            raise UserError(f"recognizer {self.name!r}: {exc}") from None
         self.default_scorer = scorer or type(self).default_scorer
         get_scorer(self.default_scorer)  # unknown names fail at construction
         self.goals: list[Goal] = []

@@ -36,8 +36,9 @@ from grail_bench.core.paths import cache_dir
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import MODES, Row, get_mode
-from grail_bench.harness.planning import RecognizerSpec
-from grail_bench.harness.sweep import Request, SweepSummary
+from grail_bench.harness.planning import Planned, RecognizerSpec
+from grail_bench.harness.store import ResultsStore
+from grail_bench.harness.sweep import Request, SweepSummary, plan_request
 from grail_bench.report import leaderboard, plots
 from grail_bench.report.boards import build_boards, calibration_rows, own_scorer_records, short_name
 from grail_bench.report.html import write_site
@@ -121,7 +122,8 @@ class Section:
                 specs = tuple(RecognizerSpec(r, c, self.scorers) for r, c in configs)
                 observation = ObservationSpec.resolve(self.protocol or task.protocol, self.rounding or task.rounding,
                                                       levels)
-                out.append(Request(task.id, specs, tuple(range(self.seeds or seeds)), observation, params, self.mode))
+                out.append(Request(task.id, specs, tuple(range(self.seeds or seeds)), observation, params, self.mode,
+                                   task=task))
         return out
 
     def _variants(self, config: Mapping[str, Mapping[str, Any]]) -> list[tuple[dict[str, Any], list]]:
@@ -283,25 +285,37 @@ def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executo
     }
 
 
-def _owned(rows: Sequence[Any], requests: Sequence[Request]) -> list[Any]:
-    """The rows that belong to the requests (their tasks, protocols, modes, recognizers and configurations)."""
-    planned = [(r, r.planned()) for r in requests]
-    return [row for row in rows if any(r.owns(row, p) for r, p in planned)]
+Plans = Sequence[tuple[Request, list[Planned]]]
+
+
+def _owned(rows: Sequence[Any], requests: Sequence[Request], plans: Plans = ()) -> list[Any]:
+    """The rows that belong to the requests (their tasks, protocols, modes, recognizers and configurations).
+
+    Args:
+        plans: What a sweep planned (``run_sweep(...).planned``); a request it lacks is planned here.
+    """
+    def planned(request: Request) -> list[Planned]:
+        found = next((p for r, p in plans if r == request), None)
+        return found if found is not None else plan_request(request, ResultsStore(":memory:"))[0]
+
+    owners = [(r, planned(r)) for r in requests]
+    return [row for row in rows if any(r.owns(row, p) for r, p in owners)]
 
 
 def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[str, Any], only: Sequence[str] = (),
                   site: bool = True, progress: bool = False, fits: Sequence[FitRow] = (),
-                  executor: Executor | None = None) -> list[Path]:
+                  executor: Executor | None = None, plans: Plans = ()) -> list[Path]:
     """Tables, figures, the web page (``site/``, unless ``site`` is False) and the manifest into ``out``.
 
     The paper's tables and figures come from the offline rows of the grid's sections; every other mode with
     rows adds its table (``ONLINE.md``, ``OPEN_SET.md``) and the online runs their figure (``online.png``);
     budget studies write ``BUDGETS.md`` and ``budgets.png``. Only the rows the profile's requests own count
     (other configurations in a shared store do not); ``fits`` are the stored fit diagnostics. Ceilings missing
-    from the cache are computed on ``executor`` (default: in this process). Returns the files written.
+    from the cache are computed on ``executor`` (default: in this process); ``plans`` are what the sweep
+    planned (``run_sweep(...).planned``), so the requests are not planned again. Returns the files written.
     """
     out.mkdir(parents=True, exist_ok=True)
-    grid = _owned(rows, profile.grid_requests(only))
+    grid = _owned(rows, profile.grid_requests(only), plans)
     by_mode = {name: [r for r in grid if type(r) is mode.row] for name, mode in MODES.items()}
     offline = by_mode.pop("offline")
     reference = read_reference(paper_reference_path())
@@ -319,7 +333,7 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
         written += plots.write_all(board.records, out, models=model_sizes(board.records))
         written += write_robust(board, out)
     written += write_studies(board, out)
-    written += write_budgets(rows, profile.studies(only), out, title)
+    written += write_budgets(rows, profile.studies(only), out, title, plans)
     if site:
         written += write_site(board, out / "site", title=title)
     (out / "manifest.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
@@ -327,15 +341,17 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     return written
 
 
-def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Request]]]) -> list[dict[str, Any]]:
-    """Per study section, task and recognizer: the studied values with F1 over seeds and fit seconds per goal.
+def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Request]]],
+                  plans: Plans = ()) -> list[dict[str, Any]]:
+    """Per study section, task and recognizer: the studied values with F1 over seeds and fit seconds per goal
+    (``plans``: what the sweep planned, see :func:`_owned`).
 
     A budget study also gets its plateau; a scaling study (``n_goals``) the exponent of the whole fit's
     seconds against the goal count instead.
     """
     out = []
     for section, requests in studies:
-        records = MODES["offline"].aggregate([r for r in _owned(rows, requests) if isinstance(r, MODES["offline"].row)])
+        records = MODES["offline"].aggregate([r for r in _owned(rows, requests, plans) if isinstance(r, MODES["offline"].row)])
         groups: dict[tuple[str, str, str], list[Any]] = {}
         for r in own_scorer_records(records):
             groups.setdefault((section.label(r.task), r.recognizer, r.protocol), []).append(r)
@@ -359,9 +375,9 @@ def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Req
 
 
 def write_budgets(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Request]]], out: Path,
-                  title: str) -> list[Path]:
+                  title: str, plans: Plans = ()) -> list[Path]:
     """``BUDGETS.md``, ``budgets.png`` and ``budgets.json`` of the budget studies (nothing without one)."""
-    curves = budget_points(rows, studies)
+    curves = budget_points(rows, studies, plans)
     if not curves:
         return []
     written = [out / "BUDGETS.md", out / "budgets.json"]

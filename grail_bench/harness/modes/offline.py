@@ -103,12 +103,12 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
         rng = spec.rng(job.seed, level)
         order = rng.permutation(len(labelled))
         observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
-        for scorer, score_arg, posterior in zip(planned.scorers, planned.score_args, planned.posterior):
+        for scorer in planned.scorers:
             y_true, y_pred, ties, elapsed_ns, brier, nll, ranks, top2 = [], [], 0, 0, [], [], [], []
             confidence, in_set, set_sizes = [], [], []
             for label, observed in observations:
                 t0 = time.perf_counter_ns()
-                scores = fitted.recognizer.score(observed, score_arg)
+                scores = fitted.recognizer.score(observed, scorer.arg)
                 elapsed_ns += time.perf_counter_ns() - t0
                 values = check_scores(planned.name, scores, task.goals)
                 pred, tied = metrics.predict(values)
@@ -121,7 +121,7 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
                 chosen = metrics.goal_set(values, SET_TOLERANCE)
                 in_set.append(label in chosen)
                 set_sizes.append(len(chosen))
-                if posterior:
+                if scorer.posterior:
                     b, n, c = metrics.calibration(values, len(observed.acts), label)
                     brier.append(b)
                     nll.append(n)
@@ -129,14 +129,14 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
             m = metrics.classification(y_true, y_pred, len(task.goals))
             confusion = metrics.confusion(y_true, y_pred, len(task.goals))
             rows.append(ResultRow(
-                task=task.id, recognizer=planned.name, scorer=scorer, config_hash=planned.config_hash,
+                task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash,
                 seed=job.seed, observability=level, protocol=spec.label, n_observations=len(y_true), n_ties=ties,
                 fit_seconds_per_goal=fitted.seconds_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
                 config=planned.config, versions=job.versions,
                 brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None,
                 top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)), confusion=json.dumps(confusion.tolist()),
                 reliability=json.dumps(metrics.reliability_bins(confidence, np.array(y_pred) == np.array(y_true)))
-                if posterior else None,
+                if scorer.posterior else None,
                 set_precision=float(np.mean([hit / size for hit, size in zip(in_set, set_sizes)])),
                 set_recall=float(np.mean(in_set)), set_spread=float(np.mean(set_sizes)), **m,
             ))

@@ -205,14 +205,14 @@ def run(job: SeedRun) -> tuple[list[OnlineRow], Fitted]:
     labelled = [(i, spec.observe(traj, 1.0, rng)) for i, goal in enumerate(task.goals) for traj in test[goal]]
     labels = [i for i, _ in labelled]
     rows = []
-    for scorer, score_arg in zip(planned.scorers, planned.score_args):
+    for scorer in planned.scorers:
         start = time.perf_counter_ns()
-        predictions = [np.argmax(prefix_scores(fitted.recognizer, observed, score_arg, task.goals), axis=1)
+        predictions = [np.argmax(prefix_scores(fitted.recognizer, observed, scorer.arg, task.goals), axis=1)
                        for _, observed in labelled]
         elapsed_us = (time.perf_counter_ns() - start) / 1e3
         n_prefixes = sum(len(p) for p in predictions)
         rows.append(OnlineRow(
-            task=task.id, recognizer=planned.name, scorer=scorer, config_hash=planned.config_hash, seed=job.seed,
+            task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash, seed=job.seed,
             protocol=spec.label, n_trajectories=len(labelled), fit_seconds_per_goal=fitted.seconds_per_goal,
             score_us_per_prefix=elapsed_us / n_prefixes, config=planned.config, versions=job.versions,
             **online_metrics(predictions, labels, len(task.goals), spec.rounding),

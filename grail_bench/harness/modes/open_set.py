@@ -156,12 +156,12 @@ def run(job: SeedRun) -> tuple[list[OpenSetRow], Fitted]:
     for level in spec.levels:
         rng = spec.rng(seed, level, "open-set")
         observations = [spec.observe(traj, level, rng) for _, traj in labelled]
-        for scorer, score_arg in zip(planned.scorers, planned.score_args):
+        for scorer in planned.scorers:
             calibration_rng = spec.rng(seed, level, "open-set-calibration")  # the same draws per scorer
-            threshold = calibrate(fitted.recognizer, known_train, level, spec, calibration_rng, score_arg)
-            best, argmax = best_scores(fitted.recognizer, observations, score_arg, known)
+            threshold = calibrate(fitted.recognizer, known_train, level, spec, calibration_rng, scorer.arg)
+            best, argmax = best_scores(fitted.recognizer, observations, scorer.arg, known)
             rows.append(OpenSetRow(
-                task=task.id, recognizer=planned.name, scorer=scorer, config_hash=planned.config_hash, seed=seed,
+                task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash, seed=seed,
                 observability=level, protocol=spec.label, held_out=json.dumps(list(hidden)), threshold=threshold,
                 n_observations=len(observations), fit_seconds_per_goal=fitted.seconds_per_goal,
                 config=planned.config, versions=job.versions,

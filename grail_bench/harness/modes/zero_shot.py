@@ -99,14 +99,14 @@ def run(job: SeedRun) -> tuple[list[ZeroShotRow], Fitted]:
         rng = spec.rng(seed, level, "zero-shot")
         order = rng.permutation(len(labelled))
         observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
-        for scorer, score_arg in zip(planned.scorers, planned.score_args):
+        for scorer in planned.scorers:
             y_true = np.array([label for label, _ in observations])
-            y_pred = np.array([metrics.predict(check_scores(planned.name, fitted.recognizer.score(o, score_arg),
+            y_pred = np.array([metrics.predict(check_scores(planned.name, fitted.recognizer.score(o, scorer.arg),
                                                             task.goals))[0] for _, o in observations])
             per_class = metrics.per_class_f1(y_true, y_pred, len(task.goals))
             on_hidden = is_hidden[y_true]
             rows.append(ZeroShotRow(
-                task=task.id, recognizer=planned.name, scorer=scorer, config_hash=planned.config_hash, seed=seed,
+                task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash, seed=seed,
                 observability=level, protocol=spec.label, held_out=json.dumps([list(g) for g in hidden]),
                 n_goals=len(task.goals), f1=float(per_class.mean()), accuracy=float(np.mean(y_true == y_pred)),
                 f1_held_out=float(per_class[is_hidden].mean()), f1_trained=float(per_class[~is_hidden].mean()),

@@ -78,7 +78,7 @@ def run(store: ResultsStore, tasks: Sequence[str] = TASKS, samples: int = 2000) 
         for recognizer in RECOGNIZERS:
             planned = plan(task, RecognizerSpec(recognizer), task.make_env(task.goals[0]).action_space)
             rows = store.select(MODES["offline"], task=task.id, recognizer=recognizer,
-                                config_hash=planned.config_hash, scorer=planned.scorers[0],
+                                config_hash=planned.config_hash, scorer=planned.labels[0],
                                 protocol=task.protocol_label)
             fits = {f.seed: f for f in store.select(FitRow, task=task.id, recognizer=recognizer,
                                                     config_hash=planned.config_hash, mode="offline")}
