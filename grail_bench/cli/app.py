@@ -25,6 +25,7 @@ from grail_bench.cli.inputs import (
 from grail_bench.cli.inputs import executor as make_executor
 from grail_bench.cli.inputs import params as parse_params
 from grail_bench.cli.inputs import settings as parse_settings
+from grail_bench.task.observation import level_text
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="grail-bench: goal-recognition benchmarks on gymnasium.")
@@ -83,7 +84,7 @@ def run(
     task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
     recognizer: Optional[List[str]] = typer.Option(None, "--recognizer", "-r",
                                                    help="Recognizer name; repeat for several (default: bc, graql)."),
-    seeds: int = typer.Option(3, "--seeds", "-s", min=1, help="Seeds 0..N-1 (the paper uses 10)."),
+    seeds: int = typer.Option(3, "--seeds", "-s", help="Seeds 0..N-1 (the paper uses 10)."),
     observability: Optional[str] = typer.Option(None, "--observability", "-o",
                                                 help="Comma-separated fractions, e.g. 0.1,0.2,0.3 (default: the task's)."),
     protocol: Optional[str] = typer.Option(
@@ -354,7 +355,7 @@ def inspect(
             say(f"recognizer {recognizer!r} offers no fit diagnostics")
         else:
             console.print(diagnostics_table(seen.diagnostics, f"{recognizer} on {seen.task.id}, seed {seed}"))
-        levels = ", ".join(f"{r.observability:.0%} F1 {r.f1:.2f}" for r in seen.rows)
+        levels = ", ".join(f"{level_text(r.observability)} F1 {r.f1:.2f}" for r in seen.rows)
         say(f"{seen.rows[0].protocol}: {levels}; confusion over these levels (rows true, columns predicted): "
             f"{seen.confusion}")
         if out is not None:
@@ -372,7 +373,7 @@ def inspect(
 @app.command()
 def export(
     task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
-    seeds: int = typer.Option(1, "--seeds", "-s", min=1, help="One dataset per seed 0..N-1."),
+    seeds: int = typer.Option(1, "--seeds", "-s", help="One dataset per seed 0..N-1."),
     params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, as for `run`."),
     out: Path = typer.Option(..., "--out", help="Folder the datasets are written into (as Minari lays them out)."),
 ) -> None:

@@ -41,7 +41,7 @@ from collections import defaultdict
 from dataclasses import asdict, dataclass, replace
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable, Hashable, Iterable, Sequence
+from typing import Any, Callable, Hashable, Iterable, NamedTuple, Sequence
 
 import numpy as np
 
@@ -51,6 +51,7 @@ from grail_bench.core.paths import cache_dir
 from grail_bench.domains.base import GoalModel
 from grail_bench.harness.executors import Executor, SerialExecutor
 from grail_bench.task import GRTask, find_task
+from grail_bench.task.overrides import TaskOverrides
 from grail_bench.task.observation import (
     BUILTIN,
     PREFIX_OF,
@@ -287,29 +288,38 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | 
     return Ceiling(accuracy=accuracy, stderr=stderr, method="monte-carlo", samples=n, **common)
 
 
-Cell = tuple[str, dict[str, Any], str, float]
+class Cell(NamedTuple):
+    """A board cell whose ceiling is asked for: a task with the parameters its runs used, a protocol and a level.
+
+    A plain ``(task, parameters mapping, protocol label, level)`` tuple is taken too (:meth:`of`).
+    """
+
+    task: str
+    params: TaskOverrides
+    protocol: str
+    level: float
+
+    @classmethod
+    def of(cls, cell: Sequence[Any]) -> Cell:
+        """A cell from a cell or a ``(task, parameters, protocol label, level)`` tuple."""
+        task, params, protocol, level = cell
+        return cls(task, TaskOverrides.of(params), protocol, float(level))
 
 
-def _cell_key(cell: Cell) -> tuple[str, str, str, float]:
-    return cell[0], json.dumps(cell[1], sort_keys=True), cell[2], cell[3]
-
-
-def distinct_cells(cells: Iterable[Cell]) -> list[Cell]:
+def distinct_cells(cells: Iterable[Sequence[Any]]) -> list[Cell]:
     """``cells`` without repeats, in order (an offline level may also be an online fraction)."""
-    return list({_cell_key(cell): cell for cell in cells}.values())
+    return list(dict.fromkeys(Cell.of(cell) for cell in cells))
 
 
 def _cell_ceiling(cell: Cell, samples: int, pairs_only: bool) -> Ceiling:
     """One cell's ceiling, computed (an executor's work item: no cache access, so any worker can run it)."""
-    task_id, params, label, level = cell
-    name, rounding = parse_label(label)
-    return bayes_ceiling(find_task(task_id, params), name, level, rounding=rounding, samples=samples,
+    name, rounding = parse_label(cell.protocol)
+    return bayes_ceiling(find_task(cell.task, cell.params.as_dict()), name, cell.level, rounding=rounding, samples=samples,
                          seed=CACHED_SEED, pairs_only=pairs_only)
 
 
-def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[], None] | None = None,
-                 pairs_only: bool = False,
-                 executor: Executor | None = None) -> dict[tuple[str, str, str, float], Ceiling]:
+def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: Callable[[], None] | None = None,
+                 pairs_only: bool = False, executor: Executor | None = None) -> dict[Cell, Ceiling]:
     """The Bayes ceiling (or the pairs-only one) of each ``(task, task parameters, protocol label, level)`` cell
     that has one.
 
@@ -317,8 +327,7 @@ def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[
     and cached by this process. ``on_cell`` is called once per distinct cell (for a progress bar).
 
     Returns:
-        ``{(task, task parameters as sorted JSON, protocol label, level): Ceiling}``, without the cells that
-        have none.
+        ``{Cell: Ceiling}``, without the cells that have none.
     """
     out, missing = {}, {}
 
@@ -327,25 +336,26 @@ def ceilings_for(cells: Iterable[Cell], samples: int = 2000, on_cell: Callable[[
             on_cell()
 
     for cell in distinct_cells(cells):
-        task = find_task(cell[0], cell[1])
-        if _applies(task, cell[2]):
-            key, path = _cache_path(task, cell[2], cell[3], samples, pairs_only)
+        task = find_task(cell.task, cell.params.as_dict())
+        if _applies(task, cell.protocol):
+            key, path = _cache_path(task, cell.protocol, cell.level, samples, pairs_only)
             ceiling = _read(key, path)
             if ceiling is None:
-                missing[_cell_key(cell)] = (cell, key, path)
+                missing[cell] = (key, path)
                 continue
-            out[_cell_key(cell)] = ceiling
+            out[cell] = ceiling
         tick()
     compute = partial(_cell_ceiling, samples=samples, pairs_only=pairs_only)
-    for cell, ceiling in (executor or SerialExecutor()).map_unordered(compute, [m[0] for m in missing.values()]):
-        _, key, path = missing[_cell_key(cell)]
+    for cell, ceiling in (executor or SerialExecutor()).map_unordered(compute, list(missing)):
+        key, path = missing[cell]
         _write(key, path, ceiling)
-        out[_cell_key(cell)] = ceiling
+        out[cell] = ceiling
         tick()
     return out
 
 
-def curve_cells(task_id: str, params: dict[str, Any], label: str, fractions: Sequence[float]) -> list[Cell]:
+def curve_cells(task_id: str, params: TaskOverrides | dict[str, Any], label: str,
+                fractions: Sequence[float]) -> list[Cell]:
     """The cells whose Bayes ceilings make the ceiling curve of an online run (empty for plugin protocols).
 
     Online, the first ``n_observed(p, T)`` steps are what the offline prefix
@@ -356,13 +366,13 @@ def curve_cells(task_id: str, params: dict[str, Any], label: str, fractions: Seq
     if name not in PREFIX_OF:
         return []
     prefix = protocol_label(PREFIX_OF[name], rounding)
-    return [(task_id, params, prefix, fraction) for fraction in fractions]
+    return [Cell(task_id, TaskOverrides.of(params), prefix, float(fraction)) for fraction in fractions]
 
 
-def curve_of(cells: Sequence[Cell], ceilings: dict[tuple[str, str, str, float], Ceiling]) -> list[float] | None:
+def curve_of(cells: Sequence[Cell], ceilings: dict[Cell, Ceiling]) -> list[float] | None:
     """The accuracies of :func:`curve_cells`' cells in ``ceilings`` (from :func:`ceilings_for`), or None
     where any has no ceiling."""
-    found = [ceilings.get(_cell_key(cell)) for cell in cells]
+    found = [ceilings.get(cell) for cell in cells]
     if not found or None in found:
         return None
     return [ceiling.accuracy for ceiling in found]

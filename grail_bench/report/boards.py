@@ -21,12 +21,13 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from grail_bench.harness.ceiling import Ceiling
+from grail_bench.harness.ceiling import Ceiling, Cell
 from grail_bench.harness.modes.offline import OfflineRecord
 from grail_bench.recognizers.registry import UnknownRecognizerError, build, recognizer_info
 from grail_bench.report.reference import Reported
 from grail_bench.stats.metrics import expected_calibration_error
 from grail_bench.task import find_task, variant
+from grail_bench.task.overrides import TaskOverrides
 
 Row = tuple[int, str, str, float, str]  # (goals, task, protocol, observability, variant of the task's parameters)
 CellKey = tuple[int, str, str, float, str, str]  # a row and a column label
@@ -146,35 +147,39 @@ def config_variants(records: Iterable[Any]) -> dict[tuple[str, str], list[str] |
     return {pair: sorted(k) if k else None for pair, k in keys.items()}
 
 
-def ceiling_cells(records: Iterable[OfflineRecord]) -> list[tuple[str, dict[str, Any], str, float]]:
-    """The ``(task, task parameters, protocol, level)`` cells whose Bayes ceiling a set of records shows."""
-    cells = {(r.task, json.dumps(r.task_params, sort_keys=True), r.protocol, r.observability): r.task_params
-             for r in records}
-    return [(task, params, protocol, level) for (task, _, protocol, level), params in sorted(cells.items())]
+def cell_of_record(r: OfflineRecord) -> Cell:
+    """The ceiling cell a record shows: its task, the parameters its runs used, its protocol and level."""
+    return Cell(r.task, TaskOverrides.of(r.task_params), r.protocol, float(r.observability))
+
+
+def ceiling_cells(records: Iterable[OfflineRecord]) -> list[Cell]:
+    """The cells whose Bayes ceiling a set of records shows, sorted."""
+    return sorted({cell_of_record(r) for r in records}, key=lambda c: (c.task, c.params.to_json(), c.protocol,
+                                                                       c.level))
 
 
 def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, str, float], Reported] | None = None,
-                 ceilings: dict[tuple[str, str, str, float], Ceiling] | None = None,
-                 pairs_only: dict[tuple[str, str, str, float], Ceiling] | None = None) -> list[Board]:
+                 ceilings: dict[Cell, Ceiling] | None = None,
+                 pairs_only: dict[Cell, Ceiling] | None = None) -> list[Board]:
     """Group records into boards (see the module docstring).
 
     Args:
         records: Offline records (:func:`grail_bench.harness.modes.offline.aggregate`).
         reference: Reported values to show beside ours (on rows of the task's default parameters only, and
             beside the recognizer's default configuration where the row has it).
-        ceilings: Bayes ceilings by ``(task, task parameters as JSON, protocol, level)``, computed beforehand.
+        ceilings: Bayes ceilings by cell (:func:`cell_of_record`), computed beforehand.
         pairs_only: Pairs-only ceilings, keyed alike.
     """
     records = list(records)
     tasks = {t: find_task(t) for t in {r.task for r in records}}
-    readings: dict[tuple[str, str], str] = {}
+    readings: dict[tuple[str, TaskOverrides], str] = {}
 
     def reading_of(r: OfflineRecord) -> str:
         """How the run's task parameters differ from the task's defaults (rows stored before a parameter
         existed read as its implicit value, so they share the row of the runs that state it)."""
-        key = (r.task, json.dumps(r.task_params, sort_keys=True))
+        key = (r.task, TaskOverrides.of(r.task_params))
         if key not in readings:
-            readings[key] = variant(tasks[r.task], r.task_params) if tasks[r.task] else key[1]
+            readings[key] = variant(tasks[r.task], r.task_params) if tasks[r.task] else key[1].label()
         return readings[key]
 
     def cell_of(r: OfflineRecord) -> tuple[Any, ...]:
@@ -197,7 +202,7 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
         row = (len(task.goals) if task else 0, r.task, r.protocol, r.observability, reading)
         if row not in board.rows:
             board.rows.append(row)
-            key = (r.task, json.dumps(r.task_params, sort_keys=True), r.protocol, r.observability)
+            key = cell_of_record(r)
             if key in ceilings:
                 board.ceilings[row] = ceilings[key]
             if key in pairs_only:

@@ -39,7 +39,7 @@ class Leaderboard:
         rows: The offline rows (each carries its run's provenance).
         records: Their across-seed records.
         boards: The paper-style tables, with reported values and ceilings attached.
-        ceilings: The Bayes ceilings by ``(task, task parameters as JSON, protocol, level)``.
+        ceilings: The Bayes ceilings by cell (:class:`~grail_bench.harness.ceiling.Cell`).
         reference: The reported values, if any.
         studies: Per mode beyond the offline one that has rows, its :class:`Study`.
         fits: The offline fits' diagnostics by ``(task, recognizer, config hash)``, where stored.
@@ -48,7 +48,7 @@ class Leaderboard:
     rows: list[ResultRow]
     records: list[OfflineRecord]
     boards: list[Board]
-    ceilings: dict[tuple[str, str, str, float], Ceiling]
+    ceilings: dict[Cell, Ceiling]
     reference: dict[tuple[str, str, float], Reported] | None = None
     studies: dict[str, Study] = field(default_factory=dict)
     fits: dict[tuple[str, str, str], FitSummary] = field(default_factory=dict)

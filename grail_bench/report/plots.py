@@ -24,6 +24,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from grail_bench.report.boards import domain_of, own_scorer_records, short_name
+from grail_bench.task.observation import level_text
 
 Records = Sequence[Any]
 #: Settings of every SVG the page embeds: text as text (smaller, selectable) and stable element IDs.
@@ -142,7 +143,7 @@ def panda_regimes(records: Records, out: Path) -> list[Path]:
     fig, ax = plt.subplots(figsize=(max(6.0, 0.9 * len(groups) + 2), 3.8))
     _bars(ax, groups, f1, std, "F1")
     ax.set_ylim(0, 1.1)
-    ax.set_title(f"PandaReach, {min(r.observability for r in mine):.0%} observed", fontsize=9)
+    ax.set_title(f"PandaReach, {level_text(min(r.observability for r in mine))} observed", fontsize=9)
     return save(fig, out, "panda_regimes")
 
 
@@ -350,7 +351,7 @@ def budgets(curves: Sequence[dict[str, Any]]) -> Any:
         mine = [c for c in curves if (c["recognizer"], c["param"]) == (recognizer, param)]
         for i, c in enumerate(mine):
             x = [p["value"] for p in c["points"]]
-            label = f"{short_name(c['task'])} {c['observability']:.0%}"
+            label = f"{short_name(c['task'])} {level_text(c['observability'])}"
             top.plot(x, [p["f1_mean"] for p in c["points"]], marker="o", color=f"C{i}", label=label)
             top.fill_between(x, np.clip([p["f1_ci95_low"] for p in c["points"]], 0, 1),
                              np.clip([p["f1_ci95_high"] for p in c["points"]], 0, 1), color=f"C{i}", alpha=0.2)

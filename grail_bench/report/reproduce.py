@@ -33,6 +33,7 @@ from typing import Any, Mapping, Sequence
 from grail_bench.core import provenance
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import cache_dir
+from grail_bench.core.seeding import seed_list
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import MODES, Row, get_mode
@@ -122,7 +123,7 @@ class Section:
                 specs = tuple(RecognizerSpec(r, c, self.scorers) for r, c in configs)
                 observation = ObservationSpec.resolve(self.protocol or task.protocol, self.rounding or task.rounding,
                                                       levels)
-                out.append(Request(task.id, specs, tuple(range(self.seeds or seeds)), observation, params, self.mode,
+                out.append(Request(task.id, specs, tuple(seed_list(self.seeds or seeds)), observation, params, self.mode,
                                    task=task))
         return out
 
@@ -171,7 +172,7 @@ class Profile:
                             f"{', '.join(s.name for s in self.sections)}")
         if seeds is not None and seeds < 1:
             raise UserError(f"--seeds must be at least 1, got {seeds}")
-        requests = [r if seeds is None else dataclasses.replace(r, seeds=tuple(range(seeds)))
+        requests = [r if seeds is None else dataclasses.replace(r, seeds=tuple(seed_list(seeds)))
                     for section in self.sections if not only or section.name in only
                     for r in section.requests(self.seeds, self.config)]
         if not recognizers:
@@ -226,8 +227,13 @@ def load_profile(name_or_path: str) -> Profile:
         config = {k: dict(v) for k, v in data.get("config", {}).items()}
     except (KeyError, TypeError, ValueError) as exc:
         raise UserError(f"profile {name_or_path}: malformed ({type(exc).__name__}: {exc})") from None
-    if seeds < 1 or not sections:
-        raise UserError(f"profile {name_or_path}: needs seeds >= 1 and at least one [[section]]")
+    if not sections:
+        raise UserError(f"profile {name_or_path}: needs at least one [[section]]")
+    for count, where in [(seeds, "seeds"), *((s.seeds, f"section {s.name!r}: seeds") for s in sections)]:
+        try:
+            seed_list(count if count is not None else 1)
+        except UserError as exc:
+            raise UserError(f"profile {name_or_path}: {where}: {exc}") from None
     for section in sections:
         if section.vary is not None and section.vary.of == "tasks" and len(section.tasks) < 2:
             raise UserError(f"profile {name_or_path}: section {section.name!r} varies its tasks; list two or more")

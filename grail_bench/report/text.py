@@ -22,6 +22,7 @@ from grail_bench.report.boards import (
     verdict_counts,
 )
 from grail_bench.report.reference import MARKS
+from grail_bench.task.observation import level_text
 
 Grid = tuple[list[str], list[list[tuple[str, bool]]]]  # header; per row, (text, bold) cells
 
@@ -63,7 +64,7 @@ def board_grid(board: Board, paper_label: Callable[[str], str] = str, ci: bool =
             header.append(paper_label(c))
     rows = []
     for row in board.rows:
-        cells = [(row_name(row), False), (str(row[0]), False), (f"{row[3]:.0%}", False),
+        cells = [(row_name(row), False), (str(row[0]), False), (level_text(row[3]), False),
                  (_ceiling_text(board.ceilings.get(row)), False)]
         if board.pairs_only:
             cells.append((_ceiling_text(board.pairs_only.get(row)), False))
@@ -181,7 +182,7 @@ def ablation_table(rows: list[dict[str, Any]]) -> Table:
     """Terminal table of :func:`grail_bench.report.boards.ablation_rows`."""
     levels = sorted({lv for r in rows for lv in r["f1"]})
     table = Table(title="scorer ablation: F1 (mean ± std) and scoring time")
-    for col in ("task", "recognizer", "scorer", *[f"F1 @ {lv:.0%}" for lv in levels], "µs / observation",
+    for col in ("task", "recognizer", "scorer", *[f"F1 @ {level_text(lv)}" for lv in levels], "µs / observation",
                 "Brier / NLL / ECE"):
         table.add_column(col)
     for r in rows:
@@ -194,7 +195,7 @@ def ablation_table(rows: list[dict[str, Any]]) -> Table:
 def ablation_markdown(rows: list[dict[str, Any]]) -> str:
     """:func:`grail_bench.report.boards.ablation_rows` as a Markdown table."""
     levels = sorted({lv for r in rows for lv in r["f1"]})
-    header = ["task", "recognizer", "scorer", *[f"F1 @ {lv:.0%}" for lv in levels], "µs / observation", "Brier", "NLL",
+    header = ["task", "recognizer", "scorer", *[f"F1 @ {level_text(lv)}" for lv in levels], "µs / observation", "Brier", "NLL",
               "ECE"]
     lines = ["# Scorer ablation", "",
              "F1 (mean ± std over seeds) of each recognizer under each scorer, from the same fitted policies,",
@@ -243,7 +244,7 @@ def tasks_table(tasks: Sequence[Any]) -> Table:
         goals = " ".join("(" + ",".join(f"{c:g}" for c in g) + ")" for g in task.goals)
         table.add_row(task.id, task.domain, task.regime, goals,
                       f"{task.n_demos} ({task.n_train}/{task.n_demos - task.n_train})",
-                      ", ".join(f"{p:.0%}" for p in task.observability), task.protocol_label)
+                      ", ".join(level_text(p) for p in task.observability), task.protocol_label)
     return table
 
 
@@ -275,7 +276,7 @@ def ceiling_table(task_id: str, ceilings: Sequence[Any]) -> Table:
     for col in ("protocol", "obs", "ceiling", "std. error", "chance", "method"):
         table.add_column(col)
     for c in ceilings:
-        table.add_row(c.protocol, f"{c.observability:.0%}", f"{c.accuracy:.3f}",
+        table.add_row(c.protocol, level_text(c.observability), f"{c.accuracy:.3f}",
                       f"{c.stderr:.3f}" if c.method == "monte-carlo" else "exact", f"{c.chance:.3f}",
                       c.method + (f" ({c.samples} samples)" if c.samples else ""))
     return table
@@ -323,7 +324,7 @@ def budgets_markdown(curves: Sequence[dict[str, Any]], title: str) -> str:
              "the goal count: 1 is linear (one model per goal), 0 flat.", ""]
     for c in curves:
         lines += [f"## {c['recognizer']}: {c['param']} on {c['task'].removeprefix('GRAIL/')} "
-                  f"({c['protocol']}, {c['observability']:.0%} observed)", ""]
+                  f"({c['protocol']}, {level_text(c['observability'])} observed)", ""]
         if "exponent" in c:
             lines += [f"Fit cost exponent: b = {_num(c['exponent'])}.", ""]
         else:

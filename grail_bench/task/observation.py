@@ -41,6 +41,12 @@ LEGACY_NAMES = {"random": "subset"}  # the deprecated ``--sampling random``
 LEVEL_DECIMALS = 6  # levels are stored, and key their cells' random streams, to this many decimals
 
 
+def level_text(level: float) -> str:
+    """How an observability level reads in tables: a percentage to the precision levels are stored at
+    (``10%``, ``2%``, ``0.1%``), so two stored levels never read the same."""
+    return f"{round(level * 100, LEVEL_DECIMALS - 2):g}%"
+
+
 def parse_observability(values: Iterable[float] | str) -> tuple[float, ...]:
     """Validate observability fractions (accepts ``"0.1,0.2"``), rounded to :data:`LEVEL_DECIMALS` decimals.
 

@@ -20,6 +20,7 @@ import numpy as np
 from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, record_fields
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.stats import metrics, robust
+from grail_bench.task.observation import level_text
 
 #: A goal is in the set-valued answer when its score is within this share of the scores' range of the best.
 SET_TOLERANCE = 0.1
@@ -184,7 +185,7 @@ def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
     return sorted(records, key=lambda r: (r.task, r.recognizer, r.scorer, r.protocol, r.observability))
 
 
-COLUMNS = LEAD + (Column("obs", lambda r: f"{r.observability:.0%}", lambda r: r.observability),) + WHO + (
+COLUMNS = LEAD + (Column("obs", lambda r: level_text(r.observability), lambda r: r.observability),) + WHO + (
     Column("F1", lambda r: f"{r.f1_mean:.2f} ± {r.f1_std:.2f}", lambda r: r.f1_mean),
     Column("accuracy", lambda r: f"{r.accuracy_mean:.2f}", lambda r: r.accuracy_mean),
     Column("fit s/goal", lambda r: f"{r.fit_seconds_per_goal:.2f}", lambda r: r.fit_seconds_per_goal),

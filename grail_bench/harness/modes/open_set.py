@@ -33,6 +33,7 @@ from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.recognizers.contract import Capabilities
 from grail_bench.stats import metrics
 from grail_bench.task.observation import ObservationSpec
+from grail_bench.task.observation import level_text
 
 #: Share of training observations the calibrated rule would answer "none of these".
 ALPHA = 0.05
@@ -177,7 +178,7 @@ def aggregate(rows: Iterable[OpenSetRow]) -> list[OpenSetRecord]:
             for group in cells(rows)]
 
 
-COLUMNS = LEAD + (Column("obs", lambda r: f"{r.observability:.0%}", lambda r: r.observability),) + WHO + (
+COLUMNS = LEAD + (Column("obs", lambda r: level_text(r.observability), lambda r: r.observability),) + WHO + (
     Column("AUROC", interval("auroc"), lambda r: r.auroc_mean),
     Column("F1 (+ none)", interval("f1"), lambda r: r.f1_mean),
     Column("accuracy", lambda r: f"{r.accuracy_mean:.2f}", lambda r: r.accuracy_mean),

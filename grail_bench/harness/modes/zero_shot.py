@@ -26,6 +26,7 @@ from grail_bench.core.trajectory import Goal
 from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, interval, record_fields
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.stats import metrics
+from grail_bench.task.observation import level_text
 
 
 @dataclass(frozen=True)
@@ -126,7 +127,7 @@ def aggregate(rows: Iterable[ZeroShotRow]) -> list[ZeroShotRecord]:
             for group in cells(rows)]
 
 
-COLUMNS = LEAD + (Column("obs", lambda r: f"{r.observability:.0%}", lambda r: r.observability),) + WHO + (
+COLUMNS = LEAD + (Column("obs", lambda r: level_text(r.observability), lambda r: r.observability),) + WHO + (
     Column("F1 (all goals)", interval("f1"), lambda r: r.f1_mean),
     Column("F1 held-out goals", interval("f1_held_out"), lambda r: r.f1_held_out_mean),
     Column("F1 trained goals", lambda r: f"{r.f1_trained_mean:.2f}", lambda r: r.f1_trained_mean),

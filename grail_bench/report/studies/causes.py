@@ -29,6 +29,7 @@ from grail_bench.harness.planning import RecognizerSpec, plan
 from grail_bench.harness.store import ResultsStore
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.task import make_task
+from grail_bench.task.observation import level_text
 
 TASKS = tuple(f"GRAIL/MiniGrid-{name}-v0" for name in (
     "Optimal", "Optimal-4Goals", "Optimal-6Goals", "Suboptimal", "Suboptimal-4Goals", "Suboptimal-6Goals"))
@@ -91,7 +92,7 @@ def run(store: ResultsStore, tasks: Sequence[str] = TASKS, samples: int = 2000) 
                 if level not in ceilings:
                     ceilings[level] = bayes_ceiling(task, "subset", level, rounding=task.rounding, pairs_only=True,
                                                     samples=samples)
-                lines.append(_cell(f"{name} {level:.0%} {recognizer}", f1, reported.text, ceilings[level], fits))
+                lines.append(_cell(f"{name} {level_text(level)} {recognizer}", f1, reported.text, ceilings[level], fits))
     return "\n".join(lines) + "\n"
 
 

@@ -33,6 +33,7 @@ from grail_bench.domains.minigrid.grid import FORWARD, STAY
 from grail_bench.harness.api import evaluate
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
 from grail_bench.task import make_task
+from grail_bench.task.observation import level_text
 
 N_ACTIONS, EPS = 4, 0.05
 NAME = "hand-built"  # the recognizer's name while the study runs
@@ -132,7 +133,7 @@ def run(tasks: Sequence[str], params: Mapping[str, Any] | None = None, seeds: in
         for task in tasks:
             for name, config in VARIANTS.items():
                 records = evaluate(task, [(NAME, config)], seeds=seeds, task_params=dict(params or {}))
-                levels = " / ".join(f"{r.observability:.0%}: {r.f1_mean:.2f}" for r in records)
+                levels = " / ".join(f"{level_text(r.observability)}: {r.f1_mean:.2f}" for r in records)
                 lines.append(f"| {task.removeprefix('GRAIL/')} | {name} | {levels} |")
     finally:
         unregister_recognizer(NAME)

@@ -25,6 +25,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.harness.ceiling import bayes_ceiling
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.task import GRTask, make_task
+from grail_bench.task.observation import level_text
 
 TASKS = {"Optimal": 2, "Optimal-4Goals": 4, "Optimal-6Goals": 6,
          "Suboptimal": 2, "Suboptimal-4Goals": 4, "Suboptimal-6Goals": 6}  # short name -> goals
@@ -97,7 +98,7 @@ def run(tasks: Sequence[str] = TASK_IDS, samples: int = 2000) -> str:
                         paper_mean = reference[(task_id(name), recognizer, c.observability)].mean_std[0]
                         total += 1
                         if above_ceiling(paper_mean, 30 * TASKS[name], c.accuracy + 2 * c.stderr):
-                            above.append(f"{name} {c.observability:.0%} {recognizer}")
+                            above.append(f"{name} {level_text(c.observability)} {recognizer}")
             listed = f": {', '.join(above)}" if above else ""
             lines.append(f"| {route}, {rounding} | {'; '.join(cells)} | {len(above)} of {total}{listed} |")
     return "\n".join(lines) + "\n"
