@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
+import grail_bench
 from grail_bench.domains.minigrid.env import GRMiniGridEnv
 from grail_bench.domains.minigrid.grid import FORWARD, LEFT, RIGHT, STAY
 
@@ -72,3 +75,22 @@ def test_renders_rgb():
     env.reset(seed=0)
     frame = env.render()
     assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
+
+
+@pytest.mark.parametrize("kwargs, why", [
+    ({"start": [0, 4]}, "start [0, 4] must be a free cell"),
+    ({"start": [7, 4]}, "start [7, 4] must be a free cell"),  # the obstacle
+    ({"start_dir": 5}, "start_dir must be 0"),
+    ({"size": 2}, "size must be an integer >= 3"),
+    ({"obstacles": [[9, 9]]}, "obstacle [9, 9] lies outside"),
+    ({"obstacles": [[7, 1]]}, "goal [7, 1] is not a free cell"),  # an obstacle on a goal
+    ({"max_steps": -1}, "expected a positive integer"),
+    ({"max_steps": 0}, "expected a positive integer"),
+    ({"max_steps": 5.5}, "expected an integer"),
+])
+def test_env_parameters_are_checked_where_they_enter(kwargs, why):
+    """gym.make's keyword arguments are validated like a card's, before any env is built."""
+    import gymnasium as gym
+
+    with pytest.raises(grail_bench.UserError, match=re.escape(why)):
+        gym.make("GRAIL/MiniGrid-Biased-v0", **kwargs)

@@ -53,6 +53,10 @@ class MiniGrid:
         for goal in goals:
             if any(float(c) != int(c) for c in goal):
                 raise UserError(f"goal {list(goal)} must be integer cell coordinates")
+        free = _free_cells(env_params)
+        for goal in goals:
+            if tuple(int(c) for c in goal) not in free:
+                raise UserError(f"goal {list(goal)} is not a free cell of the room (walls and obstacles excluded)")
 
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.minigrid.env import GRMiniGridEnv
@@ -68,6 +72,40 @@ class MiniGrid:
         from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
 
         return GoalDemonstrator(task, goal)
+
+
+def _cell(name: str, value: Any) -> tuple[int, int]:
+    if (not isinstance(value, (list, tuple)) or len(value) != 2
+            or not all(isinstance(c, int) and not isinstance(c, bool) for c in value)):
+        raise UserError(f"{name} must be a cell [x, y] of two integers, got {value!r}")
+    return value[0], value[1]
+
+
+def _free_cells(env_params: Mapping[str, Any]) -> set[tuple[int, int]]:
+    """The room's free cells, after checking its env parameters (a wall runs round the ``size`` x ``size`` grid).
+
+    Raises:
+        UserError: For a size below 3, obstacles or a start outside the room, the start on an obstacle, or a
+            start direction other than 0-3.
+    """
+    size = env_params["size"]
+    if isinstance(size, bool) or not isinstance(size, int) or size < 3:
+        raise UserError(f"size must be an integer >= 3 (the room and its walls), got {size!r}")
+    inside = {(x, y) for x in range(1, size - 1) for y in range(1, size - 1)}
+    obstacles = env_params["obstacles"]
+    if not isinstance(obstacles, (list, tuple)):
+        raise UserError(f"obstacles must be a list of cells, got {obstacles!r}")
+    blocked = {_cell("each obstacle", o) for o in obstacles}
+    outside = sorted(blocked - inside)
+    if outside:
+        raise UserError(f"obstacle {list(outside[0])} lies outside the room's free cells 1..{size - 2}")
+    start = _cell("start", env_params["start"])
+    if start not in inside - blocked:
+        raise UserError(f"start {list(start)} must be a free cell of the room (1..{size - 2}, not an obstacle)")
+    start_dir = env_params["start_dir"]
+    if isinstance(start_dir, bool) or start_dir not in (0, 1, 2, 3):
+        raise UserError(f"start_dir must be 0 (east), 1 (south), 2 (west) or 3 (north), got {start_dir!r}")
+    return inside - blocked
 
 
 DOMAIN = MiniGrid()

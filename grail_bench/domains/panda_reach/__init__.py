@@ -59,6 +59,9 @@ class PandaReach:
         for name in ("sigma", "half_width"):
             if name in params:
                 _non_negative(name, params[name])
+        threshold = env_params["distance_threshold"]
+        if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) or threshold <= 0:
+            raise UserError(f"distance_threshold must be a number > 0, got {threshold!r}")
         max_action = env_params["max_action"]
         if isinstance(max_action, bool) or not isinstance(max_action, (int, float)) or not 0 < max_action <= 1:
             raise UserError(f"max_action must be in (0, 1], got {max_action!r}")
