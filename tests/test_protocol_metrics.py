@@ -54,9 +54,12 @@ def test_seed_list():
         seed_list(0)
 
 
-def test_predict_breaks_ties_towards_lowest_index_and_reports_them():
-    assert metrics.predict(np.array([0.1, 0.5, 0.2])) == (1, False)
-    assert metrics.predict(np.array([0.5, 0.1, 0.5])) == (0, True)
+def test_prediction_shares_ties_evenly_and_counts_them():
+    assert metrics.prediction(np.array([0.1, 0.5, 0.2])).tolist() == [0.0, 1.0, 0.0]
+    assert metrics.prediction(np.array([0.5, 0.1, 0.5])).tolist() == [0.5, 0.0, 0.5]
+    rows = metrics.prediction(np.array([[0.1, 0.5, 0.2], [0.5, 0.1, 0.5], [0.0, 0.0, 0.0]]))
+    assert rows.tolist() == [[0.0, 1.0, 0.0], [0.5, 0.0, 0.5], [1 / 3, 1 / 3, 1 / 3]]
+    assert metrics.n_tied(rows) == 2 and metrics.n_tied(rows[0]) == 0
 
 
 def test_classification_macro_scores():

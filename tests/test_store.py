@@ -322,3 +322,102 @@ def test_read_only_file_is_refused_for_writing_at_once(tmp_path):
         ResultsStore(path)
     with ResultsStore(path, read_only=True) as store:
         assert len(store.rows()) == 2
+
+
+# --- ties: rows stored under the old rule (lowest-index tie-breaking) -----------------------------------------
+
+
+def _old_schema(path: Path) -> None:
+    """Make ``path`` a schema-7 store: no ``ties`` column anywhere, no ``n_ties`` outside ``results``."""
+    conn = sqlite3.connect(path)
+    for table in ("results", "online", "open_set", "zero_shot"):
+        conn.execute(f"ALTER TABLE {table} DROP COLUMN ties")
+    for table in ("online", "open_set", "zero_shot"):
+        conn.execute(f"ALTER TABLE {table} DROP COLUMN n_ties")
+    conn.execute("PRAGMA user_version = 7")
+    conn.commit()
+    conn.close()
+
+
+def _online(seed: int, accuracy: float = 0.7, **changes):
+    from grail_bench.harness.store import OnlineRow
+
+    return OnlineRow(task="GRAIL/T-v0", recognizer="bc", scorer="mse", config_hash="abc", seed=seed,
+                     protocol="prefix", n_trajectories=6, convergence=0.5, never=0.0, step_accuracy=accuracy,
+                     f1_auc=0.6, curve="{}", fit_seconds_per_goal=0.1, score_us_per_prefix=1.0, config="{}",
+                     versions="{}", **changes)
+
+
+def old_store(tmp_path: Path) -> Path:
+    """A schema-7 store: offline seed 0 tied (n_ties 2), seed 1 did not; one online row (ties not counted)."""
+    path = tmp_path / "old.sqlite"
+    with ResultsStore(path) as store:
+        store.add([dataclasses.replace(row(0), n_ties=2), row(1), _online(0)])
+    _old_schema(path)
+    return path
+
+
+def test_an_old_rule_row_with_ties_is_not_completed_and_a_rerun_replaces_it(tmp_path):
+    from grail_bench.harness.store import OnlineRow, stale
+
+    path = old_store(tmp_path)
+    with ResultsStore(path) as store:
+        rows = store.rows()
+        assert [(r.seed, r.n_ties, r.ties) for r in rows] == [(0, 2, None), (1, 0, None)]
+        assert [stale(r) for r in rows] == [True, False]
+        assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix") == {(1, 0.1)}  # seed 0 is rerun
+        assert store.select(OnlineRow)[0].ties is None
+        assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix", OnlineRow) == set()  # ties uncounted
+        # The rerun: seed 0 and the online row replace the stale ones, seed 1 (valid) keeps its first write.
+        rerun = [dataclasses.replace(row(0, f1=0.8), n_ties=2), row(1, f1=0.9), _online(0, 0.9, n_ties=3)]
+        assert store.add(rerun) == 2
+        assert [(r.seed, r.f1, r.n_ties, r.ties) for r in store.rows()] == [(0, 0.8, 2, "uniform"), (1, 0.5, 0, None)]
+        assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix") == {(0, 0.1), (1, 0.1)}
+        assert [(r.step_accuracy, r.n_ties, r.ties) for r in store.select(OnlineRow)] == [(0.9, 3, "uniform")]
+        assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix", OnlineRow) == {(0, None)}
+        # A row of the uniform rule is never replaced, ties or not: the first write wins.
+        assert store.add([dataclasses.replace(row(0, f1=0.1), n_ties=2), _online(0, 0.1, n_ties=3)]) == 0
+        assert [r.f1 for r in store.rows()] == [0.8, 0.5]
+    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+
+
+def test_a_run_recomputes_exactly_the_stale_units_and_replaces_their_rows(tmp_path):
+    import grail_bench
+    from grail_bench.harness.planning import RecognizerSpec
+    from grail_bench.harness.sweep import Request, plan_request, run_sweep
+    from grail_bench.task.observation import ObservationSpec
+
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0")
+    request = Request(task.id, (RecognizerSpec("bc", {"n_epochs": 1}),), (0, 1),
+                      ObservationSpec("subset", "ceil", (0.5,)))
+    path = tmp_path / "old.sqlite"
+    with ResultsStore(path) as store:
+        (p,), _, _ = plan_request(request, store)
+        stored = [ResultRow(task=task.id, recognizer=p.name, scorer=label, config_hash=p.config_hash, seed=seed,
+                            observability=0.5, protocol=request.label, accuracy=-1.0, precision=-1.0, recall=-1.0,
+                            f1=-1.0, n_observations=6, n_ties=2 * (seed == 0), fit_seconds_per_goal=0.1,
+                            score_us_per_observation=10.0, config="{}", versions="{}")
+                  for label in p.labels for seed in (0, 1)]
+        store.add(stored)
+    _old_schema(path)
+    with ResultsStore(path) as store:
+        _, units, skipped = plan_request(request, store)
+        assert [u.seed for u in units] == [0] and skipped == 1  # seed 0 tied under the old rule
+        run_sweep([request], store)
+        after = store.rows()
+        assert {(r.seed, r.ties) for r in after} == {(0, "uniform"), (1, None)} and len(after) == len(stored)
+        assert all(r.f1 >= 0 for r in after if r.seed == 0) and all(r.f1 == -1.0 for r in after if r.seed == 1)
+        assert plan_request(request, store)[1] == []
+
+
+def test_read_only_opens_an_old_schema_store_with_its_old_rule_rows(tmp_path):
+    from grail_bench.harness.store import OnlineRow
+
+    path = old_store(tmp_path)
+    before = snapshot(tmp_path)
+    with ResultsStore(path, read_only=True) as store:
+        assert [(r.seed, r.n_ties, r.ties) for r in store.rows()] == [(0, 2, None), (1, 0, None)]
+        assert [(r.n_ties, r.ties) for r in store.select(OnlineRow)] == [(None, None)]
+        assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix") == {(1, 0.1)}
+    assert snapshot(tmp_path) == before
+    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == 7

@@ -10,9 +10,21 @@ observability, observation protocol); ``online`` (every prefix scored), one
 ``open_set`` (a goal held out), one :class:`OpenSetRow` per (task, recognizer,
 scorer, config hash, seed, observability, protocol); ``zero_shot`` (goals never
 fitted), one :class:`ZeroShotRow` per the same key. Rows are written in one
-transaction per fitted seed with ``INSERT OR IGNORE``, in WAL mode with a busy
-timeout, so an interrupted run keeps what it finished and concurrent writers
-lose nothing.
+transaction per fitted seed, in WAL mode with a busy timeout, so an
+interrupted run keeps what it finished and concurrent writers lose nothing; a
+row already stored is kept (the first write wins), unless it is stale.
+
+Stale rows. Rows of every mode record how ties between goals of equal best
+score were broken (``ties``: ``"uniform"``, the expectation under uniform
+tie-breaking, :data:`grail_bench.stats.metrics.TIE_RULE`) and how many
+observations (online: prefixes) tied (``n_ties``). Rows stored before schema 8
+have ``ties`` NULL: they gave the prediction to the lowest-index tied goal. One
+that counted no tie (``n_ties = 0``, offline rows) reads the same under both
+rules and stays valid. One that tied (``n_ties > 0``), or whose mode did not
+count ties (online, open-set and zero-shot rows before schema 8: any of them
+may have tied), is stale: :meth:`ResultsStore.completed` leaves it out, so the
+next ``run`` or ``reproduce`` recomputes it, and :meth:`ResultsStore.add`
+replaces it with the new row of the same key.
 
 Commands that only read (the leaderboard, studies) open a store with
 ``read_only=True``: the file must already be a grail-bench store, and nothing
@@ -38,9 +50,9 @@ from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
 
-SCHEMA_VERSION = 7
+SCHEMA_VERSION = 8
 __all__ = ["SCHEMA_VERSION", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
-           "ZeroShotRow", "check_store_writable", "default_store_path"]
+           "ZeroShotRow", "check_store_writable", "default_store_path", "stale"]
 _HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite database file
 _SIDECARS = ("-wal", "-journal")  # present while a connection has the store open (or after a crash)
 
@@ -49,11 +61,19 @@ class StoreError(UserError):
     """The store cannot be opened, read or written."""
 
 
-_COLUMNS = [f.name for f in fields(ResultRow)]
 _TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash": "TEXT", "seed": "INTEGER",
           "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
           "config": "TEXT", "versions": "TEXT", "provenance": "TEXT", "n_trajectories": "INTEGER",
-          "curve": "TEXT", "held_out": "TEXT", "confusion": "TEXT", "mode": "TEXT", "diagnostics": "TEXT"}
+          "curve": "TEXT", "held_out": "TEXT", "confusion": "TEXT", "mode": "TEXT", "diagnostics": "TEXT",
+          "ties": "TEXT"}
+#: SQL condition of a stale row (see the module docstring): stored under the old tie rule, and it may have tied.
+_STALE = "{t}.ties IS NULL AND ({t}.n_ties IS NULL OR {t}.n_ties > 0)"
+
+
+def stale(row: Row) -> bool:
+    """Whether a stored row is stale: computed under the old tie rule (towards the lowest index) and it may have
+    tied, so it must be recomputed (see the module docstring)."""
+    return row.ties is None and (row.n_ties is None or row.n_ties > 0)
 
 
 def _tables() -> dict[type, tuple[str, tuple[str, ...]]]:
@@ -171,10 +191,11 @@ class ResultsStore:
         self.close()
 
     def add(self, rows: Iterable[Row]) -> int:
-        """Insert rows (of any kind, each into its table) in one transaction, ignoring ones already stored.
+        """Insert rows (of any kind, each into its table) in one transaction, ignoring ones already stored,
+        except that a row replaces a :func:`stale` one of the same key.
 
         Returns:
-            How many rows were new.
+            How many rows were new or replaced a stale one.
         """
         if self.read_only:
             raise StoreError(f"results store {self.path} was opened read-only")
@@ -186,9 +207,7 @@ class ResultsStore:
                 before = self._conn.total_changes
                 tables = _tables()
                 for kind, values in by_kind.items():
-                    names = [f.name for f in fields(kind)]
-                    self._conn.executemany(f"INSERT OR IGNORE INTO {tables[kind][0]} ({', '.join(names)}) "
-                                           f"VALUES ({', '.join('?' * len(names))})", values)
+                    self._conn.executemany(_insert(kind, *tables[kind]), values)
                 return self._conn.total_changes - before
         except sqlite3.Error as exc:
             raise StoreError(f"cannot write to results store {self.path}: {exc}") from None
@@ -222,10 +241,24 @@ class ResultsStore:
 
     def completed(self, task: str, recognizer: str, scorer: str, config_hash: str, protocol: str,
                   kind: type[Row] | Mode = ResultRow) -> set[tuple[int, float | None]]:
-        """``(seed, observability)`` pairs already stored for one configuration (observability ``None`` online)."""
+        """``(seed, observability)`` pairs already stored for one configuration (observability ``None`` online).
+
+        A :func:`stale` row does not count: the run recomputes it.
+        """
         return {(r.seed, getattr(r, "observability", None)) for r in
                 self.select(kind, task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash,
-                            protocol=protocol)}
+                            protocol=protocol) if not stale(r)}
+
+
+def _insert(kind: type, table: str, key: tuple[str, ...]) -> str:
+    """The statement storing one row of ``kind``: ignored if its key is stored, unless the stored row is stale."""
+    names = [f.name for f in fields(kind)]
+    head = f"INTO {table} ({', '.join(names)}) VALUES ({', '.join('?' * len(names))})"
+    if "ties" not in names:
+        return f"INSERT OR IGNORE {head}"
+    update = ", ".join(f"{n} = excluded.{n}" for n in names if n not in key)
+    return (f"INSERT {head} ON CONFLICT ({', '.join(key)}) DO UPDATE SET {update}, created_at = datetime('now') "
+            f"WHERE {_STALE.format(t=table)}")
 
 
 def check_store_writable(path: str | Path) -> Path:
@@ -308,9 +341,14 @@ def _migrate_v1(conn: sqlite3.Connection) -> None:
 
 
 def _add_missing_columns(conn: sqlite3.Connection) -> None:
-    """Schema 2 -> 3 -> 4 -> 6: the columns added since (``provenance``; ``top2``, ``mean_rank``; ``confusion``),
-    empty for the rows already stored. (Schema 5 added tables, and schema 6 the ``fits`` table too.)"""
-    columns = {r[1] for r in conn.execute("PRAGMA table_info(results)")}
-    for name in _COLUMNS:
-        if name not in columns:
-            conn.execute(f"ALTER TABLE results ADD COLUMN {name} {_TYPES.get(name, 'REAL')}")
+    """Schema 2 -> ... -> 8: the columns added since to the tables already there, empty (NULL) for the rows
+    already stored: ``provenance``; ``top2``, ``mean_rank``; ``confusion``; the reliability and set metrics;
+    schema 8 ``ties`` in every mode's table and ``n_ties`` in those that had none. (Schema 5 added tables, and
+    schema 6 the ``fits`` table too.)"""
+    for kind, (table, _) in _tables().items():
+        columns = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
+        if not columns:  # not there yet: created whole
+            continue
+        for f in fields(kind):
+            if f.name not in columns:
+                conn.execute(f"ALTER TABLE {table} ADD COLUMN {f.name} {_TYPES.get(f.name, 'REAL')}")

@@ -1,19 +1,54 @@
-"""Metrics as pure functions: per-seed classification scores and across-seed summaries."""
+"""Metrics as pure functions: per-seed classification scores and across-seed summaries.
+
+Ties. Where several goals share the best score, the prediction is the
+expectation under uniform tie-breaking, without a random draw: each of the
+tied goals ``W`` is predicted with probability ``1 / |W|`` (:func:`prediction`).
+An observation adds ``1 / |W|`` to the cell (true goal, w) of the *expected*
+confusion matrix for each ``w`` in ``W`` (:func:`expected_confusion`), so
+accuracy is exactly its expectation, the mean of ``[true in W] / |W|``, and
+precision, recall and F1 are those of the expected (fractional) confusion
+matrix (:func:`classification_of`), each observation giving fractional credit.
+Without ties every prediction is one goal and every value equals that of the
+plain argmax to the last bit.
+"""
 
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 from scipy import stats
 from scipy.special import softmax
 
+#: How predictions break ties between goals of equal best score, as stored rows record it (the store's
+#: ``ties`` column): expected over a uniform choice among the tied goals. Rows stored before carry none;
+#: they gave the prediction to the lowest-index tied goal.
+TIE_RULE = "uniform"
 
-def predict(scores: np.ndarray) -> tuple[int, bool]:
-    """Index of the best score, ties broken towards the lowest index; and whether it tied."""
-    best = scores.max()
-    winners = np.flatnonzero(scores == best)
-    return int(winners[0]), len(winners) > 1
+
+def prediction(scores: np.ndarray) -> np.ndarray:
+    """Each goal's probability of being predicted under uniform tie-breaking, along the last axis.
+
+    The goals tied at the best score each get ``1 / |W|``, the others 0: a
+    ``(K,)`` score vector gives a ``(K,)`` distribution, ``(T, K)`` prefix
+    scores one per row. Without a tie it is the one-hot vector of the argmax.
+    """
+    scores = np.asarray(scores, dtype=float)
+    best = scores == scores.max(axis=-1, keepdims=True)
+    return best / best.sum(axis=-1, keepdims=True)
+
+
+def n_tied(predicted: np.ndarray) -> int:
+    """How many rows of :func:`prediction` (or one vector) spread over more than one tied goal."""
+    return int(np.sum(np.max(predicted, axis=-1) < 1.0))
+
+
+def as_prediction(predicted: np.ndarray, n_classes: int) -> np.ndarray:
+    """``(N, n_classes)`` prediction distributions from either predicted indices ``(N,)`` (one-hot) or distributions."""
+    predicted = np.asarray(predicted)
+    if predicted.ndim == 1:
+        return np.eye(n_classes)[predicted.astype(np.int64)]
+    return predicted.astype(float)
 
 
 def ranking(scores: np.ndarray, label: int, k: int = 2) -> tuple[float, float]:
@@ -34,29 +69,38 @@ def _safe_divide(num: np.ndarray, den: np.ndarray) -> np.ndarray:
 
 
 def classification(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> dict[str, float]:
-    """Accuracy and macro precision, recall and F1 over all ``n_classes`` candidate goals.
+    """Accuracy and macro precision, recall and F1 over all ``n_classes`` candidate goals, of hard predictions.
 
     A class never predicted (or never true) scores 0 precision (recall) and 0
     F1, as scikit-learn's ``precision_recall_fscore_support(average="macro",
     zero_division=0)`` computes them (tested equal); numpy only, so importing
     the metrics imports no scikit-learn.
     """
-    yt, yp = np.asarray(y_true, dtype=np.int64), np.asarray(y_pred, dtype=np.int64)
-    tp, true, pred = _counts(yt, yp, n_classes)
-    return {"accuracy": float(np.mean(yt == yp)), "precision": float(np.mean(_safe_divide(tp, pred))),
+    return classification_of(confusion(y_true, y_pred, n_classes))
+
+
+def classification_of(matrix: np.ndarray) -> dict[str, float]:
+    """Accuracy and macro precision, recall and F1 of a confusion matrix, counts or expected (fractional) counts.
+
+    Per class: true positives the diagonal cell, true count the row sum,
+    predicted count the column sum; a zero denominator scores 0 (as
+    :func:`classification`). Accuracy is the diagonal's share of the total.
+    """
+    c = np.asarray(matrix, dtype=float)
+    tp, true, pred = np.diag(c).copy(), c.sum(axis=1), c.sum(axis=0)
+    return {"accuracy": float(tp.sum() / c.sum()), "precision": float(np.mean(_safe_divide(tp, pred))),
             "recall": float(np.mean(_safe_divide(tp, true))), "f1": float(np.mean(_safe_divide(2 * tp, true + pred)))}
 
 
 def per_class_f1(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> np.ndarray:
     """``(n_classes,)`` F1 of each class (0 for a class never true nor predicted); their mean is the macro F1."""
-    tp, true, pred = _counts(np.asarray(y_true, dtype=np.int64), np.asarray(y_pred, dtype=np.int64), n_classes)
-    return _safe_divide(2 * tp, true + pred)
+    return per_class_f1_of(confusion(y_true, y_pred, n_classes))
 
 
-def _counts(yt: np.ndarray, yp: np.ndarray, n_classes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per class: true positives, true count, predicted count."""
-    return (np.bincount(yt[yt == yp], minlength=n_classes).astype(float),
-            np.bincount(yt, minlength=n_classes).astype(float), np.bincount(yp, minlength=n_classes).astype(float))
+def per_class_f1_of(matrix: np.ndarray) -> np.ndarray:
+    """``(K,)`` F1 of each class of a (possibly expected) confusion matrix; their mean is the macro F1."""
+    c = np.asarray(matrix, dtype=float)
+    return _safe_divide(2 * np.diag(c), c.sum(axis=1) + c.sum(axis=0))
 
 
 def confusion(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> np.ndarray:
@@ -64,6 +108,25 @@ def confusion(y_true: Sequence[int], y_pred: Sequence[int], n_classes: int) -> n
     out = np.zeros((n_classes, n_classes), dtype=np.int64)
     np.add.at(out, (np.asarray(y_true, dtype=np.int64), np.asarray(y_pred, dtype=np.int64)), 1)
     return out
+
+
+def expected_confusion(y_true: Sequence[int], predicted: np.ndarray, n_classes: int) -> np.ndarray:
+    """``(n_classes, n_classes)`` expected counts: row the true class, column the predicted one.
+
+    Args:
+        y_true: The true class of each observation.
+        predicted: ``(N, n_classes)``: each observation's prediction distribution (:func:`prediction`),
+            added to its true class's row; or ``(N,)`` predicted indices (then the counts of :func:`confusion`).
+    """
+    out = np.zeros((n_classes, n_classes))
+    np.add.at(out, np.asarray(y_true, dtype=np.int64), as_prediction(predicted, n_classes))
+    return out
+
+
+def plain_matrix(matrix: np.ndarray) -> list[list[Any]]:
+    """A matrix as nested lists for JSON: ints when every entry is whole (as counts were stored), else floats."""
+    m = np.asarray(matrix, dtype=float)
+    return m.astype(np.int64).tolist() if np.all(m == np.round(m)) else m.tolist()
 
 
 def macro_f1(y_true: np.ndarray, y_pred: np.ndarray, n_classes: int) -> float:
@@ -93,7 +156,7 @@ def reliability_bins(confidences: Sequence[float], correct: Sequence[bool],
 
     Args:
         confidences: The posterior probability of each prediction's goal (the top-label confidence).
-        correct: Whether each prediction was the true goal.
+        correct: Whether each prediction was the true goal, or its probability under uniform tie-breaking.
     """
     conf = np.asarray(confidences, dtype=float)
     index = np.minimum((conf * bins).astype(np.int64), bins - 1)

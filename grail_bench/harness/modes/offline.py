@@ -6,6 +6,12 @@ demonstration at each level (protocol and rounding of the run's
 scorer, and store accuracy, macro precision, recall and F1, ties, ranking
 metrics and timings (:class:`ResultRow`). Across seeds: mean, std, a 95 %
 t-interval and the IQM (:class:`OfflineRecord`).
+
+Goals tied at the best score share the prediction (uniform tie-breaking, in
+expectation; see :mod:`grail_bench.stats.metrics`): accuracy is its
+expectation, precision, recall and F1 those of the expected (fractional)
+confusion matrix, which is stored as it is. Without ties they are the plain
+argmax's. ``n_ties`` counts the observations whose best score tied.
 """
 
 from __future__ import annotations
@@ -47,11 +53,13 @@ class ResultRow(Run):
     provenance: str | None = None  # JSON of grail_bench.core.provenance.stamp(); None for rows stored before it
     top2: float | None = None  # share of observations whose true goal ranks in the top 2 (None: stored before)
     mean_rank: float | None = None  # mean rank of the true goal, 1 = best (None: stored before)
-    confusion: str | None = None  # JSON K x K counts: row the true goal, column the predicted (None: stored before)
+    confusion: str | None = None  # JSON K x K expected counts (fractional with ties): row the true goal, column
+    # the predicted (None: stored before)
     reliability: str | None = None  # JSON reliability bins of the posterior (posterior scorers only)
     set_precision: float | None = None  # of the set of goals within SET_TOLERANCE of the best: 1/|set| if it
     set_recall: float | None = None  # holds the true goal, else 0; whether it holds it; and its size,
     set_spread: float | None = None  # each a mean over observations (None: stored before)
+    ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -74,7 +82,7 @@ class OfflineRecord(Record):
     nll_mean: float | None = None
     top2_mean: float | None = None
     mean_rank_mean: float | None = None
-    confusion: list[list[int]] | None = None  # summed over seeds (None when a seed's was not stored)
+    confusion: list[list[float]] | None = None  # summed over seeds, ints when whole (None when a seed's was not stored)
     reliability: list[list[float]] | None = None  # summed over seeds (posterior scorers only)
     ece: float | None = None  # expected calibration error of the summed reliability bins
     set_precision_mean: float | None = None
@@ -90,7 +98,8 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
     seeded random order across goals. Each (seed, level, protocol) cell draws
     its observations from its own random stream, so the rows do not depend on
     which other levels run in the same call. With a scorer that yields a
-    posterior (``loglik``), its Brier score and NLL are recorded too.
+    posterior (``loglik``), its Brier score and NLL are recorded too. Goals
+    tied at the best score share the prediction (see the module docstring).
 
     Returns:
         The rows (one per level and scorer) and the fitted recognizer.
@@ -105,17 +114,15 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
         order = rng.permutation(len(labelled))
         observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
         for scorer in planned.scorers:
-            y_true, y_pred, ties, elapsed_ns, brier, nll, ranks, top2 = [], [], 0, 0, [], [], [], []
+            y_true, predicted, elapsed_ns, brier, nll, ranks, top2 = [], [], 0, [], [], [], []
             confidence, in_set, set_sizes = [], [], []
             for label, observed in observations:
                 t0 = time.perf_counter_ns()
                 scores = fitted.recognizer.score(observed, scorer.arg)
                 elapsed_ns += time.perf_counter_ns() - t0
                 values = check_scores(planned.name, scores, task.goals)
-                pred, tied = metrics.predict(values)
                 y_true.append(label)
-                y_pred.append(pred)
-                ties += tied
+                predicted.append(metrics.prediction(values))
                 rank, in_top2 = metrics.ranking(values, label)
                 ranks.append(rank)
                 top2.append(in_top2)
@@ -127,17 +134,19 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
                     brier.append(b)
                     nll.append(n)
                     confidence.append(c)
-            m = metrics.classification(y_true, y_pred, len(task.goals))
-            confusion = metrics.confusion(y_true, y_pred, len(task.goals))
+            confusion = metrics.expected_confusion(y_true, np.array(predicted), len(task.goals))
+            m = metrics.classification_of(confusion)
+            hit = [p[label] for p, label in zip(predicted, y_true)]  # each prediction's chance of being right
             rows.append(ResultRow(
                 task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash,
-                seed=job.seed, observability=level, protocol=spec.label, n_observations=len(y_true), n_ties=ties,
+                seed=job.seed, observability=level, protocol=spec.label, n_observations=len(y_true),
+                n_ties=metrics.n_tied(np.array(predicted)),
                 fit_seconds_per_goal=fitted.seconds_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
                 config=planned.config, versions=job.versions,
                 brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None,
-                top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)), confusion=json.dumps(confusion.tolist()),
-                reliability=json.dumps(metrics.reliability_bins(confidence, np.array(y_pred) == np.array(y_true)))
-                if scorer.posterior else None,
+                top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)),
+                confusion=json.dumps(metrics.plain_matrix(confusion)),
+                reliability=json.dumps(metrics.reliability_bins(confidence, hit)) if scorer.posterior else None,
                 set_precision=float(np.mean([hit / size for hit, size in zip(in_set, set_sizes)])),
                 set_recall=float(np.mean(in_set)), set_spread=float(np.mean(set_sizes)), **m,
             ))
@@ -150,11 +159,16 @@ def _mean_or_none(values: list[float | None]) -> float | None:
 
 
 def _summed(field: str, group: list[ResultRow], kind: type = float) -> list[list[Any]] | None:
-    """A JSON matrix field summed over the seeds' rows (None when a row lacks it)."""
+    """A JSON matrix field summed over the seeds' rows (None when a row lacks it).
+
+    ``kind=int`` (counts): ints when every sum is a whole number, floats where
+    tied predictions left fractional counts.
+    """
     values = [getattr(r, field) for r in group]
     if any(v is None for v in values):
         return None
-    return np.sum([json.loads(v) for v in values], axis=0).astype(kind).tolist()
+    total = np.sum([np.asarray(json.loads(v), dtype=float) for v in values], axis=0)
+    return metrics.plain_matrix(total) if kind is int else total.astype(kind).tolist()
 
 
 def _calibration(group: list[ResultRow]) -> dict[str, Any]:

@@ -14,6 +14,17 @@ and over the test set, the **F1 curve**: macro F1 when every trajectory is
 observed up to ``k = n_observed(p, T)`` steps, as the offline ``prefix``
 protocol observes it at level ``p``. Its area over ``p`` in (0, 1] is exact:
 the curve is a step function with a breakpoint at every ``j / T``.
+
+Ties. Where goals tie at the best score after step ``k``, each prefix's
+prediction is a uniform choice among the tied goals ``W``, made independently
+at every prefix (as each offline observation's is), and every metric is its
+expectation, without a random draw: the prefix is correct with probability
+``q_k = [true in W] / |W|``. Step accuracy and the accuracy curve average
+``q_k``; the F1 curve (and area) is the macro F1 of the expected confusion
+matrix of the prefixes observed (:mod:`grail_bench.stats.metrics`); *never* is
+``1 - q_T``; the convergence point is its expectation,
+``(1 - q_T) + sum_m (m / T) (1 - q_{m-1}) q_m ... q_T`` (``q_0 = 0``). Without
+ties every ``q_k`` is 0 or 1 and each value is the plain argmax's.
 """
 
 from __future__ import annotations
@@ -50,9 +61,9 @@ class OnlineRow(Run):
 
     protocol: str
     n_trajectories: int
-    convergence: float  # mean convergence point, a fraction of the observation (1.0 for never)
-    never: float  # share of trajectories whose prediction is wrong after the last step
-    step_accuracy: float  # mean share of prefixes predicted correctly
+    convergence: float  # mean (expected) convergence point, a fraction of the observation (1.0 for never)
+    never: float  # (expected) share of trajectories whose prediction is wrong after the last step
+    step_accuracy: float  # mean (expected) share of prefixes predicted correctly
     f1_auc: float  # area under macro F1 against the observed fraction, over all prefixes
     curve: str  # JSON: {"fractions": [...], "accuracy": [...], "f1": [...]} on a fixed grid
     fit_seconds_per_goal: float
@@ -60,6 +71,8 @@ class OnlineRow(Run):
     config: str
     versions: str
     provenance: str | None = None
+    n_ties: int | None = None  # prefixes whose best score tied (None: stored before it was counted)
+    ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -127,14 +140,29 @@ def convergence(correct: Sequence[bool]) -> tuple[float, bool]:
         ``(k* / T, converged)``: ``k*`` is the first step from which every
         prediction is right; ``(1.0, False)`` if the last one is wrong.
     """
-    ok = np.asarray(correct, dtype=bool)
-    if len(ok) == 0:
+    point, converged = expected_convergence(np.asarray(correct, dtype=bool))
+    return point, converged == 1.0
+
+
+def expected_convergence(right: Sequence[float]) -> tuple[float, float]:
+    """:func:`convergence` in expectation, each prefix right with its own probability, independently.
+
+    Args:
+        right: ``q_k``, the probability that the prediction after step ``k`` is
+            right (``[true in W] / |W|`` with tied goals ``W``; 0 or 1 without ties).
+
+    Returns:
+        The expected convergence point (1.0 counted when the last prediction is
+        wrong) and the probability ``q_T`` of converging. With every ``q_k`` 0
+        or 1, exactly :func:`convergence`'s values.
+    """
+    q = np.asarray(right, dtype=float)
+    if len(q) == 0:
         raise ValueError("convergence needs at least one prediction")
-    if not ok[-1]:
-        return 1.0, False
-    wrong = np.flatnonzero(~ok)
-    first = int(wrong[-1]) + 2 if len(wrong) else 1
-    return first / len(ok), True
+    steps = np.arange(1, len(q) + 1)
+    settled_from = np.cumprod(q[::-1])[::-1]  # P(right at every step m..T)
+    wrong_before = 1.0 - np.concatenate([[0.0], q[:-1]])  # P(wrong at step m - 1); before step 1 there is none
+    return float((1.0 - q[-1]) + np.sum(steps / len(q) * wrong_before * settled_from)), float(q[-1])
 
 
 def observed_steps(fractions: np.ndarray, lengths: np.ndarray, rounding: str = "ceil") -> np.ndarray:
@@ -144,18 +172,37 @@ def observed_steps(fractions: np.ndarray, lengths: np.ndarray, rounding: str = "
     return np.clip(k, 1, lengths[None, :]).astype(np.int64)
 
 
+def _distributions(predictions: Sequence[np.ndarray], n_classes: int) -> list[np.ndarray]:
+    """Each trajectory's ``(T, K)`` per-prefix prediction distributions (one-hot from ``(T,)`` indices)."""
+    return [metrics.as_prediction(p, n_classes) for p in predictions]
+
+
 def curves(predictions: Sequence[np.ndarray], labels: Sequence[int], n_classes: int, fractions: Iterable[float],
            rounding: str = "ceil") -> tuple[np.ndarray, np.ndarray]:
-    """Accuracy and macro F1 at each observed fraction, over trajectories with per-prefix ``predictions``."""
+    """Accuracy and macro F1 at each observed fraction, over trajectories with per-prefix ``predictions``.
+
+    Args:
+        predictions: Per trajectory, the predicted goal after each step ``(T,)``,
+            or each goal's probability of being predicted ``(T, K)`` (:func:`metrics.prediction`).
+        labels: Each trajectory's true goal.
+    """
     fractions = np.asarray(list(fractions), dtype=float)
-    lengths = np.array([len(p) for p in predictions])
+    dists = _distributions(predictions, n_classes)
+    lengths = np.array([len(p) for p in dists])
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    stacked = np.concatenate(dists)
     steps = observed_steps(fractions, lengths, rounding)
-    y_true = np.asarray(labels)
+    y_true = np.asarray(labels, dtype=np.int64)
+    seen: dict[bytes, tuple[float, float]] = {}  # many fractions observe the same steps
     accuracy, f1 = [], []
     for row in steps:
-        y_pred = np.array([p[k - 1] for p, k in zip(predictions, row)])
-        accuracy.append(float(np.mean(y_pred == y_true)))
-        f1.append(metrics.macro_f1(y_true, y_pred, n_classes))
+        key = row.tobytes()
+        if key not in seen:
+            predicted = stacked[starts + row - 1]
+            m = metrics.classification_of(metrics.expected_confusion(y_true, predicted, n_classes))
+            seen[key] = (float(np.mean(predicted[np.arange(len(y_true)), y_true])), m["f1"])
+        accuracy.append(seen[key][0])
+        f1.append(seen[key][1])
     return np.array(accuracy), np.array(f1)
 
 
@@ -176,14 +223,20 @@ def f1_auc(predictions: Sequence[np.ndarray], labels: Sequence[int], n_classes: 
 
 def online_metrics(predictions: Sequence[np.ndarray], labels: Sequence[int], n_classes: int,
                    rounding: str = "ceil") -> dict[str, Any]:
-    """Every online metric of a test set: means of the per-trajectory ones, the F1 area and the curves."""
-    settled = [convergence(p == y) for p, y in zip(predictions, labels)]
-    accuracy, f1 = curves(predictions, labels, n_classes, GRID, rounding)
+    """Every online metric of a test set: means of the per-trajectory ones, the F1 area and the curves.
+
+    ``predictions`` as :func:`curves` takes them; with ties, each metric is its
+    expectation (see the module docstring).
+    """
+    dists = _distributions(predictions, n_classes)
+    right = [p[:, y] for p, y in zip(dists, labels)]  # per prefix, the probability it is predicted right
+    settled = [expected_convergence(q) for q in right]
+    accuracy, f1 = curves(dists, labels, n_classes, GRID, rounding)
     return {
         "convergence": float(np.mean([c for c, _ in settled])),
-        "never": float(np.mean([not ok for _, ok in settled])),
-        "step_accuracy": float(np.mean([np.mean(p == y) for p, y in zip(predictions, labels)])),
-        "f1_auc": f1_auc(predictions, labels, n_classes, rounding),
+        "never": float(np.mean([1.0 - ok for _, ok in settled])),
+        "step_accuracy": float(np.mean([np.mean(q) for q in right])),
+        "f1_auc": f1_auc(dists, labels, n_classes, rounding),
         "curve": json.dumps({"fractions": list(GRID), "accuracy": accuracy.round(6).tolist(),
                              "f1": f1.round(6).tolist()}),
     }
@@ -193,7 +246,8 @@ def run(job: SeedRun) -> tuple[list[OnlineRow], Fitted]:
     """Fit one recognizer on one seed's training demos, then score every prefix of every test observation.
 
     The observation of a test demonstration is the protocol's at level 1.0
-    (drawn from its own random stream), revealed one step at a time.
+    (drawn from its own random stream), revealed one step at a time. Goals
+    tied at a prefix's best score share its prediction (see the module docstring).
 
     Returns:
         One row per scorer, and the fitted recognizer.
@@ -207,7 +261,7 @@ def run(job: SeedRun) -> tuple[list[OnlineRow], Fitted]:
     rows = []
     for scorer in planned.scorers:
         start = time.perf_counter_ns()
-        predictions = [np.argmax(prefix_scores(fitted.recognizer, observed, scorer.arg, task.goals), axis=1)
+        predictions = [metrics.prediction(prefix_scores(fitted.recognizer, observed, scorer.arg, task.goals))
                        for _, observed in labelled]
         elapsed_us = (time.perf_counter_ns() - start) / 1e3
         n_prefixes = sum(len(p) for p in predictions)
@@ -215,6 +269,7 @@ def run(job: SeedRun) -> tuple[list[OnlineRow], Fitted]:
             task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash, seed=job.seed,
             protocol=spec.label, n_trajectories=len(labelled), fit_seconds_per_goal=fitted.seconds_per_goal,
             score_us_per_prefix=elapsed_us / n_prefixes, config=planned.config, versions=job.versions,
+            n_ties=sum(metrics.n_tied(p) for p in predictions),
             **online_metrics(predictions, labels, len(task.goals), spec.rounding),
         ))
     return rows, fitted

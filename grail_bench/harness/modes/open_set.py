@@ -16,6 +16,13 @@ seen when calibrating. Training demonstrations fit their own goal's policy
 better than unseen ones do, so the rule errs towards false alarms; the AUROC
 of known versus unknown (observations ranked by their best score) does not
 depend on the threshold at all.
+
+Ties. The "none of these" decision depends on the best score alone, so ties
+leave it as it is. An observation answered with a known goal, where several
+known goals tie at the best score ``W``, predicts each with probability
+``1 / |W|``: accuracy is its expectation, F1 that of the expected (fractional)
+confusion matrix (:mod:`grail_bench.stats.metrics`). The unknown recall and
+false-alarm rate, decided by the threshold only, are unchanged.
 """
 
 from __future__ import annotations
@@ -61,6 +68,8 @@ class OpenSetRow(Run):
     config: str
     versions: str
     provenance: str | None = None
+    n_ties: int | None = None  # observations whose best known goals tied (None: stored before it was counted)
+    ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,9 +103,12 @@ def held_out_goal(goals: Sequence[Goal], seed: int) -> Goal:
 
 def best_scores(recognizer: Capabilities, observations: Sequence[Any], scorer: str | None,
                 goals: Sequence[Goal]) -> tuple[np.ndarray, np.ndarray]:
-    """``(best score, index of the best goal)`` of each observation, ties to the lowest index."""
+    """The best score of each observation ``(N,)``, and each goal's probability of being predicted ``(N, K)``.
+
+    Goals tied at the best score share the prediction equally (:func:`metrics.prediction`).
+    """
     scores = np.stack([check_scores(recognizer.name, recognizer.score(o, scorer), goals) for o in observations])
-    return scores.max(axis=1), scores.argmax(axis=1)
+    return scores.max(axis=1), metrics.prediction(scores)
 
 
 def calibrate(recognizer: Capabilities, train: Demos, level: float, observation: ObservationSpec,
@@ -116,26 +128,29 @@ def calibrate(recognizer: Capabilities, train: Demos, level: float, observation:
     return float(np.quantile(best, alpha))
 
 
-def open_set_metrics(best: np.ndarray, argmax: np.ndarray, labels: np.ndarray, threshold: float,
+def open_set_metrics(best: np.ndarray, predicted: np.ndarray, labels: np.ndarray, threshold: float,
                      n_known: int) -> dict[str, float]:
     """Metrics with the extra class ``n_known`` ("none of these") that the held-out goal's observations carry.
 
     Args:
         best: Best score of each observation.
-        argmax: Index (among the known goals) of its best score.
+        predicted: Among the known goals, each observation's prediction distribution ``(N, n_known)``
+            (tied goals sharing it, :func:`best_scores`), or the index of its best goal ``(N,)``.
         labels: True class: a known goal's index, or ``n_known``.
-        threshold: Below it, the answer is "none of these".
+        threshold: Below it, the answer is "none of these" (whatever the ties).
     """
     from sklearn.metrics import roc_auc_score  # imported here: scikit-learn brings torch with it
 
     unknown = labels == n_known
-    predicted = np.where(best < threshold, n_known, argmax)
-    m = metrics.classification(labels.tolist(), predicted.tolist(), n_known + 1)
+    rejected = best < threshold
+    known = np.hstack([metrics.as_prediction(predicted, n_known), np.zeros((len(best), 1))])
+    answer = np.where(rejected[:, None], np.eye(n_known + 1)[n_known], known)  # over the known goals and "none"
+    m = metrics.classification_of(metrics.expected_confusion(labels, answer, n_known + 1))
     return {
         "auroc": float(roc_auc_score(unknown, -best)),
         "f1": m["f1"], "accuracy": m["accuracy"],
-        "unknown_recall": float(np.mean(predicted[unknown] == n_known)),
-        "false_alarm": float(np.mean(predicted[~unknown] == n_known)),
+        "unknown_recall": float(np.mean(rejected[unknown])),
+        "false_alarm": float(np.mean(rejected[~unknown])),
     }
 
 
@@ -160,13 +175,13 @@ def run(job: SeedRun) -> tuple[list[OpenSetRow], Fitted]:
         for scorer in planned.scorers:
             calibration_rng = spec.rng(seed, level, "open-set-calibration")  # the same draws per scorer
             threshold = calibrate(fitted.recognizer, known_train, level, spec, calibration_rng, scorer.arg)
-            best, argmax = best_scores(fitted.recognizer, observations, scorer.arg, known)
+            best, predicted = best_scores(fitted.recognizer, observations, scorer.arg, known)
             rows.append(OpenSetRow(
                 task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash, seed=seed,
                 observability=level, protocol=spec.label, held_out=json.dumps(list(hidden)), threshold=threshold,
                 n_observations=len(observations), fit_seconds_per_goal=fitted.seconds_per_goal,
-                config=planned.config, versions=job.versions,
-                **open_set_metrics(best, argmax, labels, threshold, len(known)),
+                config=planned.config, versions=job.versions, n_ties=metrics.n_tied(predicted),
+                **open_set_metrics(best, predicted, labels, threshold, len(known)),
             ))
     return rows, fitted
 

@@ -11,6 +11,10 @@ one) can run; per-goal methods are refused before any work.
 Stored per level and scorer: macro F1 and accuracy over all ``K`` goals, and
 separately the mean per-class F1 and the accuracy on the held-out goals and on
 the trained ones. Chance is ``1 / K``.
+
+Goals tied at the best score share the prediction, as offline: accuracies are
+expectations under uniform tie-breaking, F1 that of the expected (fractional)
+confusion matrix (:mod:`grail_bench.stats.metrics`).
 """
 
 from __future__ import annotations
@@ -48,6 +52,8 @@ class ZeroShotRow(Run):
     config: str
     versions: str
     provenance: str | None = None
+    n_ties: int | None = None  # observations whose best score tied (None: stored before it was counted)
+    ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -102,19 +108,20 @@ def run(job: SeedRun) -> tuple[list[ZeroShotRow], Fitted]:
         observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
         for scorer in planned.scorers:
             y_true = np.array([label for label, _ in observations])
-            y_pred = np.array([metrics.predict(check_scores(planned.name, fitted.recognizer.score(o, scorer.arg),
-                                                            task.goals))[0] for _, o in observations])
-            per_class = metrics.per_class_f1(y_true, y_pred, len(task.goals))
+            predicted = np.array([metrics.prediction(check_scores(planned.name, fitted.recognizer.score(o, scorer.arg),
+                                                                  task.goals)) for _, o in observations])
+            confusion = metrics.expected_confusion(y_true, predicted, len(task.goals))
+            per_class = metrics.per_class_f1_of(confusion)
+            hit = predicted[np.arange(len(y_true)), y_true]  # each prediction's chance of being right
             on_hidden = is_hidden[y_true]
             rows.append(ZeroShotRow(
                 task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash, seed=seed,
                 observability=level, protocol=spec.label, held_out=json.dumps([list(g) for g in hidden]),
-                n_goals=len(task.goals), f1=float(per_class.mean()), accuracy=float(np.mean(y_true == y_pred)),
+                n_goals=len(task.goals), f1=float(per_class.mean()), accuracy=float(np.mean(hit)),
                 f1_held_out=float(per_class[is_hidden].mean()), f1_trained=float(per_class[~is_hidden].mean()),
-                accuracy_held_out=float(np.mean(y_true[on_hidden] == y_pred[on_hidden])),
-                accuracy_trained=float(np.mean(y_true[~on_hidden] == y_pred[~on_hidden])),
+                accuracy_held_out=float(np.mean(hit[on_hidden])), accuracy_trained=float(np.mean(hit[~on_hidden])),
                 n_observations=len(observations), fit_seconds_per_goal=fitted.seconds_per_goal,
-                config=planned.config, versions=job.versions,
+                config=planned.config, versions=job.versions, n_ties=metrics.n_tied(predicted),
             ))
     return rows, fitted
 
