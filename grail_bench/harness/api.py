@@ -59,6 +59,9 @@ def request(task_id: str, recognizers: RecognizerLike | Sequence[RecognizerLike]
     chosen = get_mode(mode)
     if not isinstance(task_id, str):
         raise UserError(f"a task is named by its GRAIL/ ID, got {task_id!r}")
+    if observability is not None and not isinstance(observability, (str, Iterable)):
+        raise UserError(f"observability is a list of fractions (e.g. [0.3]) or a comma-separated string, got "
+                        f"{observability!r}")
     overrides = TaskOverrides.of(task_params)
     task = make_task(task_id, **overrides.as_dict())
     if observability is not None:
@@ -116,9 +119,17 @@ def evaluate(
         The across-seed records of the mode (``record.to_dict()`` is the
         ``--json`` format): offline and open set one per recognizer, scorer
         and level; online one per recognizer and scorer.
+
+    Raises:
+        UserError: For an unknown or malformed task, recognizer, setting, seed, level, protocol, mode, store or
+            executor, before any training.
     """
     req = request(task_id, recognizers, seeds=seeds, observability=observability, protocol=protocol,
                   rounding=rounding, task_params=task_params, mode=mode)
+    if store is not None and not isinstance(store, ResultsStore):
+        raise UserError(f"store is a ResultsStore (e.g. ResultsStore('results.sqlite')), got {store!r}")
+    if executor is not None and not callable(getattr(executor, "map_unordered", None)):
+        raise UserError(f"executor is an Executor (grail_bench.harness.executors.make_executor), got {executor!r}")
     store = store if store is not None else ResultsStore(":memory:")
     summary = run_sweep([req], store, executor, progress=progress, description=f"{req.task_id} ({mode})")
     return collect(req, store, summary.planned[0][1])
@@ -172,6 +183,8 @@ def inspect_fit(task_id: str, recognizer: str, seed: int = 0, config: Mapping[st
     Raises:
         UserError: For an unknown task, recognizer, hyperparameter or protocol, before any training.
     """
+    if config is not None and not isinstance(config, Mapping):
+        raise UserError(f"a recognizer's config is a mapping of setting names to values, got {config!r}")
     req = request(task_id, [RecognizerSpec(recognizer, dict(config or {}))], seeds=[seed], protocol=protocol,
                   task_params=task_params)
     (planned,), _, _ = plan_request(req, ResultsStore(":memory:"))

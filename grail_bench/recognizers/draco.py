@@ -84,6 +84,12 @@ class DRACORecognizer(PolicyRecognizer):
     Config = DRACOConfig
     config: DRACOConfig
 
+    def exposes(self, action_space: spaces.Space) -> frozenset[str]:
+        """The policy outputs on ``action_space``; SAC on discrete actions is refused here, where a run is planned,
+        rather than when its fit starts."""
+        self._algorithm(action_space)
+        return super().exposes(action_space)
+
     def _algorithm(self, action_space: spaces.Space) -> str:
         if self.config.algorithm == "sac" and not isinstance(action_space, spaces.Box):
             raise UserError("draco: SAC needs continuous actions; use algorithm=ppo on this domain")

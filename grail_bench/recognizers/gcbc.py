@@ -20,6 +20,7 @@ towards a goal it never saw ("the goal is north: go north").
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from importlib.metadata import version
@@ -40,7 +41,7 @@ from grail_bench.recognizers.bc import train_bc
 from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy import demos_digest, spaces_of
 from grail_bench.recognizers.policy_bank import PolicyBank, preprocess
-from grail_bench.recognizers.scored import ScoredRecognizer
+from grail_bench.recognizers.scored import NotFittedError, ScoredRecognizer
 from grail_bench.recognizers.scoring import PolicyOutput
 
 
@@ -165,6 +166,9 @@ class GCBCConfig:
     def __post_init__(self) -> None:
         if self.n_batches < 1 or self.batch_size < 1 or self.hidden < 1 or self.learning_rate <= 0:
             raise UserError("n_batches, batch_size and hidden must be positive, learning_rate > 0")
+        if not math.isfinite(self.learning_rate) or not math.isfinite(self.ent_weight):
+            raise UserError(f"learning_rate and ent_weight must be finite, got {self.learning_rate} and "
+                            f"{self.ent_weight}")
 
 
 class GCBCRecognizer(ScoredRecognizer):
@@ -253,11 +257,11 @@ class GCBCRecognizer(ScoredRecognizer):
         """Score these candidate goals from now on, whether or not they had demonstrations (zero-shot).
 
         Raises:
-            RuntimeError: Before :meth:`fit`.
+            NotFittedError: Before :meth:`fit`.
             UserError: For goals of the wrong dimension.
         """
         if self.encoder is None:
-            raise RuntimeError(f"{self.name}: call fit() before set_goals()")
+            raise NotFittedError(f"{self.name}: call fit() before set_goals()")
         goals = [tuple(g) for g in goals]
         if not goals or any(len(g) != len(self.encoder.mean) for g in goals):
             raise UserError(f"{self.name}: candidate goals need {len(self.encoder.mean)} coordinates each")

@@ -49,7 +49,7 @@ class GRAQLConfig:
     max_episode_steps: int | None = field(default=None, metadata={"omit_none": True})
 
     def __post_init__(self) -> None:
-        if self.episodes < 1 or not 0 < self.alpha <= 1 or not 0 < self.gamma <= 1 or self.temperature <= 0:
+        if self.episodes < 1 or not 0 < self.alpha <= 1 or not 0 < self.gamma <= 1 or not self.temperature > 0:
             raise UserError("need episodes >= 1, alpha and gamma in (0, 1], temperature > 0")
         if not 0 <= self.epsilon_end <= 1 or not 0 <= self.epsilon_start <= 1:
             raise UserError(f"epsilon_start and epsilon_end must be in [0, 1], got {self.epsilon_start} "
@@ -189,6 +189,11 @@ class GRAQLRecognizer(ScoredRecognizer):
         return probs
 
     def exposes(self, action_space: Any) -> frozenset[str]:
+        """Softmax(Q) probabilities and Q-values; continuous actions are refused here, where a run is planned,
+        rather than when its fit starts (:meth:`fit` checks the observations too)."""
+        if not isinstance(action_space, spaces.Discrete):
+            raise UserError("graql needs discrete observations and actions (tabular Q-learning); this domain's "
+                            f"actions are {type(action_space).__name__}")
         return frozenset({"probs", "q"})
 
     def outputs_at(self, states: np.ndarray) -> PolicyOutput:

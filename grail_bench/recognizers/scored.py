@@ -16,6 +16,14 @@ from grail_bench.recognizers.diagnostics import policy_diagnostics
 from grail_bench.recognizers.scoring import PolicyOutput, check_scorer, get_scorer
 
 
+class NotFittedError(UserError, RuntimeError):
+    """A recognizer asked to score (or to take new goals) before it was fitted.
+
+    A :class:`~grail_bench.core.errors.UserError`, reported in one line; also a ``RuntimeError``, as it was
+    before, so callers catching that keep working.
+    """
+
+
 @dataclass(frozen=True)
 class NoSettings:
     """The settings of a recognizer that has none."""
@@ -78,11 +86,11 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         """Outputs of every goal's policy on the observed states, and the observed actions.
 
         Raises:
-            RuntimeError: Before :meth:`fit`.
+            NotFittedError: Before :meth:`fit`.
             UserError: For an observation that does not fit the env's spaces.
         """
         if not self.goals:
-            raise RuntimeError(f"{self.name}: call fit() before score()")
+            raise NotFittedError(f"{self.name}: call fit() before score()")
         states, actions = observed_arrays(observed, self.observation_space, self.action_space)
         return self.outputs_at(states), actions
 
