@@ -58,7 +58,10 @@ def _convert(value: Any, annotation: Any) -> Any:
         raise _Mismatch
     if annotation is float:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
+            try:
+                return float(value)
+            except OverflowError:  # an integer beyond any float
+                raise _Mismatch from None
         raise _Mismatch
     if annotation is str:
         if isinstance(value, str):

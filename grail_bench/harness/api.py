@@ -16,6 +16,7 @@ from grail_bench.harness.planning import Planned, RecognizerSpec
 from grail_bench.harness.store import ResultsStore
 from grail_bench.harness.sweep import Request, plan_request, run_sweep
 from grail_bench.recognizers.contract import FitDiagnostics
+from grail_bench.stats import metrics
 from grail_bench.task import GRTask, make_task
 from grail_bench.task.datasets import check_seeds
 from grail_bench.task.observation import ObservationSpec
@@ -170,9 +171,9 @@ class Inspection:
     rows: list[ResultRow]
 
     @property
-    def confusion(self) -> list[list[int]]:
+    def confusion(self) -> list[list[float]]:
         """Test observations of each true goal (rows) and the goal predicted (columns), over every level."""
-        return np.sum([json.loads(r.confusion) for r in self.rows], axis=0).astype(int).tolist()
+        return metrics.plain_matrix(np.sum([json.loads(r.confusion) for r in self.rows], axis=0))
 
 
 def inspect_fit(task_id: str, recognizer: str, seed: int = 0, config: Mapping[str, Any] | None = None,
