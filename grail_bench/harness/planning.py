@@ -1,8 +1,8 @@
 """Planning a run: recognizers checked, identified and hashed once; fitting them; checking what they return.
 
 Everything a user can get wrong about a recognizer (an unknown name or
-hyperparameter, a value of the wrong type, a scorer it cannot serve) is
-refused here, before any unit runs.
+hyperparameter, a value of the wrong type, a scorer it cannot serve, a setting
+the task's domain cannot serve) is refused here, before any unit runs.
 """
 
 from __future__ import annotations
@@ -101,10 +101,12 @@ def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
     task parameters), not the scorer, which has its own column.
 
     Raises:
-        grail_bench.core.errors.UserError: For unknown names, bad hyperparameters or
-            a scorer the recognizer cannot serve on this task.
+        grail_bench.core.errors.UserError: For unknown names, bad hyperparameters,
+            a scorer the recognizer cannot serve on this task, or a task the
+            recognizer refuses as configured (its optional ``check_task``).
     """
     caps = build(spec.name, dict(spec.config))
+    caps.check_task(task)
     own = caps.default_scorer
     scorers = tuple(spec.scorers) or (own,)
     exposes = caps.exposes(action_space)

@@ -38,6 +38,7 @@ from grail_bench.core.rl import empty_policy, vec_env
 from grail_bench.core.torchutil import scratch_logger, unchecked_distributions
 from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.recognizers.scored import OffSupport, off_support_setting
 from grail_bench.stats.metrics import thin
 
 # Adam's fused kernel: the same update rule as the default per-tensor loop in one kernel per step
@@ -109,6 +110,10 @@ class AdversarialConfig:
             :mod:`grail_bench.core.ppo_update`; ~4x faster on these networks, equal to SB3's to
             float32 rounding) or ``"torch"`` (SB3's own ``train()``). The numpy update mirrors discrete
             actions only: on continuous ones (PandaReach, PointMaze) both values run SB3's ``train()``.
+        off_support: What a goal's generator outputs at states off its goal's support when scored:
+            ``"trust"`` (its own output: the paper's method), ``"stay"`` (the domain's no-op) or ``"uniform"``
+            (no preference); see :class:`~grail_bench.recognizers.scored.Evidence`. Scoring only: the trained
+            policies are shared across its values.
     """
 
     # budget-gail: 20 000 steps is on the plateau of both 6-goal MiniGrid tasks (5 seeds, 30 % observed)
@@ -123,6 +128,7 @@ class AdversarialConfig:
     gen_replay_buffer_capacity: int = 512
     demo_batch_size: int = 16
     update: Literal["numpy", "torch"] = "numpy"
+    off_support: OffSupport = off_support_setting()
 
     def __post_init__(self) -> None:
         sizes = (self.total_timesteps, self.n_envs, self.n_steps, self.batch_size, self.n_epochs,

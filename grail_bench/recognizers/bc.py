@@ -19,6 +19,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.torchutil import recording_logger
 from grail_bench.core.trajectory import EnvFactory, Goal, until_success
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.recognizers.scored import OffSupport, off_support_setting
 from grail_bench.stats.metrics import thin
 
 
@@ -34,12 +35,17 @@ class BCConfig:
         batch_size: Paper: 8.
         learning_rate: Paper: 1e-3 (Adam).
         ent_weight: imitation's entropy regulariser weight (its default).
+        off_support: What a goal's policy outputs at states off its goal's support when scored: ``"trust"``
+            (its own output: the paper's method), ``"stay"`` (the domain's no-op) or ``"uniform"`` (no
+            preference); see :class:`~grail_bench.recognizers.scored.Evidence`. Scoring only: the trained
+            policies are shared across its values.
     """
 
     n_epochs: int = 100
     batch_size: int = 8
     learning_rate: float = 1e-3
     ent_weight: float = 1e-3
+    off_support: OffSupport = off_support_setting()
 
     def __post_init__(self) -> None:
         if self.n_epochs < 1 or self.batch_size < 1 or self.learning_rate <= 0:

@@ -26,6 +26,10 @@ capability             what it is                                               
                        evidence about each goal's fitted model
 ``set_goals``          ``(goals) -> None``: score these candidate goals from now     only the goals it was fitted
                        on, fitted or not (goal-conditioned models; zero-shot mode)   on
+``check_task``         ``(task) -> None``: raise a one-line ``UserError`` when it    every task accepted
+                       cannot run ``task`` as configured (e.g. a setting needs a
+                       domain capability the task's domain lacks); called where a
+                       run is planned, before any training
 =====================  ============================================================  =============================
 
 The harness never reads a recognizer directly: :func:`capabilities` reads
@@ -205,6 +209,7 @@ class Capabilities:
     has_prefix_scores: bool
     has_diagnostics: bool
     has_set_goals: bool = False
+    has_check_task: bool = False
 
     @property
     def name(self) -> str:
@@ -256,6 +261,15 @@ class Capabilities:
                                   "set_goals)")
         self.recognizer.set_goals(list(goals))
 
+    def check_task(self, task: Any) -> None:
+        """Let the recognizer refuse ``task`` before any training (nothing happens when it has no ``check_task``).
+
+        Raises:
+            grail_bench.core.errors.UserError: What the recognizer raises, in one line.
+        """
+        if self.has_check_task:
+            self.recognizer.check_task(task)
+
     def diagnose(self, train: Demos, held_out: Demos, env_factory: EnvFactory) -> FitDiagnostics | None:
         """The recognizer's fit diagnostics, or None when it offers none."""
         if not self.has_diagnostics:
@@ -266,16 +280,30 @@ class Capabilities:
         return out
 
 
-def settings_key(settings: Any) -> dict[str, Any]:
+def settings_key(settings: Any, *, models: bool = False) -> dict[str, Any]:
     """A recognizer's settings as the plain dict that keys its stored results and cached models.
 
     A settings dataclass gives its fields (tuples as lists, as JSON reads them back), less those whose
-    metadata says ``omit_none`` while they are None (settings added later, so earlier keys stay valid); a
-    mapping is taken as it is.
+    metadata says ``omit_none`` while they are None, or ``omit_default`` while they equal their default
+    (settings added later, so earlier keys stay valid); a mapping is taken as it is.
+
+    Args:
+        settings: A settings dataclass or a mapping.
+        models: Key cached models rather than stored results: fields whose metadata says ``scoring`` (they
+            change how fitted models are read, not what is fitted, e.g. ``off_support``) are left out, so
+            configurations that differ only there share their trained models.
     """
     if dataclasses.is_dataclass(settings) and not isinstance(settings, type):
-        values = {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)
-                  if not (f.metadata.get("omit_none") and getattr(settings, f.name) is None)}
+        values = {}
+        for f in dataclasses.fields(settings):
+            value = getattr(settings, f.name)
+            if f.metadata.get("omit_none") and value is None:
+                continue
+            if f.metadata.get("omit_default") and f.default is not dataclasses.MISSING and value == f.default:
+                continue
+            if models and f.metadata.get("scoring"):
+                continue
+            values[f.name] = value
         return {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()}
     return dict(settings)
 
@@ -308,6 +336,7 @@ def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = 
         has_prefix_scores=callable(getattr(recognizer, "score_prefixes", None)),
         has_diagnostics=callable(getattr(recognizer, "diagnose", None)),
         has_set_goals=callable(getattr(recognizer, "set_goals", None)),
+        has_check_task=callable(getattr(recognizer, "check_task", None)),
     )
 
 

@@ -14,6 +14,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.rl import empty_policy, learn, make_ppo, make_sac
 from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.recognizers.scored import OffSupport, off_support_setting
 from grail_bench.stats.metrics import thin
 
 ALGORITHMS = ("ppo", "sac")
@@ -38,12 +39,19 @@ class DRACOConfig:
             train the chosen one at its full default budget), and it stays None, out of the configuration's
             key, so a change to the other algorithm's default leaves results and models valid.
         net_arch: Hidden layers of the policy.
+        off_support: What a goal's policy outputs at states off its goal's support when scored: ``"trust"``
+            (its own output: the published method), ``"stay"`` (the domain's no-op) or ``"uniform"`` (no
+            preference); see :class:`~grail_bench.recognizers.scored.Evidence`. DRACO learns from interaction
+            alone, so its policies have no demonstrations of their own: a goal's support is still the states its
+            *training demonstrations* visit (``fit`` receives them). Scoring only: the trained policies are shared
+            across its values.
     """
 
     algorithm: Literal["ppo", "sac"] = "ppo"
     sac_steps: int | None = field(default=None, metadata={"omit_none": True})
     ppo_steps: int | None = field(default=None, metadata={"omit_none": True})
     net_arch: tuple[int, ...] = (64, 64)
+    off_support: OffSupport = off_support_setting()
 
     def __post_init__(self) -> None:
         if self.algorithm not in ALGORITHMS:
@@ -72,9 +80,11 @@ class DRACORecognizer(PolicyRecognizer):
     """DRACO: PPO (as the paper trains it) or SAC per goal, on the env's own reward (settings:
     :class:`DRACOConfig`).
 
-    It learns from interaction only (the demonstrations are ignored), so its
+    It learns from interaction only (the demonstrations do not train it), so its
     cached policies are reused by every regime of the domain. Its ``scorer`` defaults to
-    ``"wasserstein"`` (DRACO's).
+    ``"wasserstein"`` (DRACO's). The demonstrations ``fit`` receives still say where each goal has
+    evidence: its ``off_support`` rule and the ``occupancy`` scorer read each goal's training
+    demonstrations, as for the imitation methods.
     """
 
     name = "draco"

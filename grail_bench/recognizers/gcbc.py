@@ -41,7 +41,7 @@ from grail_bench.recognizers.bc import train_bc
 from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy import demos_digest, spaces_of
 from grail_bench.recognizers.policy_bank import PolicyBank, preprocess
-from grail_bench.recognizers.scored import NotFittedError, ScoredRecognizer
+from grail_bench.recognizers.scored import NotFittedError, OffSupport, ScoredRecognizer, off_support_setting
 from grail_bench.recognizers.scoring import PolicyOutput
 
 
@@ -155,6 +155,10 @@ class GCBCConfig:
         learning_rate: Adam's step size.
         ent_weight: imitation's entropy regulariser weight (its default).
         hidden: Units of each of the two tanh hidden layers.
+        off_support: What the policy outputs for a goal at states off that goal's support when scored:
+            ``"trust"`` (its own output), ``"stay"`` (the domain's no-op) or ``"uniform"`` (no preference); see
+            :class:`~grail_bench.recognizers.scored.Evidence`. A goal without demonstrations (zero-shot) has no
+            support: every state is off it. Scoring only: the trained policy is shared across its values.
     """
 
     n_batches: int = 4000
@@ -162,6 +166,7 @@ class GCBCConfig:
     learning_rate: float = 1e-3
     ent_weight: float = 1e-3
     hidden: int = 64
+    off_support: OffSupport = off_support_setting()
 
     def __post_init__(self) -> None:
         if self.n_batches < 1 or self.batch_size < 1 or self.hidden < 1 or self.learning_rate <= 0:
@@ -204,6 +209,7 @@ class GCBCRecognizer(ScoredRecognizer):
             raise UserError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
         if env_factory is None:
             raise UserError(f"{self.name}: needs the env factory, to read the observation and action spaces")
+        self.learn_evidence(demos, env_factory)  # before training: a setting the domain cannot serve fails first
         ordered = sorted(tuple(g) for g in demos)  # the training set's order: by goal, not as listed
         observation_space, action_space = spaces_of(env_factory, ordered[0])
         encoder = GoalEncoder(observation_space, ordered, _locator(env_factory, ordered[0]))
@@ -224,7 +230,8 @@ class GCBCRecognizer(ScoredRecognizer):
                 _, extra = train()
                 seconds, reused = time.perf_counter() - start, False
             else:
-                key = {"recognizer": self.name, "config": settings_key(self.config), "inputs": "state+goal+relative",
+                key = {"recognizer": self.name, "config": settings_key(self.config, models=True),
+                       "inputs": "state+goal+relative",
                        "env": cache_key, "seed": seed,
                        "goals": [list(g) for g in ordered], "demos": [demos_digest(demos[g]) for g in ordered],
                        "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}

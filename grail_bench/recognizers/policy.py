@@ -63,6 +63,7 @@ class PolicyRecognizer(ScoredRecognizer):
         """
         if len(demos) < 2:
             raise UserError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
+        self.learn_evidence(demos, env_factory)  # before training: a setting the domain cannot serve fails first
         fitted: dict[Goal, tuple[BasePolicy, float, bool, Curves]] = {}
         with single_thread():
             # A goal whose model another process is training now is left for later, so parallel
@@ -97,7 +98,8 @@ class PolicyRecognizer(ScoredRecognizer):
             start = time.perf_counter()
             policy, curves = self.train_policy(goal, demos, env_factory, seed)
             return policy, time.perf_counter() - start, False, curves
-        key = {"recognizer": self.name, "config": settings_key(self.config), "env": cache_key, "goal": list(goal), "seed": seed,
+        key = {"recognizer": self.name, "config": settings_key(self.config, models=True), "env": cache_key,
+               "goal": list(goal), "seed": seed,
                "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}
         if self.uses_demos:
             key["demos"] = demos_digest(demos)

@@ -3,17 +3,43 @@
 from __future__ import annotations
 
 import abc
-from dataclasses import dataclass
-from typing import Any, ClassVar
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Sequence
 
 import numpy as np
+from gymnasium import spaces
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.params import check_kwargs
-from grail_bench.core.trajectory import Demos, EnvFactory, Goal
+from grail_bench.core.spaces import n_states, state_index
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal, until_success
 from grail_bench.recognizers.contract import FitDiagnostics, RecognizerBase, observed_arrays
 from grail_bench.recognizers.diagnostics import policy_diagnostics
 from grail_bench.recognizers.scoring import PolicyOutput, check_scorer, get_scorer
+
+if TYPE_CHECKING:
+    from imitation.data.types import Trajectory
+
+#: What a goal's policy outputs at a state off its goal's support (see :class:`Evidence`): ``"trust"`` its own
+#: output (GRAIL's method), ``"stay"`` the domain's no-op, ``"uniform"`` no preference among actions.
+OffSupport = Literal["trust", "stay", "uniform"]
+#: The support radius on continuous observations: this percentile of the leave-one-out nearest-neighbour
+#: distances among a goal's distinct training states.
+RADIUS_PERCENTILE = 95.0
+#: The smallest support radius, relative to the states' size (``floor * max(1, max |coordinate|)``): where a goal
+#: has a single distinct training state (identical one-state demonstrations), only that state, up to rounding.
+RADIUS_FLOOR = 1e-6
+
+
+def off_support_setting() -> Any:
+    """The ``off_support`` field of a settings dataclass (``off_support: OffSupport = off_support_setting()``).
+
+    Its default, ``"trust"``, is the published method and is left out of the configuration's key (so earlier keys
+    stay valid); it changes scoring only, so cached models are shared across its values (metadata ``scoring``).
+    """
+    return field(default="trust", metadata={"scoring": True, "omit_default": True})
 
 
 class NotFittedError(UserError, RuntimeError):
@@ -27,6 +53,185 @@ class NotFittedError(UserError, RuntimeError):
 @dataclass(frozen=True)
 class NoSettings:
     """The settings of a recognizer that has none."""
+
+
+#: Discrete observation spaces with at most this many states keep each goal's support as a table over every state.
+SUPPORT_TABLE_STATES = 1 << 16
+
+
+def training_states(trajs: Sequence[Trajectory]) -> list[np.ndarray]:
+    """Per demonstration, the states in which it takes an action, cut after its goal is reached (as BC trains)."""
+    out = []
+    for traj in trajs:
+        cut = until_success(traj)
+        out.append(np.asarray(cut.obs)[: len(cut.acts)])
+    return out
+
+
+def domain_noop(env: Any) -> Any:
+    """The no-op action declared by the domain of the task that built ``env`` (``noop_action``), or None."""
+    task = getattr(env.unwrapped, "task", None)
+    return None if task is None else getattr(task.spec, "noop_action", None)
+
+
+class Evidence:
+    """Where each goal's training demonstrations went, learnt from them alone when a recognizer is fitted.
+
+    A goal's *support* is the set of states its training demonstrations visit, each demonstration cut after the
+    goal is reached as BC trains on it (the states in which an action is taken). On discrete observations it is
+    those exact states. On continuous ones it is every state within a radius of the nearest of them (Euclidean
+    distance in the raw coordinates), the radius being the 95th percentile (:data:`RADIUS_PERCENTILE`) of the
+    leave-one-out nearest-neighbour distances among the goal's *distinct* training states: repeated states
+    (identical demonstrations, e.g. PandaReach's optimal regime) count once, so the radius is then about the step
+    between consecutive states; a goal with a single distinct state gets the floor (:data:`RADIUS_FLOOR`), that
+    state up to rounding. A goal without demonstrations (a goal-conditioned model's new goal) has no support.
+
+    Args:
+        demos: The training demonstrations of every fitted goal.
+        observation_space: The env's observation space (``Discrete``, ``MultiDiscrete`` or ``Box``).
+        action_space: The env's action space (``Discrete`` or ``Box``).
+        noop: The domain's no-op action, or None when its domain declares none.
+
+    Raises:
+        UserError: For another observation space, or a no-op that is not an action of ``action_space``.
+    """
+
+    def __init__(self, demos: Demos, observation_space: spaces.Space, action_space: spaces.Space,
+                 noop: Any = None) -> None:
+        self.observation_space, self.action_space = observation_space, action_space
+        self.discrete = isinstance(observation_space, (spaces.Discrete, spaces.MultiDiscrete))
+        if not self.discrete and not isinstance(observation_space, spaces.Box):
+            raise UserError(f"off-support rules need Discrete, MultiDiscrete or Box observations, got {observation_space}")
+        if self.discrete and n_states(observation_space) >= 1 << 62:
+            raise UserError(f"off-support rules need discrete observation spaces of fewer than 2**62 states, got "
+                            f"{observation_space}")
+        self.noop = None if noop is None else _checked_noop(noop, action_space)
+        self.goals = [tuple(g) for g in demos]
+        #: Per goal, the states of each training demonstration in which it acts (cut at the goal).
+        self.states: dict[Goal, list[np.ndarray]] = {g: training_states(demos[g]) for g in demos}
+        self._row = {g: i for i, g in enumerate(self.goals)}
+        self.radius: dict[Goal, float] = {}
+        if self.discrete:
+            self._keys = {g: np.unique(self.keys(np.concatenate(self.states[g]))) for g in self.goals}
+            self._table = None
+            if n_states(observation_space) <= SUPPORT_TABLE_STATES:  # one extra all-False row: a goal without support
+                self._table = np.zeros((len(self.goals) + 1, n_states(observation_space)), dtype=bool)
+                for g, keys in self._keys.items():
+                    self._table[self._row[g], keys] = True
+        else:
+            from scipy.spatial import cKDTree
+
+            self._trees = {}
+            for g in self.goals:
+                distinct = np.unique(self.flat(np.concatenate(self.states[g])), axis=0)
+                self._trees[g] = cKDTree(distinct)
+                self.radius[g] = support_radius(distinct, self._trees[g])
+
+    def keys(self, states: np.ndarray) -> np.ndarray:
+        """Discrete states' flat indices, ``(T,)``."""
+        return state_index(np.asarray(states), self.observation_space)
+
+    @staticmethod
+    def flat(states: np.ndarray) -> np.ndarray:
+        """Continuous states as ``(T, D)`` float64 rows."""
+        states = np.asarray(states, dtype=np.float64)
+        return states.reshape(len(states), -1)
+
+    def off_support(self, goals: Sequence[Goal], states: np.ndarray) -> np.ndarray:
+        """``(K, T)``: whether each state lies off each goal's support."""
+        if self.discrete:
+            keys = self.keys(states)
+            if self._table is not None:
+                rows = [self._row.get(tuple(g), len(self.goals)) for g in goals]
+                return ~self._table[np.asarray(rows)[:, None], keys[None, :]]
+            return np.stack([~_member(self._keys.get(tuple(g), np.empty(0, np.int64)), keys) for g in goals])
+        flat = self.flat(states)
+        off = np.ones((len(goals), len(flat)), dtype=bool)
+        for k, goal in enumerate(goals):
+            goal = tuple(goal)
+            if goal in self._trees:
+                off[k] = self._trees[goal].query(flat, k=1)[0] > self.radius[goal]
+        return off
+
+    def replace_off_support(self, output: PolicyOutput, goals: Sequence[Goal], states: np.ndarray,
+                            rule: str) -> PolicyOutput:
+        """``output`` with each goal's outputs at states off its support replaced by ``rule``'s.
+
+        ``"stay"``: the no-op (discrete actions: probability 1 on it; continuous ones: the mean set to it, the std
+        kept). ``"uniform"``: no preference (discrete: equal probabilities; continuous: the uniform distribution
+        over the action box as its mean, the box's centre, and std, its width over sqrt(12)). ``"trust"``: as it is.
+
+        Raises:
+            UserError: For ``"stay"`` without a no-op, or ``"uniform"`` on an unbounded action box.
+        """
+        if rule == "trust":
+            return output
+        off = self.off_support(goals, states)
+        if not off.any():
+            return output
+        mask = off[:, :, None]
+        if output.probs is not None:
+            n = output.probs.shape[-1]
+            row = np.full(n, 1.0 / n) if rule == "uniform" else np.eye(n)[self._noop(rule)]
+            return dataclasses.replace(output, probs=np.where(mask, row.astype(output.probs.dtype), output.probs))
+        mean, std = self.replacement(rule)
+        out = {"mean": np.where(mask, mean.astype(output.mean.dtype), output.mean)}
+        if std is not None and output.std is not None:
+            out["std"] = np.where(mask, std.astype(output.std.dtype), np.broadcast_to(output.std, output.mean.shape))
+        return dataclasses.replace(output, **out)
+
+    def replacement(self, rule: str) -> tuple[np.ndarray, np.ndarray | None]:
+        """The mean and std (None: the policy's own) an off-support state gets under ``rule`` on a Box action space.
+
+        Raises:
+            UserError: For ``"stay"`` without a no-op, or ``"uniform"`` on an unbounded action box.
+        """
+        low, high = (np.asarray(b, dtype=np.float64) for b in (self.action_space.low, self.action_space.high))
+        if rule == "stay":
+            return np.asarray(self._noop(rule), dtype=np.float64), None
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+            raise UserError(f"off_support='uniform' needs a bounded action box, got {self.action_space}")
+        return (low + high) / 2, (high - low) / math.sqrt(12)
+
+    def _noop(self, rule: str) -> Any:
+        if self.noop is None:
+            raise UserError(f"off_support={rule!r} needs the domain's no-op action (noop_action); it declares none")
+        return self.noop
+
+
+def support_radius(distinct: np.ndarray, tree: Any = None) -> float:
+    """The support radius of a goal's distinct ``(N, D)`` training states (see :class:`Evidence`)."""
+    floor = RADIUS_FLOOR * max(1.0, float(np.max(np.abs(distinct))) if distinct.size else 1.0)
+    if len(distinct) < 2:
+        return floor
+    if tree is None:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(distinct)
+    nearest = tree.query(distinct, k=2)[0][:, 1]  # the first neighbour is the state itself
+    return max(float(np.percentile(nearest, RADIUS_PERCENTILE)), floor)
+
+
+def _member(sorted_keys: np.ndarray, keys: np.ndarray) -> np.ndarray:
+    """Whether each of ``keys`` is in ``sorted_keys``."""
+    if not len(sorted_keys):
+        return np.zeros(len(keys), dtype=bool)
+    at = np.minimum(np.searchsorted(sorted_keys, keys), len(sorted_keys) - 1)
+    return sorted_keys[at] == keys
+
+
+def _checked_noop(noop: Any, action_space: spaces.Space) -> Any:
+    """The domain's no-op as an action of ``action_space`` (an int, or a float array of the box's shape)."""
+    if isinstance(action_space, spaces.Discrete):
+        if isinstance(noop, (bool, np.bool_)) or not isinstance(noop, (int, np.integer)) \
+                or not action_space.start <= noop < action_space.start + action_space.n:
+            raise UserError(f"the domain's noop_action {noop!r} is not an action of {action_space}")
+        return int(noop) - int(action_space.start)
+    value = np.asarray(noop, dtype=np.float64)
+    if not isinstance(action_space, spaces.Box) or value.shape != action_space.shape \
+            or not np.all((value >= action_space.low) & (value <= action_space.high)):
+        raise UserError(f"the domain's noop_action {noop!r} is not an action of {action_space}")
+    return value
 
 
 class ScoredRecognizer(RecognizerBase, abc.ABC):
@@ -46,6 +251,14 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     scorer that can work from those outputs, every prefix of an observation
     is scored from one pass (:meth:`score_prefixes`), and the fit is
     diagnosed from the same outputs (:meth:`diagnose`).
+
+    Knowing where the goals have evidence: a subclass whose :attr:`Config` has an ``off_support`` field
+    (:func:`off_support_setting`, of type :data:`OffSupport`) calls :meth:`learn_evidence` with the training
+    demonstrations in its ``fit``; scoring then replaces each goal's outputs at states off that goal's support
+    (:class:`Evidence`) by the rule it names. Its default, ``"trust"``, scores the outputs as they are (the
+    published methods). ``"stay"`` needs the domain's no-op action (the domain capability ``noop_action``): a
+    task whose domain declares none is refused by :meth:`check_task` where the run is planned, before any
+    training.
 
     Args:
         scorer: What :meth:`score` uses when no scorer is named; defaults to
@@ -73,6 +286,50 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         self.curves: dict[Goal, dict[str, list[float]]] = {}  # per goal, what its training logged
         self.observation_space: Any = None
         self.action_space: Any = None
+        self.evidence: Evidence | None = None  # learnt by learn_evidence() at fit
+
+    @property
+    def off_support(self) -> str:
+        """The configured off-support rule (``"trust"`` for settings without one)."""
+        return getattr(self.config, "off_support", "trust")
+
+    def noop_settings(self) -> list[str]:
+        """The settings, as ``name='value'``, that need the domain's no-op action (subclasses add theirs)."""
+        return ["off_support='stay'"] if self.off_support == "stay" else []
+
+    def check_task(self, task: Any) -> None:
+        """Refuse a task whose domain cannot serve the settings (called where a run is planned, before training).
+
+        Raises:
+            UserError: In one line, when a setting needs the domain's no-op action and the domain declares none.
+        """
+        needs = self.noop_settings()
+        if needs and getattr(task.spec, "noop_action", None) is None:
+            raise UserError(f"{self.name}: {' and '.join(needs)} needs the domain's no-op action; domain "
+                            f"{task.domain!r} declares no noop_action")
+
+    def learn_evidence(self, demos: Demos, env_factory: EnvFactory) -> Evidence:
+        """Learn where each goal's training demonstrations went (:class:`Evidence`), keep it and return it.
+
+        Called by ``fit`` before any training, so a setting the domain cannot serve fails first.
+
+        Raises:
+            UserError: When a setting needs the domain's no-op action and the env's task names no domain
+                declaring one, or for ``off_support='uniform'`` on an unbounded action box.
+        """
+        env = env_factory(next(iter(demos)))
+        try:
+            observation_space, action_space, noop = env.observation_space, env.action_space, domain_noop(env)
+        finally:
+            env.close()
+        needs = self.noop_settings()
+        if needs and noop is None:
+            raise UserError(f"{self.name}: {' and '.join(needs)} needs the domain's no-op action; the env's domain "
+                            "declares no noop_action")
+        self.evidence = Evidence(demos, observation_space, action_space, noop)
+        if self.off_support == "uniform" and isinstance(action_space, spaces.Box):
+            self.evidence.replacement("uniform")
+        return self.evidence
 
     @abc.abstractmethod
     def exposes(self, action_space: Any) -> frozenset[str]:
@@ -83,7 +340,9 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         """Outputs of every goal's policy on ``(T, ...)`` states (already checked against the spaces)."""
 
     def policy_output(self, observed: Any) -> tuple[PolicyOutput, np.ndarray]:
-        """Outputs of every goal's policy on the observed states, and the observed actions.
+        """Outputs of every goal's policy on the observed states, as scored, and the observed actions.
+
+        The outputs are :meth:`outputs_at`'s, with the ``off_support`` rule applied.
 
         Raises:
             NotFittedError: Before :meth:`fit`.
@@ -92,7 +351,16 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         if not self.goals:
             raise NotFittedError(f"{self.name}: call fit() before score()")
         states, actions = observed_arrays(observed, self.observation_space, self.action_space)
-        return self.outputs_at(states), actions
+        output = self.outputs_at(states)
+        if self.off_support != "trust":
+            output = self._evidence().replace_off_support(output, self.goals, states, self.off_support)
+        return output, actions
+
+    def _evidence(self) -> Evidence:
+        if self.evidence is None:
+            raise UserError(f"{self.name}: off_support and the occupancy scorer need the goals' training states; "
+                            "its fit must call learn_evidence()")
+        return self.evidence
 
     def diagnose(self, train: Demos, held_out: Demos, env_factory: EnvFactory | None) -> FitDiagnostics:
         """Evidence about each goal's fitted policy (:mod:`grail_bench.recognizers.diagnostics`)."""

@@ -64,6 +64,13 @@ class Domain(Protocol):
     ``cache_demos = True`` to have its demonstrations generated once per goal,
     regime, parameters and seed and kept on disk (for slow demonstrators; see
     :mod:`grail_bench.task.demo_cache`).
+
+    A domain may also declare ``noop_action``: the action that leaves the agent
+    where it is (an action of its env's action space: an integer for discrete
+    actions, a sequence of the action box's shape for continuous ones; MiniGrid
+    declares "stay", PandaReach and PointMaze the zero action). Recognizer
+    settings that need one (``off_support="stay"``, BC's ``augment="stay"``) are
+    refused where a run is planned on a domain that declares none.
     """
 
     name: str

@@ -44,6 +44,7 @@ class MiniGrid:
         "suboptimal": {"route_choice": "uniform", "turn_prob": 1.0, "turn_pattern": "left-right"},
     }
     ceiling_regimes = frozenset(regimes)
+    noop_action = 3  # grid.STAY: the agent neither turns nor moves
     # Runs stored before route_choice existed drew every demonstration's path uniformly.
     implicit: Mapping[str, Any] = {"route_choice": "uniform"}
 

@@ -47,6 +47,7 @@ class PandaReach:
         "uniform": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "half_width": 0.1},
     }
     ceiling_regimes: frozenset[str] = frozenset()  # a learned expert plus continuous noise: no likelihood
+    noop_action = (0.0, 0.0, 0.0)  # the zero displacement of the end effector: the arm stays where it is
     cache_demos = True  # a seed's rollouts take minutes: generated once, kept on disk
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],

@@ -39,6 +39,7 @@ class PointMaze:
     # The scripted routes are deterministic; action noise has a density but no enumerable support.
     ceiling_regimes = frozenset({"optimal", "biased"})
     cache_demos = True  # a seed's rollouts take minutes: generated once, kept on disk
+    noop_action = (0.0, 0.0)  # no force on the ball
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
               goals: Sequence[Goal]) -> None:

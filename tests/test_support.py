@@ -1,0 +1,215 @@
+"""Recognizers that know where they have evidence: off-support rules, BC's stay augmentation, the occupancy scorer,
+and the refusals of settings a domain cannot serve."""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+from imitation.data.types import Trajectory
+from typer.testing import CliRunner
+
+from grail_bench import UserError
+from grail_bench.cli import app
+from grail_bench.harness import sweep
+from grail_bench.harness.api import evaluate
+from grail_bench.harness.store import ResultsStore
+from grail_bench.recognizers.contract import FitReport, settings_key
+from grail_bench.recognizers.policy import PolicyRecognizer
+from grail_bench.recognizers.registry import make_recognizer
+from grail_bench.recognizers.scored import RADIUS_FLOOR, support_radius, training_states
+from grail_bench.task import make_task
+
+MINIGRID = "GRAIL/MiniGrid-Optimal-4Goals-v0"
+STAY = 3
+TINY = {"n_epochs": 2}
+
+
+def _states(traj: Trajectory, rows: np.ndarray) -> Trajectory:
+    """An observation visiting ``rows`` (each with action 0): what :meth:`policy_output` needs."""
+    obs = np.concatenate([rows, rows[-1:]])
+    return Trajectory(obs=obs, acts=np.zeros((len(rows), *np.asarray(traj.acts).shape[1:]), traj.acts.dtype),
+                      infos=None, terminal=True)
+
+
+@functools.lru_cache(maxsize=None)
+def _minigrid() -> tuple[Any, dict, dict]:
+    task = make_task(MINIGRID)
+    train, _ = task.split(task.generate_demos(0))
+    return task, train, {}
+
+
+def _fitted(task: Any, train: dict, name: str = "bc", **settings: Any) -> Any:
+    rec = make_recognizer(name, **{**TINY, **settings})
+    rec.fit(train, task.env_factory(), seed=0, cache_key=task.env_key)
+    return rec
+
+
+def _on_and_off(train: dict, goal: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Discrete states on ``goal``'s route (its training states) and off it (other goals' states it never visits)."""
+    own = np.concatenate(training_states(train[goal]))
+    seen = {tuple(s) for s in own.tolist()}
+    others = np.concatenate([np.concatenate(training_states(train[g])) for g in train if g != goal])
+    off = np.unique(np.array([s for s in others.tolist() if tuple(s) not in seen]), axis=0)
+    return np.unique(own, axis=0), off
+
+
+# --- off_support on discrete and continuous observations ------------------------------------------------------------
+
+
+@pytest.mark.parametrize("rule", ["stay", "uniform"])
+def test_a_state_on_a_goals_route_keeps_its_policy_and_a_state_off_it_gets_the_rule_discrete(rule):
+    task, train, _ = _minigrid()
+    trust, ruled = _fitted(task, train), _fitted(task, train, off_support=rule)
+    k, goal = 0, task.goals[0]
+    on, off = _on_and_off(train, goal)
+    assert len(on) and len(off)
+    raw = trust.outputs_at(np.concatenate([on, off])).probs[k]
+    scored, _ = ruled.policy_output(_states(train[goal][0], np.concatenate([on, off])))
+    np.testing.assert_array_equal(scored.probs[k, : len(on)], raw[: len(on)])  # its route: its own policy
+    expected = np.eye(4)[STAY] if rule == "stay" else np.full(4, 0.25)
+    np.testing.assert_allclose(scored.probs[k, len(on):], np.broadcast_to(expected, (len(off), 4)))
+    assert not np.allclose(raw[len(on):], expected)  # the policy itself said something else there
+    plain, _ = trust.policy_output(_states(train[goal][0], off))
+    np.testing.assert_array_equal(plain.probs, trust.outputs_at(off).probs)  # "trust" scores the policy as it is
+
+
+@functools.lru_cache(maxsize=None)
+def _panda() -> tuple[Any, dict]:
+    task = make_task("GRAIL/PandaReach-Gaussian-0.3-v0", expert="scripted", n_demos=4, n_train=3)
+    train, _ = task.split(task.generate_demos(0))
+    return task, train
+
+
+@pytest.mark.parametrize("rule", ["stay", "uniform"])
+def test_a_state_on_a_goals_route_keeps_its_policy_and_a_state_off_it_gets_the_rule_continuous(rule):
+    task, train = _panda()
+    trust, ruled = _fitted(task, train, n_epochs=1), _fitted(task, train, n_epochs=1, off_support=rule)
+    k, goal = 1, task.goals[1]
+    on = np.concatenate(training_states(train[goal]))
+    far = on[:2] + np.array([0.0, 0.0, 0.0, 5.0, 5.0, 5.0], dtype=on.dtype)  # fast, wherever the arm is: off
+    states = np.concatenate([on, far])
+    raw = trust.outputs_at(states)
+    scored, _ = ruled.policy_output(_states(train[goal][0], states))
+    mean, std = scored.mean[k], np.broadcast_to(scored.std, scored.mean.shape)[k]
+    raw_std = np.broadcast_to(raw.std, raw.mean.shape)[k]
+    np.testing.assert_array_equal(mean[: len(on)], raw.mean[k, : len(on)])
+    np.testing.assert_array_equal(std[: len(on)], raw_std[: len(on)])
+    box = trust.action_space
+    if rule == "stay":
+        np.testing.assert_array_equal(mean[len(on):], 0.0)  # PandaReach's no-op: the zero action
+        np.testing.assert_array_equal(std[len(on):], raw_std[len(on):])  # std kept
+    else:
+        np.testing.assert_allclose(mean[len(on):], np.broadcast_to((box.low + box.high) / 2, (2, 3)))
+        np.testing.assert_allclose(std[len(on):], np.broadcast_to((box.high - box.low) / math.sqrt(12), (2, 3)),
+                                   rtol=1e-6)
+    radius = ruled.evidence.radius[goal]
+    assert radius > 0 and ruled.evidence.off_support([goal], states)[0].tolist() == [False] * len(on) + [True] * 2
+
+
+def test_the_support_radius_rule():
+    line = np.array([[0.0], [1.0], [2.0], [3.0], [10.0]])  # leave-one-out neighbours at 1, 1, 1, 1, 7
+    assert support_radius(line) == pytest.approx(np.percentile([1, 1, 1, 1, 7], 95))
+    assert support_radius(np.array([[2.0, -4.0]])) == pytest.approx(RADIUS_FLOOR * 4)  # a single distinct state
+    # identical demonstrations count once: their distinct states give the radius
+    assert support_radius(np.unique(np.concatenate([line, line]), axis=0)) == support_radius(line)
+
+
+# --- keys: scoring settings share models, not stored results --------------------------------------------------------
+
+
+def test_off_support_stores_apart_but_reuses_the_cached_models(monkeypatch, tmp_path):
+    reports: list[FitReport] = []
+    original = PolicyRecognizer.fit
+
+    @functools.wraps(original)
+    def counted(self, *args: Any, **kwargs: Any) -> FitReport:
+        reports.append(original(self, *args, **kwargs))
+        return reports[-1]
+
+    monkeypatch.setattr(PolicyRecognizer, "fit", counted)
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path / "cache"))
+    with ResultsStore(tmp_path / "s.sqlite") as store:
+        records = evaluate(MINIGRID, [("bc", TINY), ("bc", {**TINY, "off_support": "stay"}),
+                                      ("bc", {**TINY, "off_support": "uniform"})],
+                           seeds=1, observability=[0.3], store=store)
+        hashes = {r.config_hash for r in records}
+    goals = len(make_task(MINIGRID).goals)
+    assert len(hashes) == 3
+    assert [(r.trained, r.reused) for r in reports] == [(goals, 0), (0, goals), (0, goals)]
+    default, stay = make_recognizer("bc"), make_recognizer("bc", off_support="stay")
+    assert settings_key(stay.config, models=True) == settings_key(default.config, models=True) \
+        == settings_key(default.config)
+    assert "off_support" not in settings_key(default.config) and settings_key(stay.config)["off_support"] == "stay"
+
+
+# --- refusals before any training ----------------------------------------------------------------------------------
+
+
+class _WithoutNoop:
+    """A domain stub: the real domain, less its ``noop_action``."""
+
+    def __init__(self, domain: Any) -> None:
+        self._domain = domain
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "noop_action":
+            raise AttributeError(name)
+        return getattr(self._domain, name)
+
+
+@pytest.fixture
+def no_noop(monkeypatch):
+    """Every task's domain declares no ``noop_action``, and any unit that would run fails loudly."""
+    from grail_bench.task import model
+
+    real = model.get_domain
+    monkeypatch.setattr(model, "get_domain", lambda name: _WithoutNoop(real(name)))
+
+    def trained(unit: Any) -> Any:
+        raise AssertionError(f"a unit ran: {unit.describe()}")
+
+    monkeypatch.setattr(sweep, "run_unit", trained)
+
+
+REFUSED = [
+    ("bc", {"off_support": "stay"}, ["bc.off_support=stay"], "bc: off_support='stay' needs the domain's no-op"),
+    ("gail", {"off_support": "stay"}, ["gail.off_support=stay"], "gail: off_support='stay' needs the domain's no-op"),
+    ("gc-bc", {"off_support": "stay"}, ["gc-bc.off_support=stay"], "gc-bc: off_support='stay' needs"),
+]
+
+
+@pytest.mark.parametrize("name, settings, items, message", REFUSED, ids=[r[2][0] for r in REFUSED])
+def test_a_domain_without_a_noop_refuses_stay_in_one_line_before_training(no_noop, name, settings, items, message):
+    with pytest.raises(UserError) as err:
+        evaluate(MINIGRID, [("bc", TINY), (name, settings)], seeds=1, observability=[0.3])
+    assert message in str(err.value) and "declares no noop_action" in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("name, settings, items, message", REFUSED, ids=[r[2][0] for r in REFUSED])
+def test_the_cli_refuses_stay_without_a_noop_in_one_line(no_noop, tmp_path, name, settings, items, message):
+    store = tmp_path / "s.sqlite"
+    args = ["run", "-t", MINIGRID, "-r", name, "--seeds", "1", "-o", "0.3", "--store", str(store), "--no-progress"]
+    for item in items:
+        args += ["--set", item]
+    result = CliRunner().invoke(app, args, env={"COLUMNS": "200"})
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], result.stderr
+
+
+def test_fit_itself_refuses_stay_without_a_noop_before_training(no_noop, monkeypatch):
+    from grail_bench.recognizers.bc import BCRecognizer
+
+    def trained(*_: Any, **__: Any) -> Any:
+        raise AssertionError("a policy trained")
+
+    monkeypatch.setattr(BCRecognizer, "train_policy", trained)
+    task, train, _ = _minigrid()
+    with pytest.raises(UserError, match=r"^bc: off_support='stay' needs the domain's no-op action; the env's domain "
+                                        r"declares no noop_action$"):
+        make_recognizer("bc", off_support="stay").fit(train, make_task(MINIGRID).env_factory(), seed=0)
