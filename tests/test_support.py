@@ -118,6 +118,33 @@ def test_the_support_radius_rule():
     assert support_radius(np.unique(np.concatenate([line, line]), axis=0)) == support_radius(line)
 
 
+# --- BC's stay augmentation ---------------------------------------------------------------------------------------
+
+
+def test_augment_adds_exactly_the_other_goals_off_support_states_once_each(monkeypatch):
+    from grail_bench.recognizers import bc
+
+    seen: list[tuple[np.ndarray, np.ndarray]] = []
+    original = bc.train_bc
+
+    def spy(policy: Any, transitions: Any, seed: int, **kwargs: Any) -> Any:
+        seen.append((np.asarray(transitions.obs), np.asarray(transitions.acts)))
+        return original(policy, transitions, seed, **kwargs)
+
+    monkeypatch.setattr(bc, "train_bc", spy)
+    task, train, _ = _minigrid()
+    make_recognizer("bc", n_epochs=1, augment="stay").fit(train, task.env_factory(), seed=0)  # no cache: all train
+    assert len(seen) == len(train)
+    for goal, (obs, acts) in zip(train, seen):
+        own = sum(len(states) for states in training_states(train[goal]))
+        _, off = _on_and_off(train, goal)
+        assert len(off) > 0 and len(obs) == own + len(off)  # its own pairs, then each off-support state once
+        np.testing.assert_array_equal(obs[own:], off)
+        assert (acts[own:] == STAY).all()
+    default, augmented = make_recognizer("bc"), make_recognizer("bc", augment="stay")
+    assert settings_key(augmented.config, models=True) == {**settings_key(default.config), "augment": "stay"}
+
+
 # --- keys: scoring settings share models, not stored results --------------------------------------------------------
 
 
@@ -179,6 +206,7 @@ REFUSED = [
     ("bc", {"off_support": "stay"}, ["bc.off_support=stay"], "bc: off_support='stay' needs the domain's no-op"),
     ("gail", {"off_support": "stay"}, ["gail.off_support=stay"], "gail: off_support='stay' needs the domain's no-op"),
     ("gc-bc", {"off_support": "stay"}, ["gc-bc.off_support=stay"], "gc-bc: off_support='stay' needs"),
+    ("bc", {"augment": "stay"}, ["bc.augment=stay"], "bc: augment='stay' needs the domain's no-op"),
 ]
 
 

@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
 import warnings
-from dataclasses import dataclass
-from typing import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal, Sequence
 
 import numpy as np
 from imitation.algorithms import bc
 from imitation.data import rollout
-from imitation.data.types import Trajectory, TransitionsMinimal
+from imitation.data.types import Trajectory, Transitions, TransitionsMinimal
 from imitation.policies.base import FeedForward32Policy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
@@ -39,6 +40,10 @@ class BCConfig:
             (its own output: the paper's method), ``"stay"`` (the domain's no-op) or ``"uniform"`` (no
             preference); see :class:`~grail_bench.recognizers.scored.Evidence`. Scoring only: the trained
             policies are shared across its values.
+        augment: ``"none"`` (the paper's method) or ``"stay"``: goal ``g``'s policy also learns the domain's
+            no-op at every distinct training state of the other goals that lies off ``g``'s support (pairs
+            ``(s, no-op)`` added once each to its demonstrations' pairs), so it learns to stay where its goal
+            has no evidence. It changes training: its models are cached apart, keyed by those states too.
     """
 
     n_epochs: int = 100
@@ -46,6 +51,7 @@ class BCConfig:
     learning_rate: float = 1e-3
     ent_weight: float = 1e-3
     off_support: OffSupport = off_support_setting()
+    augment: Literal["none", "stay"] = field(default="none", metadata={"omit_default": True})
 
     def __post_init__(self) -> None:
         if self.n_epochs < 1 or self.batch_size < 1 or self.learning_rate <= 0:
@@ -60,8 +66,9 @@ class BCRecognizer(PolicyRecognizer):
 
     Each goal's policy is imitation's default BC policy (an SB3 actor-critic
     MLP with two hidden layers of 32 tanh units) trained by supervised
-    learning on that goal's demonstrations, cut after the goal is reached.
-    Its ``scorer`` defaults to ``"mse"`` (the paper's); any scorer the policies can serve.
+    learning on that goal's demonstrations, cut after the goal is reached
+    (with ``augment="stay"``, plus the no-op at the other goals' states off its
+    support). Its ``scorer`` defaults to ``"mse"`` (the paper's); any scorer the policies can serve.
     """
 
     name = "bc"
@@ -74,9 +81,33 @@ class BCRecognizer(PolicyRecognizer):
         return FeedForward32Policy(observation_space=observation_space, action_space=action_space,
                                    lr_schedule=lambda _: self.config.learning_rate)
 
+    def noop_settings(self) -> list[str]:
+        return super().noop_settings() + (["augment='stay'"] if self.config.augment == "stay" else [])
+
+    def augmented_states(self, goal: Goal) -> np.ndarray:
+        """The states at which ``goal``'s policy also learns the no-op (none unless ``augment="stay"``)."""
+        if self.config.augment == "none":
+            return np.empty((0,))
+        return self.evidence.others_off_support(goal)
+
+    def model_key(self, goal: Goal) -> dict[str, Any]:
+        if self.config.augment == "none":
+            return {}
+        states = np.ascontiguousarray(self.augmented_states(goal))
+        digest = hashlib.sha256(states.tobytes() + repr((states.dtype.str, states.shape)).encode()).hexdigest()
+        return {"augmented": digest, "noop": np.asarray(self.evidence.noop).tolist()}
+
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
         transitions = rollout.flatten_trajectories([until_success(t) for t in demos])
+        extra = self.augmented_states(goal)
+        if len(extra):
+            acts = np.asarray(transitions.acts)
+            noop = np.broadcast_to(np.asarray(self.evidence.noop, dtype=acts.dtype), (len(extra), *acts.shape[1:]))
+            obs = np.concatenate([np.asarray(transitions.obs), extra.astype(np.asarray(transitions.obs).dtype)])
+            # BC reads observations and actions only; imitation's batching wants the other fields present.
+            transitions = Transitions(obs=obs, acts=np.concatenate([acts, noop]), infos=np.array([{}] * len(obs)),
+                                      next_obs=obs, dones=np.zeros(len(obs), dtype=bool))
         policy = self.new_policy(goal, env_factory)
         cfg = self.config
         return train_bc(policy, transitions, seed, batch_size=cfg.batch_size, learning_rate=cfg.learning_rate,

@@ -54,6 +54,11 @@ class PolicyRecognizer(ScoredRecognizer):
                      seed: int) -> tuple[BasePolicy, Curves]:
         """Train the policy of one goal; return it and the training curves its learner logged (kept short)."""
 
+    def model_key(self, goal: Goal) -> dict[str, Any]:
+        """What else a goal's trained policy depends on, beyond its settings, env, seed and own demonstrations
+        (entries added to its cache key; none by default). Called after :meth:`learn_evidence`."""
+        return {}
+
     def fit(self, demos: Mapping[Goal, Sequence[Trajectory]], env_factory: EnvFactory, *, seed: int,
             cache_key: str | None = None) -> FitReport:
         """Train one policy per goal (see :class:`grail_bench.Recognizer`).
@@ -103,6 +108,7 @@ class PolicyRecognizer(ScoredRecognizer):
                "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}
         if self.uses_demos:
             key["demos"] = demos_digest(demos)
+        key.update(self.model_key(goal))
         trained: dict[str, BasePolicy] = {}
 
         def train() -> tuple[dict[str, Any], dict[str, Any]]:

@@ -101,7 +101,8 @@ class Evidence:
         self.observation_space, self.action_space = observation_space, action_space
         self.discrete = isinstance(observation_space, (spaces.Discrete, spaces.MultiDiscrete))
         if not self.discrete and not isinstance(observation_space, spaces.Box):
-            raise UserError(f"off-support rules need Discrete, MultiDiscrete or Box observations, got {observation_space}")
+            raise UserError(f"off-support rules need Discrete, MultiDiscrete or Box observations, got "
+                            f"{observation_space}")
         if self.discrete and n_states(observation_space) >= 1 << 62:
             raise UserError(f"off-support rules need discrete observation spaces of fewer than 2**62 states, got "
                             f"{observation_space}")
@@ -153,6 +154,15 @@ class Evidence:
                 off[k] = self._trees[goal].query(flat, k=1)[0] > self.radius[goal]
         return off
 
+    def others_off_support(self, goal: Goal) -> np.ndarray:
+        """The distinct training states of every other goal that lie off ``goal``'s support, sorted, ``(N, ...)``."""
+        goal = tuple(goal)
+        others = [s for g in self.goals if g != goal for s in self.states[g]]
+        if not others:
+            return np.empty((0, *self.observation_space.shape), dtype=self.observation_space.dtype)
+        distinct = np.unique(np.concatenate(others), axis=0)
+        return distinct[self.off_support([goal], distinct)[0]]
+
     def replace_off_support(self, output: PolicyOutput, goals: Sequence[Goal], states: np.ndarray,
                             rule: str) -> PolicyOutput:
         """``output`` with each goal's outputs at states off its support replaced by ``rule``'s.
@@ -172,7 +182,10 @@ class Evidence:
         mask = off[:, :, None]
         if output.probs is not None:
             n = output.probs.shape[-1]
-            row = np.full(n, 1.0 / n) if rule == "uniform" else np.eye(n)[self._noop(rule)]
+            if rule == "uniform":
+                row = np.full(n, 1.0 / n)
+            else:
+                row = np.eye(n)[self._noop(rule) - int(self.action_space.start)]
             return dataclasses.replace(output, probs=np.where(mask, row.astype(output.probs.dtype), output.probs))
         mean, std = self.replacement(rule)
         out = {"mean": np.where(mask, mean.astype(output.mean.dtype), output.mean)}
@@ -226,7 +239,7 @@ def _checked_noop(noop: Any, action_space: spaces.Space) -> Any:
         if isinstance(noop, (bool, np.bool_)) or not isinstance(noop, (int, np.integer)) \
                 or not action_space.start <= noop < action_space.start + action_space.n:
             raise UserError(f"the domain's noop_action {noop!r} is not an action of {action_space}")
-        return int(noop) - int(action_space.start)
+        return int(noop)
     value = np.asarray(noop, dtype=np.float64)
     if not isinstance(action_space, spaces.Box) or value.shape != action_space.shape \
             or not np.all((value >= action_space.low) & (value <= action_space.high)):
