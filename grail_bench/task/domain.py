@@ -71,6 +71,24 @@ class Domain(Protocol):
     declares "stay", PandaReach and PointMaze the zero action). Recognizer
     settings that need one (``off_support="stay"``, BC's ``augment="stay"``) are
     refused where a run is planned on a domain that declares none.
+
+    A domain may also state its demonstrator's action distribution, which the
+    reference recognizer ``demonstrator`` (perfect imitation) scores with:
+    ``demonstrator_policy(task, goal, support)``, ``support`` being
+    ``"everywhere"`` (goal-directed from every state: on a state the
+    demonstrator from the task's start never visits, its distribution as if it
+    started there) or ``"demonstrated"`` (the demonstrator's distribution on the
+    states it visits from the task's start, no preference elsewhere). It returns,
+    for discrete observations and actions, an ``(S, A)`` array of action
+    probabilities whose row ``i`` is the state of
+    :func:`~grail_bench.core.spaces.state_index` ``i``; for continuous actions, a
+    callable from ``(T, ...)`` states to ``(mean, std)``, each ``(T, D)``. Where
+    the demonstrator is not Markov in the observed state, a row is its marginal
+    there (the expected times it takes each action at the state over the expected
+    times it is there). It raises :class:`~grail_bench.core.errors.UserError` for
+    a regime whose action distribution it does not state; with it comes
+    ``check_demonstrator_policy(task, support)``, raising the same refusals
+    without building anything (the recognizer calls it where a run is planned).
     """
 
     name: str

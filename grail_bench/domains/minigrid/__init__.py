@@ -3,7 +3,8 @@
 * :mod:`.grid`: actions, headings, pure-Python dynamics, regime parameters (no minigrid import).
 * :mod:`.env`: the goal-pinned minigrid env.
 * :mod:`.demos`: the scripted demonstrators; :mod:`.likelihood`: their exact
-  likelihood, for the Bayes ceiling.
+  likelihood, for the Bayes ceiling; :mod:`.policy`: their action
+  distributions on every state, for the ``demonstrator`` recognizer.
 """
 
 from __future__ import annotations
@@ -73,6 +74,19 @@ class MiniGrid:
         from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
 
         return GoalDemonstrator(task, goal)
+
+    def demonstrator_policy(self, task: GRTask, goal: Goal, support: str = "everywhere") -> np.ndarray:
+        """The demonstrator's action probabilities of ``goal``, ``(S, 4)``, in every regime (see
+        :mod:`.policy` for what a row is per regime and support)."""
+        from grail_bench.domains.minigrid.policy import demonstrator_policy
+
+        return demonstrator_policy(task, goal, support)
+
+    def check_demonstrator_policy(self, task: GRTask, support: str = "everywhere") -> None:
+        """Refuse, in one line and without building anything, a task :meth:`demonstrator_policy` cannot serve."""
+        from grail_bench.domains.minigrid.policy import check_policy
+
+        check_policy(task, support)
 
 
 def _cell(name: str, value: Any) -> tuple[int, int]:

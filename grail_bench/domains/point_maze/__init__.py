@@ -3,6 +3,8 @@
 * :mod:`.maze`: the layout, shortest routes and parameter checks (no MuJoCo import).
 * :mod:`.env`: the goal-pinned env with a goal-free observation.
 * :mod:`.demos`: the route-following demonstrators (or a cached SAC expert).
+* :mod:`.likelihood`: their exact likelihood, for the Bayes ceiling; :mod:`.policy`: their actions as a
+  Gaussian per state, for the ``demonstrator`` recognizer.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from grail_bench.core.trajectory import Goal
+    from grail_bench.domains.point_maze.policy import RoutePolicy
     from grail_bench.task.model import GRTask
 
 # Three lanes each way around four pillars: most goals have several equally short routes.
@@ -66,6 +69,19 @@ class PointMaze:
         from grail_bench.domains.point_maze.likelihood import RouteDemonstrator
 
         return RouteDemonstrator(task, goal)
+
+    def demonstrator_policy(self, task: GRTask, goal: Goal, support: str = "everywhere") -> RoutePolicy:
+        """The scripted, noise-free demonstrator's actions as a Gaussian per state (``optimal`` and ``biased``;
+        see :mod:`.policy` for the approximation and the supports)."""
+        from grail_bench.domains.point_maze.policy import demonstrator_policy
+
+        return demonstrator_policy(task, goal, support)
+
+    def check_demonstrator_policy(self, task: GRTask, support: str = "everywhere") -> None:
+        """Refuse, in one line and without building anything, a task :meth:`demonstrator_policy` cannot serve."""
+        from grail_bench.domains.point_maze.policy import check_policy
+
+        check_policy(task, support)
 
 
 DOMAIN = PointMaze()

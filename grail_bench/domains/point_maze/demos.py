@@ -41,13 +41,13 @@ SAC_NET = [64, 64]
 
 
 def corners(maze: Maze, start: Cell, route: str) -> list[np.ndarray]:
-    """Centres of the cells where the route turns, then the goal's."""
+    """Centres of the cells where the route turns, then the goal's (an empty route: the start's, its goal)."""
     points, cell = [], start
     for i, heading in enumerate(route):
         cell = maze.step(cell, heading)
         if i + 1 == len(route) or route[i + 1] != heading:
             points.append(maze.xy(cell))
-    return points
+    return points or [maze.xy(start)]
 
 
 def route_controller(maze: Maze, start: Cell, route: str) -> Controller:

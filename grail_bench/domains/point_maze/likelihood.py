@@ -63,6 +63,10 @@ class RouteDemonstrator:
         for route in self.routes:
             yield route, 1.0 / len(self.routes)
 
+    def pairs(self, route: str) -> list[Pair]:
+        """Every ``(state, action)`` pair of the route's rollout, over the whole horizon."""
+        return self._pairs[route][0]
+
     def span(self, route: str, selection: Selection) -> list[Pair]:
         pairs, goal_step = self._pairs[route]
         return pairs if selection.horizon else pairs[:goal_step]
