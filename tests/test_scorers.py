@@ -96,11 +96,12 @@ def test_goal_sets_within_a_share_of_the_score_range():
 def test_unsupported_scorer_names_both():
     rec = make_recognizer("bc")
     box = spaces.Box(-1, 1, (3,))
-    with pytest.raises(ValueError, match="scorer 'kl' needs action probabilities; recognizer 'bc' exposes mean, std"):
+    with pytest.raises(ValueError, match="scorer 'kl' needs action probabilities; recognizer 'bc' exposes mean, "
+                                         "occupancy, std"):
         check_scorer("kl", rec.exposes(box), rec.name)
     assert check_scorer("wasserstein", rec.exposes(box), rec.name).name == "wasserstein"
     assert check_scorer("kl", rec.exposes(spaces.Discrete(4)), rec.name).name == "kl"
-    assert [s for s in BUILTIN.values() if s.posterior] == [BUILTIN["loglik"]]
+    assert [s for s in BUILTIN.values() if s.posterior] == [BUILTIN["loglik"], BUILTIN["occupancy"]]
     with pytest.raises(UnknownScorerError):
         make_recognizer("bc", scorer="nope")
 

@@ -145,6 +145,95 @@ def test_augment_adds_exactly_the_other_goals_off_support_states_once_each(monke
     assert settings_key(augmented.config, models=True) == {**settings_key(default.config), "augment": "stay"}
 
 
+# --- the occupancy scorer -----------------------------------------------------------------------------------------
+
+
+def test_occupancy_decides_where_the_policies_tie():
+    from grail_bench.recognizers.scoring import PolicyOutput, check_scorer, get_scorer
+
+    scorer = get_scorer("occupancy")
+    probs = np.broadcast_to(np.array([0.1, 0.2, 0.3, 0.4]), (2, 3, 4)).copy()  # two goals, the same policy
+    actions = np.array([3, 0, 2])
+    occupancy = np.log(np.array([[0.5, 0.05, 0.2], [0.1, 0.1, 0.1]]))  # goal 0 visits these states more, overall
+    out = PolicyOutput(probs=probs, log_occupancy=occupancy)
+    scores = scorer.fn(out, actions)
+    policy = np.log([0.4, 0.1, 0.3]).mean()
+    np.testing.assert_allclose(scores, policy + occupancy.mean(axis=1))
+    assert scores[0] > scores[1]
+    assert scorer.fn(PolicyOutput(probs=probs, log_occupancy=occupancy[::-1]), actions).argmax() == 1
+    prefixes = scorer.prefix_scores(out, actions)  # online mode: every prefix from one pass
+    for k in range(1, 4):
+        np.testing.assert_allclose(prefixes[:, k - 1], scorer.fn(out.head(k), actions[:k]))
+    mean = np.zeros((2, 3, 2))  # continuous actions: the same Gaussian policy for both goals
+    gaussian = PolicyOutput(mean=mean, std=np.ones((2, 1, 2)), log_occupancy=occupancy)
+    assert scorer.fn(gaussian, np.ones((3, 2))).argmax() == 0 and scorer.posterior
+    needs = "needs action probabilities and state occupancy or mean actions and action std and state occupancy"
+    with pytest.raises(UserError, match=needs):
+        check_scorer("occupancy", frozenset({"probs"}), "toy")
+
+
+def _toy(space: Any, demos_states: list[list[Any]]) -> Any:
+    from grail_bench.recognizers.scored import Evidence
+
+    def demo(states: list[Any]) -> Trajectory:
+        obs = np.asarray([*states, states[-1]])
+        return Trajectory(obs=obs, acts=np.zeros(len(states), dtype=np.int64), infos=None, terminal=True)
+
+    goals = {(float(i),): [demo(d) for d in demos] for i, demos in enumerate(demos_states)}
+    return goals, Evidence(goals, space, __import__("gymnasium").spaces.Discrete(2))
+
+
+def test_the_prior_weight_and_the_bandwidth_follow_leave_one_demonstration_out_likelihood():
+    from gymnasium import spaces
+
+    from grail_bench.recognizers.scored import ALPHAS, BANDWIDTHS
+
+    same = [[[0, 1, 2]] * 3, [[5, 6, 7]] * 3]  # identical demonstrations: the held-out one is predicted exactly
+    goals, evidence = _toy(spaces.Discrete(10), same)
+    assert evidence.alpha == min(ALPHAS)
+    a, n = evidence.alpha, 9
+    expected = np.log([(3 + a) / (n + 10 * a), a / (n + 10 * a)])
+    np.testing.assert_allclose(evidence.log_occupancy([(0.0,)], np.array([1, 6]))[0], expected)
+    np.testing.assert_allclose(evidence.log_occupancy([(9.0,)], np.array([1])), [[-np.log(10)]])  # no demos: prior
+    apart = [[[0, 1], [2, 3], [4, 5]], [[6], [7], [8]]]  # every demonstration elsewhere: the prior matters most
+    assert _toy(spaces.Discrete(10), apart)[1].alpha == max(ALPHAS)
+    box = spaces.Box(-5.0, 5.0, shape=(2,))
+    line = [[[0.0, 0.0], [0.5, 0.2], [1.0, 0.4]]] * 3
+    assert _toy(box, [line, [[[3.0, 3.0], [3.0, 2.0]]] * 3])[1].bandwidth == min(BANDWIDTHS)  # the floor
+    noisy = np.random.default_rng(0).normal(size=(2, 4, 20, 2)).tolist()
+    assert min(BANDWIDTHS) < _toy(box, noisy)[1].bandwidth
+
+
+def test_policy_recognizers_score_occupancy_in_one_pass_and_online():
+    task, train, _ = _minigrid()
+    rec = _fitted(task, train)
+    observed = train[task.goals[2]][0]
+    states = np.asarray(observed.obs)[: len(observed.acts)]
+    scores = rec.score(observed, "occupancy")
+    loglik = rec.score(observed, "loglik")
+    occupancy = rec.evidence.log_occupancy(rec.goals, states).mean(axis=1)
+    np.testing.assert_allclose([scores[g] for g in rec.goals], [loglik[g] for g in rec.goals] + occupancy, rtol=1e-6)
+    prefixes = rec.score_prefixes(observed, "occupancy")
+    for k in (1, 5, len(states)):
+        head = Trajectory(obs=observed.obs[: k + 1], acts=observed.acts[:k], infos=None, terminal=False)
+        np.testing.assert_allclose([prefixes[g][k - 1] for g in rec.goals], list(rec.score(head, "occupancy").values()),
+                                   rtol=1e-6)
+    assert max(scores, key=scores.get) == task.goals[2]
+    assert "occupancy" in make_recognizer("gc-bc").exposes(rec.action_space)
+    assert "occupancy" in make_recognizer("draco").exposes(rec.action_space)
+
+
+def test_a_recognizer_without_occupancy_refuses_the_scorer_at_planning():
+    from grail_bench.harness.planning import RecognizerSpec, plan
+
+    task = make_task(MINIGRID)
+    env = task.make_env()
+    with pytest.raises(UserError, match="scorer 'occupancy' needs"):
+        plan(task, RecognizerSpec("graql", {}, ("occupancy",)), env.action_space)
+    assert plan(task, RecognizerSpec("gail", {}, ("occupancy",)), env.action_space).labels == ("occupancy",)
+    env.close()
+
+
 # --- keys: scoring settings share models, not stored results --------------------------------------------------------
 
 

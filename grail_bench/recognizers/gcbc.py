@@ -275,7 +275,10 @@ class GCBCRecognizer(ScoredRecognizer):
         self.goals = goals
 
     def exposes(self, action_space: Any) -> frozenset[str]:
-        return frozenset({"probs"}) if isinstance(action_space, spaces.Discrete) else frozenset({"mean", "std"})
+        """Action probabilities or mean and std, and every goal's state occupancy in its training demonstrations
+        (a goal without demonstrations: the prior alone, uniform over the observation space)."""
+        policy = {"probs"} if isinstance(action_space, spaces.Discrete) else {"mean", "std"}
+        return frozenset(policy | {"occupancy"})
 
     def outputs_at(self, states: np.ndarray) -> PolicyOutput:
         outputs = self.bank.outputs_of(self.encoder.encode(states, self.goals))

@@ -35,7 +35,11 @@ class PolicyRecognizer(ScoredRecognizer):
     each policy's action (probability vector against the one-hot observed
     action for discrete actions, mean action for continuous ones) and the
     observed action. Discrete policies expose action probabilities, continuous
-    ones their mean and std.
+    ones their mean and std; every goal's state occupancy in its training
+    demonstrations is exposed too (the ``occupancy`` scorer), estimated in
+    :meth:`fit` from the demonstrations whether the policies are trained or
+    reloaded from the cache. The ``off_support`` setting of a subclass's
+    :attr:`Config` applies (see :class:`~grail_bench.recognizers.scored.ScoredRecognizer`).
     """
 
     #: Whether the policies are learned from the demonstrations (their digest then keys the cache).
@@ -124,7 +128,10 @@ class PolicyRecognizer(ScoredRecognizer):
         return policy, entry.seconds, True, curves
 
     def exposes(self, action_space: Any) -> frozenset[str]:
-        return frozenset({"probs"}) if isinstance(action_space, spaces.Discrete) else frozenset({"mean", "std"})
+        """Action probabilities (discrete actions) or mean and std (continuous ones), and every goal's state
+        occupancy in its training demonstrations (:class:`~grail_bench.recognizers.scored.Evidence`)."""
+        policy = {"probs"} if isinstance(action_space, spaces.Discrete) else {"mean", "std"}
+        return frozenset(policy | {"occupancy"})
 
     def outputs_at(self, states: np.ndarray) -> PolicyOutput:
         if self.bank.discrete:

@@ -17,7 +17,7 @@ from grail_bench.core.spaces import n_states, state_index
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal, until_success
 from grail_bench.recognizers.contract import FitDiagnostics, RecognizerBase, observed_arrays
 from grail_bench.recognizers.diagnostics import policy_diagnostics
-from grail_bench.recognizers.scoring import PolicyOutput, check_scorer, get_scorer
+from grail_bench.recognizers.scoring import PolicyOutput, Scorer, check_scorer, get_scorer
 
 if TYPE_CHECKING:
     from imitation.data.types import Trajectory
@@ -31,6 +31,15 @@ RADIUS_PERCENTILE = 95.0
 #: The smallest support radius, relative to the states' size (``floor * max(1, max |coordinate|)``): where a goal
 #: has a single distinct training state (identical one-state demonstrations), only that state, up to rounding.
 RADIUS_FLOOR = 1e-6
+#: The Dirichlet prior weights the occupancy of discrete states is chosen among (per state of the space).
+ALPHAS = (0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+#: The Gaussian kernel bandwidths the occupancy of continuous states is chosen among, in units of the training
+#: states' standard deviation per coordinate; the smallest is the floor identical demonstrations reach.
+BANDWIDTHS = tuple(float(h) for h in np.geomspace(0.01, 1.0, 9))
+#: Where no goal has two demonstrations (nothing to leave out), the prior weight and the bandwidth used.
+ALPHA_DEFAULT, BANDWIDTH_DEFAULT = 0.1, 0.1
+#: Held-out states per goal at most in the bandwidth's leave-one-demonstration-out likelihood (evenly spaced).
+HELD_OUT_STATES = 512
 
 
 def off_support_setting() -> Any:
@@ -86,6 +95,20 @@ class Evidence:
     between consecutive states; a goal with a single distinct state gets the floor (:data:`RADIUS_FLOOR`), that
     state up to rounding. A goal without demonstrations (a goal-conditioned model's new goal) has no support.
 
+    A goal's *occupancy* ``d_g`` is the smoothed frequency of its training states (every visit counts). On
+    discrete observations: ``d_g(s) = (c_g(s) + alpha) / (N_g + alpha * S)``, ``c_g(s)`` the visits of state
+    ``s``, ``N_g`` all visits, ``S`` the states of the observation space (a Dirichlet prior ``alpha`` on every
+    state). On continuous ones: a Gaussian kernel density of the training states with one isotropic bandwidth
+    ``h``, in coordinates scaled by every goal's training states' standard deviation (a coordinate that never
+    varies keeps scale 1). ``alpha`` (among :data:`ALPHAS`) and ``h`` (among :data:`BANDWIDTHS`) are one value
+    for all goals, so their occupancies compare, chosen to maximise the leave-one-demonstration-out likelihood:
+    each training demonstration's states scored by the estimate from the rest of its goal's demonstrations,
+    summed over every demonstration of every goal with at least two (at most :data:`HELD_OUT_STATES` evenly
+    spaced states per goal for ``h``). Identical demonstrations drive both to the grid's smallest value, which
+    is then the floor (no jitter needed: the kernel has no covariance to estimate). Where no goal has two
+    demonstrations, :data:`ALPHA_DEFAULT` and :data:`BANDWIDTH_DEFAULT`. A goal without demonstrations has the
+    prior alone: uniform over the observation space (refused on an unbounded box).
+
     Args:
         demos: The training demonstrations of every fitted goal.
         observation_space: The env's observation space (``Discrete``, ``MultiDiscrete`` or ``Box``).
@@ -127,6 +150,110 @@ class Evidence:
                 distinct = np.unique(self.flat(np.concatenate(self.states[g])), axis=0)
                 self._trees[g] = cKDTree(distinct)
                 self.radius[g] = support_radius(distinct, self._trees[g])
+        self.alpha: float | None = None
+        self.bandwidth: float | None = None
+        if self.discrete:
+            self._learn_counts()
+        else:
+            self._learn_density()
+
+    # ----------------------------------------------------------------------------------------------- occupancy
+
+    def _learn_counts(self) -> None:
+        """Visit counts per goal, and the Dirichlet prior weight chosen by leave-one-demonstration-out likelihood."""
+        size = float(n_states(self.observation_space))
+        per_demo = {g: [np.unique(self.keys(s), return_counts=True) for s in self.states[g]] for g in self.goals}
+        self._counts = {g: np.unique(np.concatenate([self.keys(s) for s in self.states[g]]), return_counts=True)
+                        for g in self.goals}
+        scores = np.zeros(len(ALPHAS))
+        held_out = False
+        for g in self.goals:
+            keys, counts = self._counts[g]
+            total = counts.sum()
+            if len(per_demo[g]) < 2:
+                continue
+            held_out = True
+            for demo_keys, demo_counts in per_demo[g]:
+                rest = counts[np.searchsorted(keys, demo_keys)] - demo_counts  # its states' visits by the others
+                rest_total = total - demo_counts.sum()
+                for i, alpha in enumerate(ALPHAS):
+                    scores[i] += np.sum(demo_counts * (np.log(rest + alpha) - np.log(rest_total + alpha * size)))
+        self.alpha = float(ALPHAS[int(np.argmax(scores))]) if held_out else ALPHA_DEFAULT
+        self._size = size
+        self._log_table = None
+        if size <= SUPPORT_TABLE_STATES:  # one extra row: a goal without demonstrations (the prior alone)
+            self._log_table = np.full((len(self.goals) + 1, int(size)), -math.log(size))
+            for g, (keys, counts) in self._counts.items():
+                row = self._log_table[self._row[g]]
+                row[:] = math.log(self.alpha) - math.log(counts.sum() + self.alpha * size)
+                row[keys] = np.log(counts + self.alpha) - math.log(counts.sum() + self.alpha * size)
+
+    def _learn_density(self) -> None:
+        """The shared scaling of coordinates, and the bandwidth chosen by leave-one-demonstration-out likelihood."""
+        every = self.flat(np.concatenate([s for g in self.goals for s in self.states[g]]))
+        spread = every.std(axis=0)
+        self._centre, self._scale = every.mean(axis=0), np.where(spread > 0, spread, 1.0)
+        self._points = {g: self._scaled(np.concatenate(self.states[g])) for g in self.goals}
+        scores = np.zeros(len(BANDWIDTHS))
+        held_out = False
+        for g in self.goals:
+            if len(self.states[g]) < 2:
+                continue
+            held_out = True
+            points = self._points[g]
+            demo = np.concatenate([np.full(len(s), j) for j, s in enumerate(self.states[g])])
+            chosen = np.unique(np.linspace(0, len(points) - 1, min(len(points), HELD_OUT_STATES)).astype(int))
+            squared = _squared_distances(points[chosen], points)
+            squared[demo[chosen][:, None] == demo[None, :]] = np.inf  # leave the state's own demonstration out
+            rest = len(points) - np.bincount(demo)[demo[chosen]]  # the states the estimate is made from
+            for i, h in enumerate(BANDWIDTHS):
+                held = _log_kde(squared, h, rest, points.shape[1])
+                scores[i] += np.sum(held[np.isfinite(held)])  # nothing to leave out for it: not counted
+        self.bandwidth = float(BANDWIDTHS[int(np.argmax(scores))]) if held_out else BANDWIDTH_DEFAULT
+
+    def _scaled(self, states: np.ndarray) -> np.ndarray:
+        return (self.flat(states) - self._centre) / self._scale
+
+    def log_occupancy(self, goals: Sequence[Goal], states: np.ndarray) -> np.ndarray:
+        """``(K, T)``: the log of each goal's occupancy at each state (a density on continuous observations).
+
+        Raises:
+            UserError: For a goal without demonstrations on an unbounded observation box.
+        """
+        if self.discrete:
+            keys = self.keys(states)
+            if self._log_table is not None:
+                rows = [self._row.get(tuple(g), len(self.goals)) for g in goals]
+                return self._log_table[np.asarray(rows)[:, None], keys[None, :]]
+            out = np.full((len(goals), len(keys)), -math.log(self._size))
+            for k, goal in enumerate(goals):
+                if tuple(goal) in self._counts:
+                    sorted_keys, counts = self._counts[tuple(goal)]
+                    found = _member(sorted_keys, keys)
+                    visits = np.zeros(len(keys))
+                    visits[found] = counts[np.searchsorted(sorted_keys, keys[found])]
+                    out[k] = np.log(visits + self.alpha) - math.log(counts.sum() + self.alpha * self._size)
+            return out
+        scaled = self._scaled(states)
+        jacobian = float(np.sum(np.log(self._scale)))  # the density of raw coordinates, not of scaled ones
+        out = np.empty((len(goals), len(scaled)))
+        for k, goal in enumerate(goals):
+            points = self._points.get(tuple(goal))
+            if points is None:
+                out[k] = -self._log_volume()
+                continue
+            out[k] = _log_kde(_squared_distances(scaled, points), self.bandwidth, len(points), scaled.shape[1])
+            out[k] -= jacobian
+        return out
+
+    def _log_volume(self) -> float:
+        low, high = (np.asarray(b, dtype=np.float64) for b in (self.observation_space.low, self.observation_space.high))
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+            raise UserError(f"a goal without demonstrations has no occupancy on an unbounded observation box "
+                            f"{self.observation_space}")
+        return float(np.sum(np.log(high - low)))
+
+    # ----------------------------------------------------------------------------------------------- support
 
     def keys(self, states: np.ndarray) -> np.ndarray:
         """Discrete states' flat indices, ``(T,)``."""
@@ -212,6 +339,23 @@ class Evidence:
         return self.noop
 
 
+def _squared_distances(queries: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``(Q, N)`` squared Euclidean distances between rows."""
+    squared = (queries * queries).sum(1)[:, None] - 2.0 * queries @ points.T + (points * points).sum(1)[None, :]
+    return np.maximum(squared, 0.0)
+
+
+def _log_kde(squared: np.ndarray, bandwidth: float, n: np.ndarray | int, dim: int) -> np.ndarray:
+    """Log of an isotropic Gaussian kernel density at each query, from its ``(Q, N)`` squared distances to the
+    ``n`` points (infinite distances: points left out)."""
+    nearest = squared.min(axis=1, keepdims=True)
+    scale = 1.0 / (2.0 * bandwidth * bandwidth)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shifted = np.exp((nearest - squared) * scale).sum(axis=1)  # the nearest point's term is 1: no underflow
+    sums = np.log(shifted) - nearest[:, 0] * scale
+    return sums - np.log(n) - dim * math.log(bandwidth * math.sqrt(2.0 * math.pi))
+
+
 def support_radius(distinct: np.ndarray, tree: Any = None) -> float:
     """The support radius of a goal's distinct ``(N, D)`` training states (see :class:`Evidence`)."""
     floor = RADIUS_FLOOR * max(1.0, float(np.max(np.abs(distinct))) if distinct.size else 1.0)
@@ -271,7 +415,8 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     (:class:`Evidence`) by the rule it names. Its default, ``"trust"``, scores the outputs as they are (the
     published methods). ``"stay"`` needs the domain's no-op action (the domain capability ``noop_action``): a
     task whose domain declares none is refused by :meth:`check_task` where the run is planned, before any
-    training.
+    training. A subclass that learns the evidence may also expose ``"occupancy"``: each goal's smoothed state
+    occupancy in its training demonstrations, which the ``occupancy`` scorer adds to the policy's log-likelihood.
 
     Args:
         scorer: What :meth:`score` uses when no scorer is named; defaults to
@@ -300,6 +445,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         self.observation_space: Any = None
         self.action_space: Any = None
         self.evidence: Evidence | None = None  # learnt by learn_evidence() at fit
+        self._evidence_error = ""  # why it could not be learnt, if it could not
 
     @property
     def off_support(self) -> str:
@@ -321,10 +467,11 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
             raise UserError(f"{self.name}: {' and '.join(needs)} needs the domain's no-op action; domain "
                             f"{task.domain!r} declares no noop_action")
 
-    def learn_evidence(self, demos: Demos, env_factory: EnvFactory) -> Evidence:
+    def learn_evidence(self, demos: Demos, env_factory: EnvFactory) -> Evidence | None:
         """Learn where each goal's training demonstrations went (:class:`Evidence`), keep it and return it.
 
-        Called by ``fit`` before any training, so a setting the domain cannot serve fails first.
+        Called by ``fit`` before any training, so a setting the domain cannot serve fails first. On spaces the
+        evidence cannot be learnt on, None, while no setting needs it (the ``occupancy`` scorer is refused then).
 
         Raises:
             UserError: When a setting needs the domain's no-op action and the env's task names no domain
@@ -339,7 +486,13 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         if needs and noop is None:
             raise UserError(f"{self.name}: {' and '.join(needs)} needs the domain's no-op action; the env's domain "
                             "declares no noop_action")
-        self.evidence = Evidence(demos, observation_space, action_space, noop)
+        try:
+            self.evidence, self._evidence_error = Evidence(demos, observation_space, action_space, noop), ""
+        except UserError as exc:
+            if needs or self.off_support != "trust":
+                raise
+            self.evidence, self._evidence_error = None, str(exc)  # nothing needs it yet: refused if asked for
+            return None
         if self.off_support == "uniform" and isinstance(action_space, spaces.Box):
             self.evidence.replacement("uniform")
         return self.evidence
@@ -352,10 +505,11 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     def outputs_at(self, states: np.ndarray) -> PolicyOutput:
         """Outputs of every goal's policy on ``(T, ...)`` states (already checked against the spaces)."""
 
-    def policy_output(self, observed: Any) -> tuple[PolicyOutput, np.ndarray]:
+    def policy_output(self, observed: Any, occupancy: bool = False) -> tuple[PolicyOutput, np.ndarray]:
         """Outputs of every goal's policy on the observed states, as scored, and the observed actions.
 
-        The outputs are :meth:`outputs_at`'s, with the ``off_support`` rule applied.
+        The outputs are :meth:`outputs_at`'s, with the ``off_support`` rule applied; with ``occupancy``, also
+        each goal's log occupancy at the states (:class:`Evidence`), where the recognizer exposes it.
 
         Raises:
             NotFittedError: Before :meth:`fit`.
@@ -367,12 +521,22 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         output = self.outputs_at(states)
         if self.off_support != "trust":
             output = self._evidence().replace_off_support(output, self.goals, states, self.off_support)
+        if occupancy and "occupancy" in self.exposes(self.action_space):
+            output = dataclasses.replace(output, log_occupancy=self._evidence().log_occupancy(self.goals, states))
         return output, actions
+
+    def _scored(self, observed: Any, scorer: str | None) -> tuple[Scorer, PolicyOutput, np.ndarray]:
+        """The scorer to use, the outputs it needs and the observed actions."""
+        name = scorer or self.default_scorer
+        wants = any("occupancy" in need for need in get_scorer(name).needs)
+        output, actions = self.policy_output(observed, occupancy=wants)
+        return check_scorer(name, output.exposes(), self.name), output, actions
 
     def _evidence(self) -> Evidence:
         if self.evidence is None:
-            raise UserError(f"{self.name}: off_support and the occupancy scorer need the goals' training states; "
-                            "its fit must call learn_evidence()")
+            why = getattr(self, "_evidence_error", "") or ("off_support and the occupancy scorer need the goals' "
+                                                           "training states; its fit must call learn_evidence()")
+            raise UserError(f"{self.name}: {why}")
         return self.evidence
 
     def diagnose(self, train: Demos, held_out: Demos, env_factory: EnvFactory | None) -> FitDiagnostics:
@@ -381,8 +545,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
 
     def score(self, observed: Any, scorer: str | None = None) -> dict[Goal, float]:
         """Scores of every goal (see :class:`~grail_bench.recognizers.contract.Recognizer`)."""
-        output, actions = self.policy_output(observed)
-        chosen = check_scorer(scorer or self.default_scorer, output.exposes(), self.name)
+        chosen, output, actions = self._scored(observed, scorer)
         return dict(zip(self.goals, chosen.fn(output, actions).tolist()))
 
     def score_prefixes(self, observed: Any, scorer: str | None = None) -> dict[Goal, np.ndarray]:
@@ -392,6 +555,5 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         policies are evaluated once on all ``T`` states and the scorer's
         per-step scores are accumulated.
         """
-        output, actions = self.policy_output(observed)
-        chosen = check_scorer(scorer or self.default_scorer, output.exposes(), self.name)
+        chosen, output, actions = self._scored(observed, scorer)
         return dict(zip(self.goals, chosen.prefix_scores(output, actions)))

@@ -6,7 +6,9 @@ and std, or Q-values, stacked over goals); a :class:`Scorer` turns them and the
 observed actions into one score per goal, higher meaning a better fit.
 
 Built-in scorers: ``mse`` (GRAIL's default), ``wasserstein`` (DRACO's), ``kl``
-(GRAQL's) and ``loglik``. More come from the entry-point group
+(GRAQL's), ``loglik`` and ``occupancy`` (the log-likelihood of each observed
+state-action pair: the policy's log-probability of the action plus the log of
+the goal's smoothed state occupancy). More come from the entry-point group
 ``grail_bench.scorers``, each pointing at a :class:`Scorer`.
 
 Shapes: ``K`` goals, ``T`` observed steps, ``A`` discrete actions or ``D``
@@ -15,6 +17,7 @@ action dimensions.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable
 
@@ -26,7 +29,10 @@ from grail_bench.core.registry import Registry
 
 EPS = 1e-8
 GROUP = "grail_bench.scorers"
-OUTPUT_NAMES = {"probs": "action probabilities", "mean": "mean actions", "std": "action std", "q": "Q-values"}
+OUTPUT_NAMES = {"probs": "action probabilities", "mean": "mean actions", "std": "action std", "q": "Q-values",
+                "occupancy": "state occupancy"}
+#: The :class:`PolicyOutput` field behind an output name, where they differ.
+_FIELDS = {"occupancy": "log_occupancy"}
 
 
 @dataclass(frozen=True)
@@ -38,15 +44,18 @@ class PolicyOutput:
         mean: ``(K, T, D)`` mean actions (continuous actions).
         std: ``(K, T, D)`` or ``(K, 1, D)`` action standard deviations.
         q: ``(K, T, A)`` action values.
+        log_occupancy: ``(K, T)`` log of each goal's smoothed state occupancy at the observed states, estimated
+            from its training demonstrations (exposed as ``"occupancy"``).
     """
 
     probs: np.ndarray | None = None
     mean: np.ndarray | None = None
     std: np.ndarray | None = None
     q: np.ndarray | None = None
+    log_occupancy: np.ndarray | None = None
 
     def exposes(self) -> frozenset[str]:
-        return frozenset(k for k in OUTPUT_NAMES if getattr(self, k) is not None)
+        return frozenset(k for k in OUTPUT_NAMES if getattr(self, _FIELDS.get(k, k)) is not None)
 
     def head(self, k: int) -> PolicyOutput:
         """The outputs on the first ``k`` steps (a ``(K, 1, D)`` std is shared by every step and kept)."""
@@ -54,7 +63,7 @@ class PolicyOutput:
             a = getattr(self, name)
             return a if a is None or (name == "std" and a.shape[1] == 1) else a[:, :k]
 
-        return PolicyOutput(**{name: cut(name) for name in OUTPUT_NAMES})
+        return PolicyOutput(**{f.name: cut(f.name) for f in dataclasses.fields(self)})
 
 
 @dataclass(frozen=True)
@@ -93,7 +102,8 @@ class Scorer:
         return any(need <= exposes for need in self.needs)
 
     def needs_text(self) -> str:
-        return " or ".join(" and ".join(OUTPUT_NAMES[n] for n in sorted(need)) for need in self.needs)
+        order = list(OUTPUT_NAMES)  # each need's outputs in this order
+        return " or ".join(" and ".join(OUTPUT_NAMES[n] for n in sorted(need, key=order.index)) for need in self.needs)
 
 
 # ----------------------------------------------------------------------------- pure functions
@@ -244,6 +254,10 @@ def _loglik(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
     return loglik_gaussian_steps(out.mean, out.std, actions.reshape(len(actions), -1))
 
 
+def _occupancy(out: PolicyOutput, actions: np.ndarray) -> np.ndarray:
+    return _loglik(out, actions) + out.log_occupancy
+
+
 def _builtin(name: str, steps: Callable[[PolicyOutput, np.ndarray], np.ndarray], needs: tuple[frozenset[str], ...],
              description: str, posterior: bool = False) -> Scorer:
     """A built-in scorer: the mean over steps of its per-step scores."""
@@ -266,6 +280,9 @@ BUILTIN: dict[str, Scorer] = {
         _builtin("loglik", _loglik, (_PROBS, _GAUSS),
                "mean log-likelihood of the observed actions; also yields a posterior, its Brier score and NLL",
                posterior=True),
+        _builtin("occupancy", _occupancy, (_PROBS | {"occupancy"}, _GAUSS | {"occupancy"}),
+               "mean of log pi_g(a|s) + log d_g(s), d_g goal g's smoothed state occupancy in its training "
+               "demonstrations; also yields a posterior", posterior=True),
     )
 }
 
