@@ -40,5 +40,5 @@ def test_rollout_rewards_in_one_call_train_the_same_weights(name, monkeypatch):
 
 
 def test_update_is_validated():
-    with pytest.raises(UserError, match="update must be one of numpy, torch"):
+    with pytest.raises(UserError, match="update expects one of 'numpy', 'torch', got 'jax'"):
         make_recognizer("gail", update="jax")
