@@ -130,6 +130,8 @@ class Registry(Generic[T]):
         if not isinstance(name, str):
             raise self._unknown(f"a {self.kind} is named by a string, got {name!r}")
         canonical = self.canonical(name)
+        if canonical in self._builtin and canonical not in self._local:
+            return canonical, self._builtin[canonical]  # no entry-point scan: built-ins are looked up per score
         entries = self._entries()
         if canonical not in entries:
             raise self._unknown(f"unknown {self.kind} {name!r}; available: {', '.join(self.names()) or 'none'}")

@@ -50,7 +50,7 @@ from grail_bench.stats.verdict import plateau, scaling_exponent
 from grail_bench.task import find_task, make_task
 from grail_bench.task.observation import ObservationSpec, parse_observability
 
-PROFILES = ("quick", "paper")
+PROFILES = ("quick", "paper", "support")
 
 
 @dataclass(frozen=True)
