@@ -3,6 +3,7 @@ and the refusals of settings a domain cannot serve."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from typing import Any
@@ -18,9 +19,15 @@ from grail_bench.harness import sweep
 from grail_bench.harness.api import evaluate
 from grail_bench.harness.store import ResultsStore
 from grail_bench.recognizers.contract import FitReport, settings_key
-from grail_bench.recognizers.policy import PolicyRecognizer
+from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.recognizers.registry import make_recognizer
-from grail_bench.recognizers.scored import RADIUS_FLOOR, support_radius, training_states
+from grail_bench.recognizers.scored import (
+    RADIUS_FLOOR,
+    OffSupport,
+    off_support_setting,
+    support_radius,
+    training_states,
+)
 from grail_bench.task import make_task
 
 MINIGRID = "GRAIL/MiniGrid-Optimal-4Goals-v0"
@@ -116,6 +123,44 @@ def test_the_support_radius_rule():
     assert support_radius(np.array([[2.0, -4.0]])) == pytest.approx(RADIUS_FLOOR * 4)  # a single distinct state
     # identical demonstrations count once: their distinct states give the radius
     assert support_radius(np.unique(np.concatenate([line, line]), axis=0)) == support_radius(line)
+
+
+@dataclasses.dataclass(frozen=True)
+class _MineConfig:
+    """A third-party recognizer's settings: only the off-support rule."""
+
+    off_support: OffSupport = off_support_setting()
+
+
+class _Mine(PolicyRecognizer):
+    """A third-party policy recognizer: untrained BC policies, the off-support rule through the same field."""
+
+    name = "mine"
+    Config = _MineConfig
+
+    def new_policy(self, goal: Any, env_factory: Any) -> Any:
+        from imitation.policies.base import FeedForward32Policy
+
+        observation_space, action_space = spaces_of(env_factory, goal)
+        return FeedForward32Policy(observation_space=observation_space, action_space=action_space,
+                                   lr_schedule=lambda _: 1e-3)
+
+    def train_policy(self, goal: Any, demos: Any, env_factory: Any, seed: int) -> Any:
+        return self.new_policy(goal, env_factory), {}
+
+
+def test_a_third_party_policy_recognizer_gets_the_rule_through_the_same_field(no_noop):
+    task, train, _ = _minigrid()
+    goal = task.goals[0]
+    _, off = _on_and_off(train, goal)
+    rec = _Mine(off_support="uniform")
+    rec.fit(train, task.env_factory(), seed=0)
+    scored, _ = rec.policy_output(_states(train[goal][0], off))
+    np.testing.assert_allclose(scored.probs[0], 0.25)
+    with pytest.raises(UserError, match=r"^mine: off_support='stay' needs the domain's no-op action; domain "
+                                        r"'minigrid' declares no noop_action$"):
+        _Mine(off_support="stay").check_task(task)
+    assert settings_key(_Mine().config) == {} and settings_key(rec.config, models=True) == {}
 
 
 # --- BC's stay augmentation ---------------------------------------------------------------------------------------

@@ -17,7 +17,7 @@ from grail_bench.core.spaces import n_states, state_index
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal, until_success
 from grail_bench.recognizers.contract import FitDiagnostics, RecognizerBase, observed_arrays
 from grail_bench.recognizers.diagnostics import policy_diagnostics
-from grail_bench.recognizers.scoring import PolicyOutput, Scorer, check_scorer, get_scorer
+from grail_bench.recognizers.scoring import PolicyOutput, Scorer, check_served, get_scorer
 
 if TYPE_CHECKING:
     from imitation.data.types import Trajectory
@@ -39,7 +39,7 @@ BANDWIDTHS = tuple(float(h) for h in np.geomspace(0.01, 1.0, 9))
 #: Where no goal has two demonstrations (nothing to leave out), the prior weight and the bandwidth used.
 ALPHA_DEFAULT, BANDWIDTH_DEFAULT = 0.1, 0.1
 #: Held-out states per goal at most in the bandwidth's leave-one-demonstration-out likelihood (evenly spaced).
-HELD_OUT_STATES = 512
+HELD_OUT_STATES = 256
 
 
 def off_support_setting() -> Any:
@@ -439,7 +439,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         except UserError as exc:
             raise UserError(f"recognizer {self.name!r}: {exc}") from None
         self.default_scorer = scorer or type(self).default_scorer
-        get_scorer(self.default_scorer)  # unknown names fail at construction
+        self._scorers: dict[str, Scorer] = {self.default_scorer: get_scorer(self.default_scorer)}  # unknown: refused
         self.goals: list[Goal] = []
         self.curves: dict[Goal, dict[str, list[float]]] = {}  # per goal, what its training logged
         self.observation_space: Any = None
@@ -526,11 +526,17 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         return output, actions
 
     def _scored(self, observed: Any, scorer: str | None) -> tuple[Scorer, PolicyOutput, np.ndarray]:
-        """The scorer to use, the outputs it needs and the observed actions."""
+        """The scorer to use, the outputs it needs and the observed actions.
+
+        A scorer is looked up in the registry once per recognizer and name (the lookup reads the installed
+        entry points, which costs more than scoring itself).
+        """
         name = scorer or self.default_scorer
-        wants = any("occupancy" in need for need in get_scorer(name).needs)
-        output, actions = self.policy_output(observed, occupancy=wants)
-        return check_scorer(name, output.exposes(), self.name), output, actions
+        if name not in self._scorers:
+            self._scorers[name] = get_scorer(name)
+        chosen = self._scorers[name]
+        output, actions = self.policy_output(observed, occupancy=any("occupancy" in need for need in chosen.needs))
+        return check_served(chosen, output.exposes(), self.name, name), output, actions
 
     def _evidence(self) -> Evidence:
         if self.evidence is None:

@@ -327,7 +327,17 @@ def check_scorer(name: str, exposes: frozenset[str], recognizer: str) -> Scorer:
         UnknownScorerError: For an unregistered name.
         UserError: If the recognizer does not expose what the scorer needs.
     """
-    scorer = get_scorer(name)
+    return check_served(get_scorer(name), exposes, recognizer, name)
+
+
+def check_served(scorer: Scorer, exposes: frozenset[str], recognizer: str, name: str | None = None) -> Scorer:
+    """``scorer``, if a recognizer exposing ``exposes`` can serve it (:func:`check_scorer` for a scorer in hand,
+    asked for as ``name``, its own name by default).
+
+    Raises:
+        UserError: If the recognizer does not expose what the scorer needs.
+    """
+    name = scorer.name if name is None else name
     if not scorer.can_serve(exposes):
         offered = ", ".join(sorted(exposes)) or "nothing"
         raise UserError(f"scorer {name!r} needs {scorer.needs_text()}; recognizer {recognizer!r} exposes {offered}"
