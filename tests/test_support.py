@@ -21,7 +21,7 @@ from grail_bench.harness.store import ResultsStore
 from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.recognizers.registry import make_recognizer
-from grail_bench.recognizers.scored import (
+from grail_bench.recognizers.evidence import (
     RADIUS_FLOOR,
     OffSupport,
     off_support_setting,
@@ -218,7 +218,7 @@ def test_occupancy_decides_where_the_policies_tie():
 
 
 def _toy(space: Any, demos_states: list[list[Any]]) -> Any:
-    from grail_bench.recognizers.scored import Evidence
+    from grail_bench.recognizers.evidence import Evidence
 
     def demo(states: list[Any]) -> Trajectory:
         obs = np.asarray([*states, states[-1]])
@@ -231,7 +231,7 @@ def _toy(space: Any, demos_states: list[list[Any]]) -> Any:
 def test_the_prior_weight_and_the_bandwidth_follow_leave_one_demonstration_out_likelihood():
     from gymnasium import spaces
 
-    from grail_bench.recognizers.scored import ALPHAS, BANDWIDTHS
+    from grail_bench.recognizers.evidence import ALPHAS, BANDWIDTHS
 
     same = [[[0, 1, 2]] * 3, [[5, 6, 7]] * 3]  # identical demonstrations: the held-out one is predicted exactly
     goals, evidence = _toy(spaces.Discrete(10), same)

@@ -274,7 +274,8 @@ def _select(store, mode, task: Optional[List[str]], scorer: Optional[List[str]],
 
 @app.command()
 def reproduce(
-    profile: str = typer.Option("quick", "--profile", help="quick (2 seeds, small budgets), paper, or a TOML file."),
+    profile: str = typer.Option("quick", "--profile", help="quick (2 seeds, small budgets), paper, support "
+                                "(off-support rules, occupancy, demonstrator), or a TOML file."),
     only: Optional[List[str]] = typer.Option(
         None, "--only", help="Only this section of the profile (minigrid, panda, budget-bc, ...; an unknown name "
                              "lists them all); repeatable."),

@@ -38,7 +38,7 @@ from grail_bench.core.rl import empty_policy, vec_env
 from grail_bench.core.torchutil import scratch_logger, unchecked_distributions
 from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
-from grail_bench.recognizers.scored import OffSupport, off_support_setting
+from grail_bench.recognizers.evidence import OffSupport, off_support_setting
 from grail_bench.stats.metrics import thin
 
 # Adam's fused kernel: the same update rule as the default per-tensor loop in one kernel per step
@@ -112,7 +112,7 @@ class AdversarialConfig:
             actions only: on continuous ones (PandaReach, PointMaze) both values run SB3's ``train()``.
         off_support: What a goal's generator outputs at states off its goal's support when scored:
             ``"trust"`` (its own output: the paper's method), ``"stay"`` (the domain's no-op) or ``"uniform"``
-            (no preference); see :class:`~grail_bench.recognizers.scored.Evidence`. Scoring only: the trained
+            (no preference); see :class:`~grail_bench.recognizers.evidence.Evidence`. Scoring only: the trained
             policies are shared across its values.
     """
 

@@ -20,7 +20,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.torchutil import recording_logger
 from grail_bench.core.trajectory import EnvFactory, Goal, until_success
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
-from grail_bench.recognizers.scored import OffSupport, off_support_setting
+from grail_bench.recognizers.evidence import OffSupport, off_support_setting
 from grail_bench.stats.metrics import thin
 
 
@@ -38,7 +38,7 @@ class BCConfig:
         ent_weight: imitation's entropy regulariser weight (its default).
         off_support: What a goal's policy outputs at states off its goal's support when scored: ``"trust"``
             (its own output: the paper's method), ``"stay"`` (the domain's no-op) or ``"uniform"`` (no
-            preference); see :class:`~grail_bench.recognizers.scored.Evidence`. Scoring only: the trained
+            preference); see :class:`~grail_bench.recognizers.evidence.Evidence`. Scoring only: the trained
             policies are shared across its values.
         augment: ``"none"`` (the paper's method) or ``"stay"``: goal ``g``'s policy also learns the domain's
             no-op at every distinct training state of the other goals that lies off ``g``'s support (pairs

@@ -14,7 +14,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.rl import empty_policy, learn, make_ppo, make_sac
 from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
-from grail_bench.recognizers.scored import OffSupport, off_support_setting
+from grail_bench.recognizers.evidence import OffSupport, off_support_setting
 from grail_bench.stats.metrics import thin
 
 ALGORITHMS = ("ppo", "sac")
@@ -41,7 +41,7 @@ class DRACOConfig:
         net_arch: Hidden layers of the policy.
         off_support: What a goal's policy outputs at states off its goal's support when scored: ``"trust"``
             (its own output: the published method), ``"stay"`` (the domain's no-op) or ``"uniform"`` (no
-            preference); see :class:`~grail_bench.recognizers.scored.Evidence`. DRACO learns from interaction
+            preference); see :class:`~grail_bench.recognizers.evidence.Evidence`. DRACO learns from interaction
             alone, so its policies have no demonstrations of their own: a goal's support is still the states its
             *training demonstrations* visit (``fit`` receives them). Scoring only: the trained policies are shared
             across its values.

@@ -41,7 +41,8 @@ from grail_bench.recognizers.bc import train_bc
 from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy import demos_digest, spaces_of
 from grail_bench.recognizers.policy_bank import PolicyBank, preprocess
-from grail_bench.recognizers.scored import NotFittedError, OffSupport, ScoredRecognizer, off_support_setting
+from grail_bench.recognizers.evidence import OffSupport, off_support_setting
+from grail_bench.recognizers.scored import NotFittedError, ScoredRecognizer
 from grail_bench.recognizers.scoring import PolicyOutput
 
 
@@ -157,7 +158,7 @@ class GCBCConfig:
         hidden: Units of each of the two tanh hidden layers.
         off_support: What the policy outputs for a goal at states off that goal's support when scored:
             ``"trust"`` (its own output), ``"stay"`` (the domain's no-op) or ``"uniform"`` (no preference); see
-            :class:`~grail_bench.recognizers.scored.Evidence`. A goal without demonstrations (zero-shot) has no
+            :class:`~grail_bench.recognizers.evidence.Evidence`. A goal without demonstrations (zero-shot) has no
             support: every state is off it. Scoring only: the trained policy is shared across its values.
     """
 

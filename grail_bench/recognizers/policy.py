@@ -129,7 +129,7 @@ class PolicyRecognizer(ScoredRecognizer):
 
     def exposes(self, action_space: Any) -> frozenset[str]:
         """Action probabilities (discrete actions) or mean and std (continuous ones), and every goal's state
-        occupancy in its training demonstrations (:class:`~grail_bench.recognizers.scored.Evidence`)."""
+        occupancy in its training demonstrations (:class:`~grail_bench.recognizers.evidence.Evidence`)."""
         policy = {"probs"} if isinstance(action_space, spaces.Discrete) else {"mean", "std"}
         return frozenset(policy | {"occupancy"})
 

@@ -1,0 +1,382 @@
+"""Where each goal's policy has evidence: its support and its state occupancy, learnt from training demonstrations.
+
+A goal's policy is trained on its own demonstrations, yet scoring asks it about every observed state.
+:class:`Evidence` keeps, per goal, the states its training demonstrations visit (its *support*: exact states on
+discrete observations; on continuous ones, the states within a radius of the nearest training state) and a
+smoothed *occupancy* of them (visit counts with a Dirichlet prior, or a Gaussian kernel density), so that
+recognizers can replace a policy's output off its support (``off_support``), train with the domain's no-op at
+the other goals' states (BC's ``augment``), and score with the occupancy (the ``occupancy`` scorer).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import field
+from typing import TYPE_CHECKING, Any, Literal, Sequence
+
+import numpy as np
+from gymnasium import spaces
+
+from grail_bench.core.errors import UserError
+from grail_bench.core.spaces import n_states, state_index
+from grail_bench.core.trajectory import Demos, Goal, until_success
+from grail_bench.recognizers.scoring import PolicyOutput
+
+if TYPE_CHECKING:
+    from imitation.data.types import Trajectory
+
+#: What a goal's policy outputs at a state off its goal's support (see :class:`Evidence`): ``"trust"`` its own
+#: output (GRAIL's method), ``"stay"`` the domain's no-op, ``"uniform"`` no preference among actions.
+OffSupport = Literal["trust", "stay", "uniform"]
+#: The support radius on continuous observations: this percentile of the leave-one-out nearest-neighbour
+#: distances among a goal's distinct training states.
+RADIUS_PERCENTILE = 95.0
+#: The smallest support radius, relative to the states' size (``floor * max(1, max |coordinate|)``): where a goal
+#: has a single distinct training state (identical one-state demonstrations), only that state, up to rounding.
+RADIUS_FLOOR = 1e-6
+#: The Dirichlet prior weights the occupancy of discrete states is chosen among (per state of the space).
+ALPHAS = (0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+#: The Gaussian kernel bandwidths the occupancy of continuous states is chosen among, in units of the training
+#: states' standard deviation per coordinate; the smallest is the floor identical demonstrations reach.
+BANDWIDTHS = tuple(float(h) for h in np.geomspace(0.01, 1.0, 9))
+#: Where no goal has two demonstrations (nothing to leave out), the prior weight and the bandwidth used.
+ALPHA_DEFAULT, BANDWIDTH_DEFAULT = 0.1, 0.1
+#: Held-out states per goal at most in the bandwidth's leave-one-demonstration-out likelihood (evenly spaced).
+HELD_OUT_STATES = 256
+
+
+def off_support_setting() -> Any:
+    """The ``off_support`` field of a settings dataclass (``off_support: OffSupport = off_support_setting()``).
+
+    Its default, ``"trust"``, is the published method and is left out of the configuration's key (so earlier keys
+    stay valid); it changes scoring only, so cached models are shared across its values (metadata ``scoring``).
+    """
+    return field(default="trust", metadata={"scoring": True, "omit_default": True})
+
+
+#: Discrete observation spaces with at most this many states keep each goal's support as a table over every state.
+SUPPORT_TABLE_STATES = 1 << 16
+
+
+def training_states(trajs: Sequence[Trajectory]) -> list[np.ndarray]:
+    """Per demonstration, the states in which it takes an action, cut after its goal is reached (as BC trains)."""
+    out = []
+    for traj in trajs:
+        cut = until_success(traj)
+        out.append(np.asarray(cut.obs)[: len(cut.acts)])
+    return out
+
+
+def domain_noop(env: Any) -> Any:
+    """The no-op action declared by the domain of the task that built ``env`` (``noop_action``), or None."""
+    task = getattr(env.unwrapped, "task", None)
+    return None if task is None else getattr(task.spec, "noop_action", None)
+
+
+class Evidence:
+    """Where each goal's training demonstrations went, learnt from them alone when a recognizer is fitted.
+
+    A goal's *support* is the set of states its training demonstrations visit, each demonstration cut after the
+    goal is reached as BC trains on it (the states in which an action is taken). On discrete observations it is
+    those exact states. On continuous ones it is every state within a radius of the nearest of them (Euclidean
+    distance in the raw coordinates), the radius being the 95th percentile (:data:`RADIUS_PERCENTILE`) of the
+    leave-one-out nearest-neighbour distances among the goal's *distinct* training states: repeated states
+    (identical demonstrations, e.g. PandaReach's optimal regime) count once, so the radius is then about the step
+    between consecutive states; a goal with a single distinct state gets the floor (:data:`RADIUS_FLOOR`), that
+    state up to rounding. A goal without demonstrations (a goal-conditioned model's new goal) has no support.
+
+    A goal's *occupancy* ``d_g`` is the smoothed frequency of its training states (every visit counts). On
+    discrete observations: ``d_g(s) = (c_g(s) + alpha) / (N_g + alpha * S)``, ``c_g(s)`` the visits of state
+    ``s``, ``N_g`` all visits, ``S`` the states of the observation space (a Dirichlet prior ``alpha`` on every
+    state). On continuous ones: a Gaussian kernel density of the training states with one isotropic bandwidth
+    ``h``, in coordinates scaled by every goal's training states' standard deviation (a coordinate that never
+    varies keeps scale 1). ``alpha`` (among :data:`ALPHAS`) and ``h`` (among :data:`BANDWIDTHS`) are one value
+    for all goals, so their occupancies compare, chosen to maximise the leave-one-demonstration-out likelihood:
+    each training demonstration's states scored by the estimate from the rest of its goal's demonstrations,
+    summed over every demonstration of every goal with at least two (at most :data:`HELD_OUT_STATES` evenly
+    spaced states per goal for ``h``). Identical demonstrations drive both to the grid's smallest value, which
+    is then the floor (no jitter needed: the kernel has no covariance to estimate). Where no goal has two
+    demonstrations, :data:`ALPHA_DEFAULT` and :data:`BANDWIDTH_DEFAULT`. A goal without demonstrations has the
+    prior alone: uniform over the observation space (refused on an unbounded box).
+
+    Args:
+        demos: The training demonstrations of every fitted goal.
+        observation_space: The env's observation space (``Discrete``, ``MultiDiscrete`` or ``Box``).
+        action_space: The env's action space (``Discrete`` or ``Box``).
+        noop: The domain's no-op action, or None when its domain declares none.
+
+    Raises:
+        UserError: For another observation space, or a no-op that is not an action of ``action_space``.
+    """
+
+    def __init__(self, demos: Demos, observation_space: spaces.Space, action_space: spaces.Space,
+                 noop: Any = None) -> None:
+        self.observation_space, self.action_space = observation_space, action_space
+        self.discrete = isinstance(observation_space, (spaces.Discrete, spaces.MultiDiscrete))
+        if not self.discrete and not isinstance(observation_space, spaces.Box):
+            raise UserError(f"off-support rules need Discrete, MultiDiscrete or Box observations, got "
+                            f"{observation_space}")
+        if self.discrete and n_states(observation_space) >= 1 << 62:
+            raise UserError(f"off-support rules need discrete observation spaces of fewer than 2**62 states, got "
+                            f"{observation_space}")
+        self.noop = None if noop is None else _checked_noop(noop, action_space)
+        self.goals = [tuple(g) for g in demos]
+        #: Per goal, the states of each training demonstration in which it acts (cut at the goal).
+        self.states: dict[Goal, list[np.ndarray]] = {g: training_states(demos[g]) for g in demos}
+        self._row = {g: i for i, g in enumerate(self.goals)}
+        self.radius: dict[Goal, float] = {}
+        if self.discrete:
+            self._keys = {g: np.unique(self.keys(np.concatenate(self.states[g]))) for g in self.goals}
+            self._table = None
+            if n_states(observation_space) <= SUPPORT_TABLE_STATES:  # one extra all-False row: a goal without support
+                self._table = np.zeros((len(self.goals) + 1, n_states(observation_space)), dtype=bool)
+                for g, keys in self._keys.items():
+                    self._table[self._row[g], keys] = True
+        else:
+            from scipy.spatial import cKDTree
+
+            self._trees = {}
+            for g in self.goals:
+                distinct = np.unique(self.flat(np.concatenate(self.states[g])), axis=0)
+                self._trees[g] = cKDTree(distinct)
+                self.radius[g] = support_radius(distinct, self._trees[g])
+        self.alpha: float | None = None
+        self.bandwidth: float | None = None
+        if self.discrete:
+            self._learn_counts()
+        else:
+            self._learn_density()
+
+    # ----------------------------------------------------------------------------------------------- occupancy
+
+    def _learn_counts(self) -> None:
+        """Visit counts per goal, and the Dirichlet prior weight chosen by leave-one-demonstration-out likelihood."""
+        size = float(n_states(self.observation_space))
+        per_demo = {g: [np.unique(self.keys(s), return_counts=True) for s in self.states[g]] for g in self.goals}
+        self._counts = {g: np.unique(np.concatenate([self.keys(s) for s in self.states[g]]), return_counts=True)
+                        for g in self.goals}
+        scores = np.zeros(len(ALPHAS))
+        held_out = False
+        for g in self.goals:
+            keys, counts = self._counts[g]
+            total = counts.sum()
+            if len(per_demo[g]) < 2:
+                continue
+            held_out = True
+            for demo_keys, demo_counts in per_demo[g]:
+                rest = counts[np.searchsorted(keys, demo_keys)] - demo_counts  # its states' visits by the others
+                rest_total = total - demo_counts.sum()
+                for i, alpha in enumerate(ALPHAS):
+                    scores[i] += np.sum(demo_counts * (np.log(rest + alpha) - np.log(rest_total + alpha * size)))
+        self.alpha = float(ALPHAS[int(np.argmax(scores))]) if held_out else ALPHA_DEFAULT
+        self._size = size
+        self._log_table = None
+        if size <= SUPPORT_TABLE_STATES:  # one extra row: a goal without demonstrations (the prior alone)
+            self._log_table = np.full((len(self.goals) + 1, int(size)), -math.log(size))
+            for g, (keys, counts) in self._counts.items():
+                row = self._log_table[self._row[g]]
+                row[:] = math.log(self.alpha) - math.log(counts.sum() + self.alpha * size)
+                row[keys] = np.log(counts + self.alpha) - math.log(counts.sum() + self.alpha * size)
+
+    def _learn_density(self) -> None:
+        """The shared scaling of coordinates, and the bandwidth chosen by leave-one-demonstration-out likelihood."""
+        every = self.flat(np.concatenate([s for g in self.goals for s in self.states[g]]))
+        spread = every.std(axis=0)
+        self._centre, self._scale = every.mean(axis=0), np.where(spread > 0, spread, 1.0)
+        self._points = {g: self._scaled(np.concatenate(self.states[g])) for g in self.goals}
+        scores = np.zeros(len(BANDWIDTHS))
+        held_out = False
+        for g in self.goals:
+            if len(self.states[g]) < 2:
+                continue
+            held_out = True
+            points = self._points[g]
+            demo = np.concatenate([np.full(len(s), j) for j, s in enumerate(self.states[g])])
+            chosen = np.unique(np.linspace(0, len(points) - 1, min(len(points), HELD_OUT_STATES)).astype(int))
+            squared = _squared_distances(points[chosen], points)
+            squared[demo[chosen][:, None] == demo[None, :]] = np.inf  # leave the state's own demonstration out
+            rest = len(points) - np.bincount(demo)[demo[chosen]]  # the states the estimate is made from
+            for i, h in enumerate(BANDWIDTHS):
+                held = _log_kde(squared, h, rest, points.shape[1])
+                scores[i] += np.sum(held[np.isfinite(held)])  # nothing to leave out for it: not counted
+        self.bandwidth = float(BANDWIDTHS[int(np.argmax(scores))]) if held_out else BANDWIDTH_DEFAULT
+
+    def _scaled(self, states: np.ndarray) -> np.ndarray:
+        return (self.flat(states) - self._centre) / self._scale
+
+    def log_occupancy(self, goals: Sequence[Goal], states: np.ndarray) -> np.ndarray:
+        """``(K, T)``: the log of each goal's occupancy at each state (a density on continuous observations).
+
+        Raises:
+            UserError: For a goal without demonstrations on an unbounded observation box.
+        """
+        if self.discrete:
+            keys = self.keys(states)
+            if self._log_table is not None:
+                rows = [self._row.get(tuple(g), len(self.goals)) for g in goals]
+                return self._log_table[np.asarray(rows)[:, None], keys[None, :]]
+            out = np.full((len(goals), len(keys)), -math.log(self._size))
+            for k, goal in enumerate(goals):
+                if tuple(goal) in self._counts:
+                    sorted_keys, counts = self._counts[tuple(goal)]
+                    found = _member(sorted_keys, keys)
+                    visits = np.zeros(len(keys))
+                    visits[found] = counts[np.searchsorted(sorted_keys, keys[found])]
+                    out[k] = np.log(visits + self.alpha) - math.log(counts.sum() + self.alpha * self._size)
+            return out
+        scaled = self._scaled(states)
+        jacobian = float(np.sum(np.log(self._scale)))  # the density of raw coordinates, not of scaled ones
+        out = np.empty((len(goals), len(scaled)))
+        for k, goal in enumerate(goals):
+            points = self._points.get(tuple(goal))
+            if points is None:
+                out[k] = -self._log_volume()
+                continue
+            out[k] = _log_kde(_squared_distances(scaled, points), self.bandwidth, len(points), scaled.shape[1])
+            out[k] -= jacobian
+        return out
+
+    def _log_volume(self) -> float:
+        low, high = (np.asarray(b, dtype=np.float64) for b in (self.observation_space.low, self.observation_space.high))
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+            raise UserError(f"a goal without demonstrations has no occupancy on an unbounded observation box "
+                            f"{self.observation_space}")
+        return float(np.sum(np.log(high - low)))
+
+    # ----------------------------------------------------------------------------------------------- support
+
+    def keys(self, states: np.ndarray) -> np.ndarray:
+        """Discrete states' flat indices, ``(T,)``."""
+        return state_index(np.asarray(states), self.observation_space)
+
+    @staticmethod
+    def flat(states: np.ndarray) -> np.ndarray:
+        """Continuous states as ``(T, D)`` float64 rows."""
+        states = np.asarray(states, dtype=np.float64)
+        return states.reshape(len(states), -1)
+
+    def off_support(self, goals: Sequence[Goal], states: np.ndarray) -> np.ndarray:
+        """``(K, T)``: whether each state lies off each goal's support."""
+        if self.discrete:
+            keys = self.keys(states)
+            if self._table is not None:
+                rows = [self._row.get(tuple(g), len(self.goals)) for g in goals]
+                return ~self._table[np.asarray(rows)[:, None], keys[None, :]]
+            return np.stack([~_member(self._keys.get(tuple(g), np.empty(0, np.int64)), keys) for g in goals])
+        flat = self.flat(states)
+        off = np.ones((len(goals), len(flat)), dtype=bool)
+        for k, goal in enumerate(goals):
+            goal = tuple(goal)
+            if goal in self._trees:
+                off[k] = self._trees[goal].query(flat, k=1)[0] > self.radius[goal]
+        return off
+
+    def others_off_support(self, goal: Goal) -> np.ndarray:
+        """The distinct training states of every other goal that lie off ``goal``'s support, sorted, ``(N, ...)``."""
+        goal = tuple(goal)
+        others = [s for g in self.goals if g != goal for s in self.states[g]]
+        if not others:
+            return np.empty((0, *self.observation_space.shape), dtype=self.observation_space.dtype)
+        distinct = np.unique(np.concatenate(others), axis=0)
+        return distinct[self.off_support([goal], distinct)[0]]
+
+    def replace_off_support(self, output: PolicyOutput, goals: Sequence[Goal], states: np.ndarray,
+                            rule: str) -> PolicyOutput:
+        """``output`` with each goal's outputs at states off its support replaced by ``rule``'s.
+
+        ``"stay"``: the no-op (discrete actions: probability 1 on it; continuous ones: the mean set to it, the std
+        kept). ``"uniform"``: no preference (discrete: equal probabilities; continuous: the uniform distribution
+        over the action box as its mean, the box's centre, and std, its width over sqrt(12)). ``"trust"``: as it is.
+
+        Raises:
+            UserError: For ``"stay"`` without a no-op, or ``"uniform"`` on an unbounded action box.
+        """
+        if rule == "trust":
+            return output
+        off = self.off_support(goals, states)
+        if not off.any():
+            return output
+        mask = off[:, :, None]
+        if output.probs is not None:
+            n = output.probs.shape[-1]
+            if rule == "uniform":
+                row = np.full(n, 1.0 / n)
+            else:
+                row = np.eye(n)[self._noop(rule) - int(self.action_space.start)]
+            return dataclasses.replace(output, probs=np.where(mask, row.astype(output.probs.dtype), output.probs))
+        mean, std = self.replacement(rule)
+        out = {"mean": np.where(mask, mean.astype(output.mean.dtype), output.mean)}
+        if std is not None and output.std is not None:
+            out["std"] = np.where(mask, std.astype(output.std.dtype), np.broadcast_to(output.std, output.mean.shape))
+        return dataclasses.replace(output, **out)
+
+    def replacement(self, rule: str) -> tuple[np.ndarray, np.ndarray | None]:
+        """The mean and std (None: the policy's own) an off-support state gets under ``rule`` on a Box action space.
+
+        Raises:
+            UserError: For ``"stay"`` without a no-op, or ``"uniform"`` on an unbounded action box.
+        """
+        low, high = (np.asarray(b, dtype=np.float64) for b in (self.action_space.low, self.action_space.high))
+        if rule == "stay":
+            return np.asarray(self._noop(rule), dtype=np.float64), None
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+            raise UserError(f"off_support='uniform' needs a bounded action box, got {self.action_space}")
+        return (low + high) / 2, (high - low) / math.sqrt(12)
+
+    def _noop(self, rule: str) -> Any:
+        if self.noop is None:
+            raise UserError(f"off_support={rule!r} needs the domain's no-op action (noop_action); it declares none")
+        return self.noop
+
+
+def _squared_distances(queries: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``(Q, N)`` squared Euclidean distances between rows."""
+    squared = (queries * queries).sum(1)[:, None] - 2.0 * queries @ points.T + (points * points).sum(1)[None, :]
+    return np.maximum(squared, 0.0)
+
+
+def _log_kde(squared: np.ndarray, bandwidth: float, n: np.ndarray | int, dim: int) -> np.ndarray:
+    """Log of an isotropic Gaussian kernel density at each query, from its ``(Q, N)`` squared distances to the
+    ``n`` points (infinite distances: points left out)."""
+    nearest = squared.min(axis=1, keepdims=True)
+    scale = 1.0 / (2.0 * bandwidth * bandwidth)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        shifted = np.exp((nearest - squared) * scale).sum(axis=1)  # the nearest point's term is 1: no underflow
+    sums = np.log(shifted) - nearest[:, 0] * scale
+    return sums - np.log(n) - dim * math.log(bandwidth * math.sqrt(2.0 * math.pi))
+
+
+def support_radius(distinct: np.ndarray, tree: Any = None) -> float:
+    """The support radius of a goal's distinct ``(N, D)`` training states (see :class:`Evidence`)."""
+    floor = RADIUS_FLOOR * max(1.0, float(np.max(np.abs(distinct))) if distinct.size else 1.0)
+    if len(distinct) < 2:
+        return floor
+    if tree is None:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(distinct)
+    nearest = tree.query(distinct, k=2)[0][:, 1]  # the first neighbour is the state itself
+    return max(float(np.percentile(nearest, RADIUS_PERCENTILE)), floor)
+
+
+def _member(sorted_keys: np.ndarray, keys: np.ndarray) -> np.ndarray:
+    """Whether each of ``keys`` is in ``sorted_keys``."""
+    if not len(sorted_keys):
+        return np.zeros(len(keys), dtype=bool)
+    at = np.minimum(np.searchsorted(sorted_keys, keys), len(sorted_keys) - 1)
+    return sorted_keys[at] == keys
+
+
+def _checked_noop(noop: Any, action_space: spaces.Space) -> Any:
+    """The domain's no-op as an action of ``action_space`` (an int, or a float array of the box's shape)."""
+    if isinstance(action_space, spaces.Discrete):
+        if isinstance(noop, (bool, np.bool_)) or not isinstance(noop, (int, np.integer)) \
+                or not action_space.start <= noop < action_space.start + action_space.n:
+            raise UserError(f"the domain's noop_action {noop!r} is not an action of {action_space}")
+        return int(noop)
+    value = np.asarray(noop, dtype=np.float64)
+    if not isinstance(action_space, spaces.Box) or value.shape != action_space.shape \
+            or not np.all((value >= action_space.low) & (value <= action_space.high)):
+        raise UserError(f"the domain's noop_action {noop!r} is not an action of {action_space}")
+    return value
