@@ -8,6 +8,22 @@ import pytest
 import grail_bench
 
 
+def chmod_stops_writes() -> bool:
+    """Whether a file without write permission refuses this process (not so for root, with its capabilities)."""
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as folder:
+        probe = Path(folder) / "probe"
+        probe.write_text("")
+        probe.chmod(0o444)
+        try:
+            probe.open("a").close()
+        except PermissionError:
+            return True
+        return False
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     """A seeded generator, as imitation's tests use."""

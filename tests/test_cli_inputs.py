@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import install_plugin
+from conftest import chmod_stops_writes, install_plugin
 from typer.testing import CliRunner
 
 import grail_bench
@@ -27,21 +27,6 @@ from grail_bench.harness.store import SCHEMA_VERSION, ResultRow, ResultsStore
 
 TASK = "GRAIL/MiniGrid-Biased-v0"
 BIN = Path(sys.executable).parent / "grail-bench"
-
-
-def chmod_stops_writes() -> bool:
-    """Whether a file without write permission refuses this process (not so for root, with its capabilities)."""
-    import tempfile
-
-    with tempfile.TemporaryDirectory() as folder:
-        probe = Path(folder) / "probe"
-        probe.write_text("")
-        probe.chmod(0o444)
-        try:
-            probe.open("a").close()
-        except PermissionError:
-            return True
-        return False
 
 
 def invoke(args: list[str], store: Path) -> tuple[int, str]:

@@ -9,6 +9,7 @@ import sqlite3
 from pathlib import Path
 
 import pytest
+from conftest import chmod_stops_writes
 
 from grail_bench.harness.store import (
     SCHEMA_VERSION,
@@ -18,21 +19,6 @@ from grail_bench.harness.store import (
     check_store_writable,
     default_store_path,
 )
-
-
-def chmod_stops_writes() -> bool:
-    """Whether a file without write permission refuses this process (not so for root, with its capabilities)."""
-    import tempfile
-
-    with tempfile.TemporaryDirectory() as folder:
-        probe = Path(folder) / "probe"
-        probe.write_text("")
-        probe.chmod(0o444)
-        try:
-            probe.open("a").close()
-        except PermissionError:
-            return True
-        return False
 
 
 def row(seed: int = 0, observability: float = 0.1, f1: float = 0.5, recognizer: str = "bc") -> ResultRow:

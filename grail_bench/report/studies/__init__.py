@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
-from typing import Callable
+from typing import Callable, Sequence
 
 from grail_bench.core.errors import UserError
 
@@ -23,6 +23,18 @@ STUDIES: dict[str, tuple[str, str]] = {
     "readings": ("grail_bench.report.studies.readings",
                  "Pairs-only ceilings of each MiniGrid route reading and rounding against the paper's cells."),
 }
+
+
+def check_tasks(study: str, tasks: Sequence[str], known: Sequence[str]) -> None:
+    """Refuse a task a study does not cover.
+
+    Raises:
+        UserError: Naming the first such task and the ones the study covers.
+    """
+    unknown = [t for t in tasks if t not in known]
+    if unknown:
+        raise UserError(f"study {study} covers the paper's optimal and suboptimal MiniGrid tasks "
+                        f"({', '.join(known)}), not {unknown[0]!r}")
 
 
 def get_study(name: str) -> Callable[..., str]:

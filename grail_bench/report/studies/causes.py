@@ -21,7 +21,6 @@ from __future__ import annotations
 from statistics import mean
 from typing import Sequence
 
-from grail_bench.core.errors import UserError
 from grail_bench.harness.ceiling import Ceiling, bayes_ceiling
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES
@@ -30,6 +29,7 @@ from grail_bench.harness.store import ResultsStore
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.task import make_task
 from grail_bench.task.observation import level_text
+from grail_bench.report.studies import check_tasks
 
 TASKS = tuple(f"GRAIL/MiniGrid-{name}-v0" for name in (
     "Optimal", "Optimal-4Goals", "Optimal-6Goals", "Suboptimal", "Suboptimal-4Goals", "Suboptimal-6Goals"))
@@ -67,10 +67,7 @@ def run(store: ResultsStore, tasks: Sequence[str] = TASKS, samples: int = 2000) 
     Raises:
         UserError: For a task outside the six.
     """
-    unknown = [t for t in tasks if t not in TASKS]
-    if unknown:
-        raise UserError(f"study causes covers the paper's optimal and suboptimal MiniGrid tasks "
-                        f"({', '.join(TASKS)}), not {unknown[0]!r}")
+    check_tasks("causes", tasks, TASKS)
     reference = read_reference(paper_reference_path())
     lines = [HEADER]
     for task_id in tasks:

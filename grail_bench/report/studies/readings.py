@@ -21,11 +21,11 @@ from typing import Sequence
 
 from scipy import stats
 
-from grail_bench.core.errors import UserError
 from grail_bench.harness.ceiling import bayes_ceiling
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.task import GRTask, make_task
 from grail_bench.task.observation import level_text
+from grail_bench.report.studies import check_tasks
 
 TASKS = {"Optimal": 2, "Optimal-4Goals": 4, "Optimal-6Goals": 6,
          "Suboptimal": 2, "Suboptimal-4Goals": 4, "Suboptimal-6Goals": 6}  # short name -> goals
@@ -76,10 +76,7 @@ def run(tasks: Sequence[str] = TASK_IDS, samples: int = 2000) -> str:
     Raises:
         UserError: For a task outside the six.
     """
-    unknown = [t for t in tasks if t not in TASK_IDS]
-    if unknown:
-        raise UserError(f"study readings covers the paper's optimal and suboptimal MiniGrid tasks "
-                        f"({', '.join(TASK_IDS)}), not {unknown[0]!r}")
+    check_tasks("readings", tasks, TASK_IDS)
     names = dict(zip(TASK_IDS, TASKS))
     reference = read_reference(paper_reference_path())
     lines = [HEADER]
