@@ -162,8 +162,8 @@ def test_adversarial_grail_runs_on_continuous_actions(name):
     train, test = task.split(task.generate_demos(seed=0))
     rec = make_recognizer(name, total_timesteps=512, n_envs=4, n_steps=64, n_epochs=2)
     rec.fit(train, task.env_factory(), seed=0)
-    assert rec.exposes(task.make_env().action_space) == {"mean", "std"}
-    for scorer in ("mse", "wasserstein", "loglik"):
+    assert rec.exposes(task.make_env().action_space) == {"mean", "std", "occupancy"}
+    for scorer in ("mse", "wasserstein", "loglik", "occupancy"):
         scores = rec.score(observe(test[task.goals[0]][0], 0.02), scorer)
         assert set(scores) == set(task.goals) and all(np.isfinite(list(scores.values())))
 
