@@ -5,7 +5,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 export GRAIL_BENCH_STORE=leaderboard/results.sqlite COLUMNS=200
 GB=".venv/bin/grail-bench"
+# The paper's scorers, the occupancy scorer and the demonstrator (perfect imitation) beside them.
 $GB leaderboard --workers "$(nproc)" --scorer bc/mse --scorer graql/kl --scorer gail/mse --scorer airl/mse --scorer draco/wasserstein \
+    --scorer bc/occupancy --scorer gail/occupancy --scorer airl/occupancy --scorer demonstrator/mse \
     --reference grail_bench/paper_reported.csv --markdown leaderboard/LEADERBOARD.md --html leaderboard/site > /dev/null
 $GB leaderboard --ablation --plot leaderboard/ablation.png --markdown leaderboard/ABLATION.md > /dev/null
 # Beyond the paper (leaderboard/run_online.sh): online recognition and open set.
