@@ -26,26 +26,25 @@ from grail_bench.task.overrides import TaskOverrides
 RecognizerLike = str | RecognizerSpec | tuple[str, Mapping[str, Any]]
 
 
+def _is_recognizer(item: Any) -> bool:
+    """Whether ``item`` names one recognizer: a name, a spec or a ``(name, config)`` pair."""
+    pair = isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str) and isinstance(item[1], Mapping)
+    return isinstance(item, (str, RecognizerSpec)) or pair
+
+
 def _specs(recognizers: RecognizerLike | Sequence[RecognizerLike]) -> tuple[RecognizerSpec, ...]:
     """The recognizers asked for, as specs: one name, spec or ``(name, config)`` pair, or a sequence of them.
 
     Raises:
         UserError: For none, or an item that is none of those.
     """
-    if isinstance(recognizers, (str, RecognizerSpec)):
-        recognizers = [recognizers]
-    elif isinstance(recognizers, tuple) and len(recognizers) == 2 and isinstance(recognizers[1], Mapping):
-        recognizers = [recognizers]
-    if not isinstance(recognizers, Sequence) or not recognizers:
+    items = [recognizers] if _is_recognizer(recognizers) else recognizers
+    if not isinstance(items, Sequence) or not items:
         raise UserError("name at least one recognizer (a name, a (name, config) pair or a RecognizerSpec)")
-    specs = []
-    for item in recognizers:
-        valid_pair = (isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str)
-                      and isinstance(item[1], Mapping))
-        if not isinstance(item, (str, RecognizerSpec)) and not valid_pair:
-            raise UserError(f"a recognizer is a name, a (name, config) pair or a RecognizerSpec, got {item!r}")
-        specs.append(RecognizerSpec.of(item))
-    return tuple(specs)
+    bad = [item for item in items if not _is_recognizer(item)]
+    if bad:
+        raise UserError(f"a recognizer is a name, a (name, config) pair or a RecognizerSpec, got {bad[0]!r}")
+    return tuple(RecognizerSpec.of(item) for item in items)
 
 
 def request(task_id: str, recognizers: RecognizerLike | Sequence[RecognizerLike], *,

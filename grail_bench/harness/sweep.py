@@ -22,11 +22,11 @@ from functools import lru_cache
 from typing import Any, Sequence
 
 from grail_bench.core.provenance import package_versions, stamp
+from grail_bench.core.trajectory import Demos
 from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.executors import Executor, SerialExecutor
 from grail_bench.harness.modes import Row, SeedRun, get_mode
-from grail_bench.core.trajectory import Demos
 from grail_bench.harness.planning import Planned, RecognizerSpec, plan
 from grail_bench.harness.store import ResultsStore
 from grail_bench.task import GRTask, make_task
