@@ -466,8 +466,6 @@ def study(
         console.print(names_table("studies (grail-bench study NAME)",
                                   [(n, text) for n, (_, text) in STUDIES.items()], "what it reports"))
         return
-    if name not in STUDIES:
-        raise fail(f"unknown study {name!r}; choose one of {', '.join(STUDIES)} (`grail-bench study --list`)")
     flags = {"store": "--store", "tasks": "--task", "params": "--param", "seeds": "--seeds", "samples": "--samples"}
     with errors():
         given = {"store": store_path, "tasks": tuple(task) if task else None,

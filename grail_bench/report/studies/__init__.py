@@ -44,7 +44,7 @@ def get_study(name: str) -> Callable[..., str]:
         UserError: For an unknown name.
     """
     if name not in STUDIES:
-        raise UserError(f"unknown study {name!r}; choose one of {', '.join(STUDIES)}")
+        raise UserError(f"unknown study {name!r}; choose one of {', '.join(STUDIES)} (`grail-bench study --list`)")
     return importlib.import_module(STUDIES[name][0]).run
 
 
