@@ -1,15 +1,32 @@
 #!/usr/bin/env bash
-# Where the per-goal policies have evidence (leaderboard/README.md, "Where the policies have evidence"): the
-# support profile on MiniGrid's paper grid (off-support rules, BC with stay pairs, the occupancy scorer, the
-# demonstrator), then the paper profile's MiniGrid, online and open-set sections, which recompute the stored rows
-# that tied under the earlier tie rule and add online and open-set rows at today's defaults (their models come
-# from the support run's cache). Published from a worktree at commit 2db7bbd; resumes from the store.
+# Where the per-goal policies have evidence (leaderboard/README.md, "Where the policies have evidence").
+# MiniGrid: the support profile's MiniGrid sections (off-support rules, BC with stay pairs, the occupancy scorer,
+# the demonstrator), then the paper profile's MiniGrid, online and open-set sections, which recompute the stored
+# rows that tied under the earlier tie rule and add online and open-set rows at today's defaults (their models
+# come from the support run's cache). Published from a worktree at commit 2db7bbd.
+# PointMaze and PandaReach: the profile's maze-* and panda-* sections, BC and the demonstrator at 10 seeds,
+# GAIL, AIRL and DRACO at 3. Every command resumes from the store.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 GB=".venv/bin/grail-bench"
 S=leaderboard/results.sqlite
-$GB reproduce --profile support --store $S --out leaderboard/support --workers 2 --no-progress --no-site
-$GB reproduce --profile paper --only minigrid --store $S --out leaderboard/paper --workers 2 --no-progress --no-site
-$GB reproduce --profile paper --only online --only open-set --store $S --out /tmp/grail-bench-online --workers 2 \
-    --no-progress --no-site
+RUN="$GB reproduce --profile support --store $S --workers 2 --no-progress --no-site"
+MINIGRID="--only support-trust --only support-stay --only support-uniform --only support-augment
+          --only demonstrator-everywhere --only demonstrator-demonstrated"
+MAZE="--only maze-trust --only maze-stay --only maze-uniform --only maze-augment"
+PANDA="--only panda-trust --only panda-stay --only panda-uniform --only panda-augment"
+# shellcheck disable=SC2086  # the section lists are several options
+{
+  $RUN $MINIGRID --out leaderboard/support
+  $GB reproduce --profile paper --only minigrid --store $S --out leaderboard/paper --workers 2 --no-progress --no-site
+  $GB reproduce --profile paper --only online --only open-set --store $S --out /tmp/grail-bench-online --workers 2 \
+      --no-progress --no-site
+  $RUN $MAZE --only maze-demonstrator-everywhere --only maze-demonstrator-demonstrated -r bc -r demonstrator \
+      --out /tmp/support-maze
+  $RUN $PANDA -r bc --seeds 5 --out /tmp/support-panda
+  $RUN $MAZE -r gail -r airl -r draco --seeds 3 --out /tmp/support-maze
+  $RUN $PANDA -r bc --out /tmp/support-panda
+  $RUN $PANDA -r draco --seeds 3 --out /tmp/support-panda
+  $RUN --out leaderboard/support  # every section's tables from the store (nothing left to run)
+}
 leaderboard/publish.sh
