@@ -22,11 +22,10 @@ PANDA="--only panda-trust --only panda-stay --only panda-uniform --only panda-au
   $GB reproduce --profile paper --only online --only open-set --store $S --out /tmp/grail-bench-online --workers 2 \
       --no-progress --no-site
   $RUN $MAZE --only maze-demonstrator-everywhere --only maze-demonstrator-demonstrated -r bc -r demonstrator \
-      --out /tmp/support-maze
-  $RUN $PANDA -r bc --seeds 5 --out /tmp/support-panda
-  $RUN $MAZE -r gail -r airl -r draco --seeds 3 --out /tmp/support-maze
-  $RUN $PANDA -r bc --out /tmp/support-panda
-  $RUN $PANDA -r draco --seeds 3 --out /tmp/support-panda
-  $RUN --out leaderboard/support  # every section's tables from the store (nothing left to run)
+      --out leaderboard/support/maze-bc
+  $RUN $PANDA -r bc --seeds 5 --out /tmp/support-panda  # the first half early
+  $RUN $MAZE -r gail -r airl -r draco --seeds 3 --out leaderboard/support/maze-rl
+  $RUN $PANDA -r bc --out leaderboard/support/panda-bc
+  $RUN $PANDA -r draco --seeds 3 --out leaderboard/support/panda-draco
 }
 leaderboard/publish.sh
