@@ -192,7 +192,7 @@ def leaderboard_(
     from grail_bench.harness.diagnostics import FitRow
     from grail_bench.harness.modes import MODES
     from grail_bench.report import leaderboard, plots
-    from grail_bench.report.boards import ablation_rows
+    from grail_bench.report.rows import ablation_rows
     from grail_bench.report.html import write_site
     from grail_bench.report.reference import read_reference
     from grail_bench.report.reproduce import write_robust

@@ -94,6 +94,16 @@ def config_hash(payload: dict[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
+def fitted_config(task: GRTask, name: str, settings: Mapping[str, Any]) -> dict[str, Any]:
+    """What a configuration's hash covers: the recognizer, its settings (as built) and the task's parameters."""
+    config = {"recognizer": name, "config": dict(settings),
+              "task": {"params": dict(task.params), "env": dict(task.env_params),
+                       "n_demos": task.n_demos, "n_train": task.n_train}}
+    if task.demos:  # demonstrations from a dataset: its content keys the results
+        config["task"]["demos"] = source_digest(task.demos)
+    return config
+
+
 def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
     """Check a recognizer and its scorers against a task, and compute its identity.
 
@@ -117,11 +127,7 @@ def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
                 raise RecognizerError(f"recognizer {spec.name!r} exposes policy outputs but its score() takes no "
                                       "scorer argument")
     registered = available_scorers()
-    config = {"recognizer": spec.name, "config": dict(caps.config),
-              "task": {"params": dict(task.params), "env": dict(task.env_params),
-                       "n_demos": task.n_demos, "n_train": task.n_train}}
-    if task.demos:  # demonstrations from a dataset: its content keys the results
-        config["task"]["demos"] = source_digest(task.demos)
+    config = fitted_config(task, spec.name, caps.config)
     return Planned(
         spec=RecognizerSpec(spec.name, dict(caps.kwargs), scorers),
         scorers=tuple(ScorerPlan(s, None if s == own else s, s in registered and get_scorer(s).posterior)

@@ -31,15 +31,14 @@ from grail_bench.harness.ceiling import normalised
 from grail_bench.report import plots
 from grail_bench.report.boards import (
     Board,
-    calibration_rows,
     column_label,
     config_variants,
     own_scorer_records,
     row_name,
-    timing_rows,
 )
 from grail_bench.report.leaderboard import Leaderboard
 from grail_bench.report.reference import MARKS, Reported
+from grail_bench.report.rows import calibration_rows, timing_rows
 from grail_bench.report.summary import domain_summaries, profile_figure_data
 from grail_bench.report.text import comparison_lines
 from grail_bench.stats.robust import (

@@ -210,7 +210,7 @@ def write_all(records: Records, out: Path, models: dict[tuple[str, str], float])
 def ablation(rows: list[dict[str, Any]]) -> Any:
     """Grouped bars per task: F1 (mean over levels) and scoring time, by recognizer and scorer (a figure).
 
-    ``rows`` are :func:`grail_bench.report.boards.ablation_rows`.
+    ``rows`` are :func:`grail_bench.report.rows.ablation_rows`.
     """
     plt = pyplot()
     tasks = sorted({r["task"] for r in rows})
@@ -388,7 +388,7 @@ def profiles(data: Sequence[dict[str, Any]]) -> Any:
 
 def reliability(rows: Sequence[dict[str, Any]]) -> Any:
     """Reliability diagrams: per domain, each posterior column's accuracy against its mean confidence per bin,
-    the diagonal being perfect calibration (a figure; rows are :func:`grail_bench.report.boards.calibration_rows`)."""
+    the diagonal being perfect calibration (a figure; rows are :func:`grail_bench.report.rows.calibration_rows`)."""
     plt = pyplot()
     domains = sorted({r["domain"] for r in rows})
     fig, axes = plt.subplots(1, len(domains), figsize=(4.0 * len(domains), 3.6), squeeze=False)

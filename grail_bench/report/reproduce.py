@@ -41,9 +41,10 @@ from grail_bench.harness.planning import Planned, RecognizerSpec
 from grail_bench.harness.store import ResultsStore
 from grail_bench.harness.sweep import Request, SweepSummary, plan_request
 from grail_bench.report import leaderboard, plots
-from grail_bench.report.boards import build_boards, calibration_rows, own_scorer_records, short_name
+from grail_bench.report.boards import build_boards, own_scorer_records, short_name
 from grail_bench.report.html import write_site
 from grail_bench.report.reference import paper_reference_path, read_reference
+from grail_bench.report.rows import calibration_rows
 from grail_bench.report.summary import domain_summaries, profile_figure_data, profiles_markdown
 from grail_bench.report.text import budgets_markdown, calibration_markdown, markdown, mode_markdown
 from grail_bench.stats.verdict import plateau, scaling_exponent

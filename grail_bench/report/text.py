@@ -18,10 +18,10 @@ from grail_bench.report.boards import (
     paper_method,
     placement_counts,
     row_name,
-    timing_rows,
     verdict_counts,
 )
 from grail_bench.report.reference import MARKS
+from grail_bench.report.rows import timing_rows
 from grail_bench.task.observation import level_text
 
 Grid = tuple[list[str], list[list[tuple[str, bool]]]]  # header; per row, (text, bold) cells
@@ -179,7 +179,7 @@ def _calibration(r: dict[str, Any]) -> tuple[str, str, str]:
 
 
 def ablation_table(rows: list[dict[str, Any]]) -> Table:
-    """Terminal table of :func:`grail_bench.report.boards.ablation_rows`."""
+    """Terminal table of :func:`grail_bench.report.rows.ablation_rows`."""
     levels = sorted({lv for r in rows for lv in r["f1"]})
     table = Table(title="scorer ablation: F1 (mean ± std) and scoring time")
     for col in ("task", "recognizer", "scorer", *[f"F1 @ {level_text(lv)}" for lv in levels], "µs / observation",
@@ -193,7 +193,7 @@ def ablation_table(rows: list[dict[str, Any]]) -> Table:
 
 
 def ablation_markdown(rows: list[dict[str, Any]]) -> str:
-    """:func:`grail_bench.report.boards.ablation_rows` as a Markdown table."""
+    """:func:`grail_bench.report.rows.ablation_rows` as a Markdown table."""
     levels = sorted({lv for r in rows for lv in r["f1"]})
     header = ["task", "recognizer", "scorer", *[f"F1 @ {level_text(lv)}" for lv in levels], "µs / observation", "Brier", "NLL",
               "ECE"]
@@ -340,7 +340,7 @@ def budgets_markdown(curves: Sequence[dict[str, Any]], title: str) -> str:
 
 
 def calibration_markdown(rows: Sequence[dict[str, Any]]) -> str:
-    """:func:`grail_bench.report.boards.calibration_rows` as Markdown."""
+    """:func:`grail_bench.report.rows.calibration_rows` as Markdown."""
     lines = ["# Calibration", "",
              "Recognizers that give a posterior over goals (the `loglik` scorer: the softmax of summed",
              "log-likelihoods), per domain, every observation of every task, level and seed pooled: Brier score",

@@ -1,0 +1,136 @@
+"""Which configuration a stored run is: a method's canonical one, a named variant, or archived.
+
+A recognizer's **canonical** configuration is its default today, scored with its own scorer, and it is named
+as its method is published (``BC-GRAIL``, ``GRAQL``, ``DRACO``; a plugin's own name). The main boards and
+every summary show canonical configurations only.
+
+Any other configuration today's code still runs as stored is a **named variant**, labelled by how it differs
+from the canonical one: ``GAIL-GRAIL · total_timesteps 20 000``, ``BC-GRAIL · off_support stay``,
+``BC-GRAIL · occupancy`` (another scorer), never by a hash.
+
+A configuration today's code would not store as it was stored (planned again from its task and settings, its
+hash differs: a setting or task parameter added, removed or refused since, such as a default that changed)
+was run by an earlier version: it is **archived**, still linked to its runs, out of boards and summaries.
+Hashes stay in the records for provenance.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any, Literal
+
+from grail_bench.harness.planning import config_hash, fitted_config
+from grail_bench.recognizers.registry import UnknownRecognizerError, build, recognizer_info
+from grail_bench.task import find_task
+
+Kind = Literal["canonical", "variant", "archived"]
+
+#: How a name and its differences are joined in a label.
+SEPARATOR = " · "
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """A stored configuration as the leaderboard names it.
+
+    Attributes:
+        kind: ``canonical``, ``variant`` or ``archived`` (see the module docstring).
+        method: The method's published name (``BC-GRAIL``).
+        changes: The settings that differ from the canonical configuration, ``(name, value)`` sorted by name
+            (a setting the run did not store, or set to None as not in play, has value None; labels omit those).
+        scorer: The scorer when it is not the method's own, else None.
+        config_hash: The stored configuration's hash (archived labels carry its first 6 characters).
+    """
+
+    kind: Kind
+    method: str
+    changes: tuple[tuple[str, Any], ...] = ()
+    scorer: str | None = None
+    config_hash: str = ""
+
+    @property
+    def label(self) -> str:
+        """``BC-GRAIL``, ``GAIL-GRAIL · total_timesteps 20 000 · loglik`` or ``AIRL-GRAIL · archived 7318c1``."""
+        parts = [self.method, *(f"{k} {value_text(v)}" for k, v in self.changes if v is not None)]
+        if self.scorer:
+            parts.append(self.scorer)
+        if self.kind == "archived":
+            parts = [self.method, f"archived {self.config_hash[:6]}", *([self.scorer] if self.scorer else [])]
+        return SEPARATOR.join(parts)
+
+    @property
+    def canonical(self) -> bool:
+        return self.kind == "canonical"
+
+
+def value_text(value: Any) -> str:
+    """A setting's value as labels show it: ``40 000``, ``stay``, ``0.001``, ``[64, 64]``."""
+    if isinstance(value, bool) or value is None:
+        return json.dumps(value)
+    if isinstance(value, int):
+        return f"{value:,}".replace(",", " ")
+    if isinstance(value, str):
+        return value
+    return json.dumps(value, sort_keys=True)
+
+
+@lru_cache(maxsize=None)
+def method_of(recognizer: str) -> tuple[str, str | None]:
+    """``(published name, own scorer)`` of a recognizer (its own name and no scorer when not registered)."""
+    try:
+        info = recognizer_info(recognizer)
+    except UnknownRecognizerError:
+        return recognizer, None
+    return info.paper_name, info.default_scorer
+
+
+@lru_cache(maxsize=None)
+def _settings(recognizer: str, stored: str | None) -> str | None:
+    """The recognizer's settings as today's code builds them from ``stored`` (JSON; None: its defaults), as
+    canonical JSON; None when it cannot be built (not registered, or the settings are refused)."""
+    try:
+        return json.dumps(build(recognizer, json.loads(stored) if stored else None).config, sort_keys=True,
+                          default=str)
+    except Exception:  # noqa: BLE001 - a plugin gone, or settings refused today: the configuration is archived
+        return None
+
+
+@lru_cache(maxsize=None)
+def _current_hash(task_id: str, params: str, recognizer: str, settings: str) -> str | None:
+    task = find_task(task_id, json.loads(params))
+    if task is None:
+        return None
+    return config_hash(fitted_config(task, recognizer, json.loads(settings)))
+
+
+def _canonical_json(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, default=str)
+
+
+def configuration(record: Any) -> Configuration:
+    """Name a stored configuration (any record or row with ``task``, ``recognizer``, ``scorer``,
+    ``config_hash``, ``task_params`` and ``recognizer_config``)."""
+    method, own = method_of(record.recognizer)
+    scorer = None if record.scorer in (own, "default") or own is None else record.scorer
+    stored = _canonical_json(record.recognizer_config)
+    rebuilt, default = _settings(record.recognizer, stored), _settings(record.recognizer, None)
+    current = rebuilt is not None and _current_hash(record.task, _canonical_json(record.task_params),
+                                                    record.recognizer, rebuilt) == record.config_hash
+    if own is None:  # a plugin no longer installed: nothing to compare with, its runs shown as they are
+        return Configuration("variant", method, tuple(sorted(record.recognizer_config.items())), scorer,
+                             record.config_hash)
+    if not current:
+        return Configuration("archived", method, _changes(record.recognizer_config, default), scorer,
+                             record.config_hash)
+    changes = _changes(record.recognizer_config, default)
+    kind: Kind = "canonical" if not changes and scorer is None else "variant"
+    return Configuration(kind, method, changes, scorer, record.config_hash)
+
+
+def _changes(stored: dict[str, Any], default_json: str | None) -> tuple[tuple[str, Any], ...]:
+    """The settings where ``stored`` differs from the default (a setting it lacks has value None)."""
+    default = json.loads(default_json) if default_json else {}
+    keys = sorted(set(stored) | set(default))
+    return tuple((k, stored.get(k)) for k in keys if _canonical_json(stored.get(k)) != _canonical_json(default.get(k)))
