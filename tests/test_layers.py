@@ -147,7 +147,7 @@ COUNT = Mode(name="count", row=CountRow, table="count_demos",
 
 def test_a_new_mode_is_one_entry_in_the_registry(tmp_path, monkeypatch):
     from grail_bench.harness.api import evaluate
-    from grail_bench.report.text import mode_markdown
+    from grail_bench.report.tables import mode_markdown
 
     assert list(modes.MODES) == ["offline", "online", "open-set", "zero-shot"]
     with pytest.raises(grail_bench.UserError, match="unknown mode 'count'"):

@@ -54,7 +54,7 @@ def _all_tasks() -> list:
 @app.command()
 def tasks() -> None:
     """List every registered GRAIL/ task with its domain, regime, goals and demo counts."""
-    from grail_bench.report.text import tasks_table
+    from grail_bench.report.tables import tasks_table
 
     console.print(tasks_table(_all_tasks()))
 
@@ -64,7 +64,7 @@ def list_(what: str = typer.Argument("all", help="tasks, recognizers, scorers or
     """List tasks, recognizers and scorers (imports no recognizer code)."""
     from grail_bench.recognizers.registry import available_recognizers
     from grail_bench.recognizers.scoring import BUILTIN, available_scorers
-    from grail_bench.report.text import names_table, tasks_table
+    from grail_bench.report.tables import names_table, tasks_table
 
     if what not in ("all", "tasks", "recognizers", "scorers"):
         raise fail(f"cannot list {what!r}; choose tasks, recognizers, scorers or all")
@@ -149,7 +149,8 @@ def _show(records: list, mode, executor) -> None:  # noqa: ANN001 - a Mode and a
     """A run's tables: offline, the paper-style F1 tables (with Bayes ceilings, those not cached yet computed on
     the run's executor) and the timings."""
     from grail_bench.report import leaderboard
-    from grail_bench.report.text import mode_table, rich_tables, timing_table
+    from grail_bench.report.tables import mode_table, timing_table
+    from grail_bench.report.text import rich_tables
 
     if mode.name != "offline":
         console.print(mode_table(records, mode))
@@ -192,18 +193,12 @@ def leaderboard_(
     from grail_bench.harness.diagnostics import FitRow
     from grail_bench.harness.modes import MODES
     from grail_bench.report import leaderboard, plots
-    from grail_bench.report.rows import ablation_rows
     from grail_bench.report.html import write_site
     from grail_bench.report.reference import read_reference
     from grail_bench.report.reproduce import write_robust
-    from grail_bench.report.text import (
-        ablation_markdown,
-        ablation_table,
-        markdown,
-        mode_markdown,
-        mode_table,
-        rich_tables,
-    )
+    from grail_bench.report.rows import ablation_rows
+    from grail_bench.report.tables import ablation_markdown, ablation_table, mode_markdown, mode_table
+    from grail_bench.report.text import markdown, rich_tables
 
     mode = MODES[mode_name(mode_, ("online", online), ("open-set", open_set))]
     if ablation and mode.name != "offline":
@@ -344,7 +339,7 @@ def inspect(
     from grail_bench.harness.api import inspect_fit
     from grail_bench.harness.diagnostics import to_json
     from grail_bench.report import plots
-    from grail_bench.report.text import diagnostics_table, goal_label
+    from grail_bench.report.tables import diagnostics_table, goal_label
 
     with errors():
         outputs(folders=[out])
@@ -395,7 +390,7 @@ def export(
 @app.command()
 def protocols() -> None:
     """List the observation protocols (built in and from the entry-point group grail_bench.protocols)."""
-    from grail_bench.report.text import protocols_table
+    from grail_bench.report.tables import protocols_table
     from grail_bench.task.observation import BUILTIN, available_protocols, get_protocol
 
     with errors():
@@ -426,7 +421,7 @@ def ceiling(
 ) -> None:
     """The Bayes ceiling: the best accuracy any recognizer can reach under a protocol and level."""
     from grail_bench.harness.ceiling import bayes_ceiling
-    from grail_bench.report.text import ceiling_table
+    from grail_bench.report.tables import ceiling_table
     from grail_bench.task import make_task
     from grail_bench.task.observation import ObservationSpec
 
@@ -460,7 +455,7 @@ def study(
 ) -> None:
     """Run a study behind leaderboard/README.md and print its Markdown table (`--list` names them)."""
     from grail_bench.report.studies import STUDIES, get_study, study_options
-    from grail_bench.report.text import names_table
+    from grail_bench.report.tables import names_table
 
     if show_list or name is None:
         console.print(names_table("studies (grail-bench study NAME)",

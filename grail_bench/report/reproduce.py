@@ -46,7 +46,8 @@ from grail_bench.report.html import write_site
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.report.rows import calibration_rows
 from grail_bench.report.summary import domain_summaries, profile_figure_data, profiles_markdown
-from grail_bench.report.text import budgets_markdown, calibration_markdown, markdown, mode_markdown
+from grail_bench.report.tables import budgets_markdown, calibration_markdown, mode_markdown
+from grail_bench.report.text import markdown
 from grail_bench.stats.verdict import plateau, scaling_exponent
 from grail_bench.task import find_task, make_task
 from grail_bench.task.observation import ObservationSpec, parse_observability
