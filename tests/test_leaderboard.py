@@ -1,14 +1,18 @@
-"""Leaderboard tables: one row per task and level, best in bold, reported values beside ours."""
+"""Leaderboard tables: one row per task and level, best in bold, reported values beside ours; canonical
+configurations on the main boards, named variants apart, archived ones in the archive."""
 
 from __future__ import annotations
 
 import dataclasses
 
 from grail_bench.harness.modes.offline import OfflineRecord
+from grail_bench.harness.planning import config_hash, fitted_config
+from grail_bench.recognizers.registry import build
 from grail_bench.report import leaderboard
 from grail_bench.report.boards import placement_counts
 from grail_bench.report.reference import Reported
 from grail_bench.report.text import markdown
+from grail_bench.task import find_task
 
 
 def defaults(task_id):
@@ -19,16 +23,26 @@ def defaults(task_id):
     return {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
 
 
-def record(task, rec, scorer, obs, f1, protocol=None, **fields):
-    """A stored row of ``task``, under the task's default protocol and rounding unless ``protocol`` says."""
+def record(task, rec, scorer, obs, f1, protocol=None, settings=None, **fields):
+    """A stored record of ``rec`` with ``settings`` on ``task`` (its configuration and hash as planning stores
+    them, for the record's task parameters), under the task's default protocol unless ``protocol`` says."""
     import grail_bench
 
     protocol = protocol or grail_bench.make_task(task).protocol_label
     base = dict(task_params=defaults(task), task=task, recognizer=rec, scorer=scorer, observability=obs, f1_mean=f1, f1_std=0.1,
                 f1_ci95_low=f1 - 0.1, f1_ci95_high=f1 + 0.1, f1_iqm=f1, f1_values=(f1 - 0.1, f1 + 0.1),
-                protocol=protocol, config_hash="abcdef123456", n_seeds=2, seeds=[0, 1], fit_seconds_per_goal=1.0,
+                protocol=protocol, n_seeds=2, seeds=[0, 1], fit_seconds_per_goal=1.0,
                 score_us_per_observation=10.0, tie_rate=0.0, accuracy_mean=f1, precision_mean=f1, recall_mean=f1)
-    return OfflineRecord(**(base | fields))
+    base |= fields
+    config = fitted_config(find_task(task, base["task_params"]), rec, build(rec, settings).config)
+    base.setdefault("config_hash", config_hash(config))
+    base.setdefault("recognizer_config", config["config"])
+    return OfflineRecord(**base)
+
+
+def built(records, reference=None, ceiling_samples=None):
+    """The leaderboard model of records (main boards, variants, archive)."""
+    return leaderboard.build([], reference, ceiling_samples, records=records)
 
 
 def build_boards(records, reference=None, ceiling_samples=2000):
@@ -42,21 +56,25 @@ def test_tasks_with_equal_goal_counts_get_their_own_rows():
                record("GRAIL/PandaReach-Gaussian-0.3-v0", "draco", "wasserstein", 0.02, 0.7)]
     (board,) = build_boards(records)
     assert board.title == "panda_reach / gaussian (subset)" and len(board.rows) == 2
+    assert board.columns == ["BC-GRAIL", "DRACO"]  # named as the paper names the methods
     text = markdown([board], records)
     assert "| PandaReach-Gaussian-0.1 | 4 | 2% | – | **0.90 ± 0.10** | – |" in text  # no ceiling
     assert "| PandaReach-Gaussian-0.3 | 4 | 2% | – | 0.60 ± 0.10 | **0.70 ± 0.10** |" in text
 
 
-def test_reported_values_sit_beside_the_papers_scorer_only():
+def test_reported_values_sit_beside_the_canonical_configuration_only():
     records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.5),
                record("GRAIL/MiniGrid-Optimal-v0", "bc", "wasserstein", 0.1, 0.4)]
     reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
-    (board,) = build_boards(records, reference, ceiling_samples=None)
-    text = markdown([board], records)
-    assert "| MiniGrid-Optimal | 2 | 10% | – | **0.50 ± 0.10 =** | 0.73 ± 0.33 [0.49, 0.90] | 0.40 ± 0.10 |" \
-        in text
+    board = built(records, reference)
+    text = markdown(board.boards, records, variants=board.variants)
+    assert "| MiniGrid-Optimal | 2 | 10% | – | **0.50 ± 0.10 =** | 0.73 ± 0.33 [0.49, 0.90] |\n" in text
+    # Another scorer is a named variant, in its own board, with no reported value beside it.
+    assert "## Variants" in text and "### minigrid: variants" in text
+    assert "| task | goals | obs | ceiling | BC-GRAIL · wasserstein |" in text
+    assert "| MiniGrid-Optimal | 2 | 10% | – | **0.40 ± 0.10** |" in text
     assert text.count("*(paper)*") == 2  # the header note and one column
-    assert placement_counts([board]) == {"inside": 1, "above": 0, "below": 0}
+    assert placement_counts(board.boards) == {"inside": 1, "above": 0, "below": 0}
 
 
 def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise():
@@ -95,56 +113,84 @@ def test_boards_show_the_pairs_only_ceiling_beside_the_bayes_one():
 
 
 def test_ceilings_use_the_task_parameters_of_the_run():
-    plain = record("GRAIL/MiniGrid-Suboptimal-v0", "bc", "mse", 0.2, 0.9, protocol="prefix")
-    no_turns = dataclasses.replace(plain, task_params={**plain.task_params, "route_choice": "uniform",
-                                                       "turn_prob": 0.0})
+    task = "GRAIL/MiniGrid-Suboptimal-v0"
+    no_turns = record(task, "bc", "mse", 0.2, 0.9, protocol="prefix",
+                      task_params={**defaults(task), "route_choice": "uniform", "turn_prob": 0.0})
     (board,) = build_boards([no_turns], ceiling_samples=50)
     (ceiling,) = board.ceilings.values()
     assert ceiling.method == "exact" and round(ceiling.accuracy, 2) == 0.75  # as the optimal task
-    mixed = [no_turns, dataclasses.replace(plain, recognizer="graql",
-                                           task_params={**plain.task_params, "route_choice": "uniform",
-                                                        "turn_prob": 0.5})]
+    mixed = [no_turns, record(task, "graql", "kl", 0.2, 0.9, protocol="prefix",
+                              task_params={**defaults(task), "route_choice": "uniform", "turn_prob": 0.5})]
     (board,) = build_boards(mixed, ceiling_samples=50)
     # Runs with other parameters (readings) get rows of their own, each with its own ceiling.
-    assert [row[4] for row in board.rows] == ["turn_prob=0.0", "turn_prob=0.5"]  # uniform routes: the default
+    assert [row.reading for row in board.rows] == ["turn_prob=0.0", "turn_prob=0.5"]  # uniform routes: the default
     assert len(board.ceilings) == 2 and round(board.ceilings[board.rows[0]].accuracy, 2) == 0.75
     assert "| MiniGrid-Suboptimal (turn_prob=0.0) | 2 | 20% | 0.75 |" in markdown([board], mixed)
 
 
-def test_a_recognizer_run_with_two_configurations_gets_a_column_per_setting():
+def test_a_method_run_in_several_configurations_keeps_its_canonical_column_and_names_the_others():
     task = "GRAIL/PandaReach-Gaussian-0.1-v0"
-    default = record(task, "draco", "wasserstein", 0.02, 0.5, recognizer_config={"sac_steps": 15000})
-    longer = record(task, "draco", "wasserstein", 0.02, 0.8, config_hash="0123456789ab",
-                    recognizer_config={"sac_steps": 60000})
-    (board,) = build_boards([default, longer], ceiling_samples=None)
-    assert board.columns == ["draco/wasserstein sac_steps=15000", "draco/wasserstein sac_steps=60000"]
-    # Same recognizer settings, different task parameters: only the hash tells the runs apart.
-    same = dataclasses.replace(longer, recognizer_config={"sac_steps": 15000})
-    (board,) = build_boards([default, same], ceiling_samples=None)
-    assert board.columns == ["draco/wasserstein [012345]", "draco/wasserstein [abcdef]"]
+    default = record(task, "draco", "wasserstein", 0.02, 0.5)
+    longer = record(task, "draco", "wasserstein", 0.02, 0.8, settings={"ppo_steps": 300000})
+    board = built([default, longer])
+    (main,) = board.boards
+    (variants,) = board.variants
+    assert main.columns == ["DRACO"] and variants.columns == ["DRACO · ppo_steps 300 000"]
+    assert variants.title == "panda_reach: variants" and not board.archive
+    # Same settings on other task parameters: the same column, a row per reading of the parameters.
+    other = record(task, "draco", "wasserstein", 0.02, 0.7,
+                   task_params={**defaults(task), "noise_std": 0.2} if "noise_std" in defaults(task) else
+                   {**defaults(task), "n_demos": defaults(task)["n_demos"] + 1})
+    (main,) = built([default, other]).boards
+    assert main.columns == ["DRACO"] and len(main.rows) == 2 and {r.reading for r in main.rows} != {""}
 
 
-def test_paper_values_sit_beside_the_default_configuration_only_so_no_cell_counts_twice():
-    from grail_bench.recognizers.registry import build
+def test_paper_values_sit_beside_the_canonical_configuration_so_no_cell_counts_twice():
     from grail_bench.report.boards import verdict_counts
 
     task = "GRAIL/MiniGrid-Optimal-v0"
-    default = record(task, "gail", "mse", 0.1, 0.5, recognizer_config=dict(build("gail").config))
-    longer = record(task, "gail", "mse", 0.1, 0.9, config_hash="0123456789ab",
-                    recognizer_config={**build("gail").config, "total_timesteps": 160000})
+    default = record(task, "gail", "mse", 0.1, 0.5)
+    longer = record(task, "gail", "mse", 0.1, 0.9, settings={"total_timesteps": 160000})
     reference = {(task, "gail", 0.1): Reported("0.64 ± 0.28", (0.44, 0.84))}
-    (board,) = build_boards([default, longer], reference, ceiling_samples=None)
-    assert list(board.reported) == [(*board.rows[0], "gail/mse total_timesteps=20000")]
-    assert sum(verdict_counts([board]).values()) == 1
-    # Without a run at the default configuration every configuration is compared.
-    (board,) = build_boards([longer], reference, ceiling_samples=None)
-    assert len(board.reported) == 1
-    # A run stored before the task had parameters reads as their implicit values (here the defaults): it
-    # shares the default row, and the paper's value stays beside the default configuration alone.
-    legacy = dataclasses.replace(longer, task_params={}, config_hash="fedcba987654")
-    (board,) = build_boards([default, legacy], reference, ceiling_samples=None)
-    assert len(board.rows) == 1 and len(board.reported) == 1
-    assert sum(verdict_counts([board]).values()) == 1
+    board = built([default, longer], reference)
+    (main,) = board.boards
+    assert list(main.reported) == [(main.rows[0], "GAIL-GRAIL")]
+    assert sum(verdict_counts(board.boards).values()) == 1
+    assert [b.columns for b in board.variants] == [["GAIL-GRAIL · total_timesteps 160 000"]]
+    assert not any(b.reported for b in board.variants)
+    # A run stored under a configuration today's code would hash otherwise (here: before the task had
+    # parameters) is archived: out of the boards, listed with what differs.
+    legacy = dataclasses.replace(default, task_params={}, config_hash="fedcba987654", f1_mean=0.1)
+    board = built([default, legacy], reference)
+    (main,) = board.boards
+    assert len(main.rows) == 1 and main.cell(main.rows[0], "GAIL-GRAIL").f1_mean == 0.5
+    (entry,) = board.archive
+    assert entry.config.label == "GAIL-GRAIL · archived fedcba" and entry.rows == 2 and entry.tasks == (task,)
+    text = markdown(board.boards, board.records, archive=board.archive)
+    assert "| GAIL-GRAIL | GAIL-GRAIL · archived fedcba | none | MiniGrid-Optimal-v0 | 0, 1 | 2 | `fedcba987654` |" \
+        in text
+
+
+def test_demonstrator_is_a_reference_after_the_methods_never_the_best():
+    task = "GRAIL/MiniGrid-Optimal-v0"
+    records = [record(task, "bc", "mse", 0.1, 0.6), record(task, "demonstrator", "mse", 0.1, 0.99),
+               record(task, "graql", "kl", 0.1, 0.5)]
+    (main,) = built(records).boards
+    assert main.columns == ["BC-GRAIL", "GRAQL", "Demonstrator (perfect imitation)"]
+    assert main.methods == ["BC-GRAIL", "GRAQL"] and main.best(main.rows[0]) == 0.6
+    text = markdown([main], records)
+    assert "| Demonstrator (perfect imitation) (reference) |" in text
+    assert "| **0.60 ± 0.10** | 0.50 ± 0.10 | 0.99 ± 0.10 |" in text
+
+
+def test_markdown_escapes_markup_in_names():
+    task = "GRAIL/MiniGrid-Optimal-v0"
+    odd = [dataclasses.replace(record(task, "bc", "mse", 0.1, 0.5), recognizer=name, scorer="default")
+           for name in ("<!--<script>", "</script>", "a|b & <b>")]
+    board = built(odd)
+    text = markdown(board.boards, board.records, variants=board.variants).split("## Runs")[0]
+    assert "<script>" not in text and "</script>" not in text and "<!--" not in text and "<b>" not in text
+    assert "&lt;!--&lt;script&gt;" in text and "&lt;/script&gt;" in text and "a\\|b &amp; &lt;b&gt;" in text
 
 
 def test_runs_table_shows_ranking_metrics_averaged_over_levels():
@@ -153,8 +199,8 @@ def test_runs_table_shows_ranking_metrics_averaged_over_levels():
     records.append(record("GRAIL/MiniGrid-Optimal-v0", "graql", "kl", 0.1, 0.5))  # stored before: no ranking
     boards = build_boards(records, ceiling_samples=None)
     text = markdown(boards, records)
-    assert "| GRAIL/MiniGrid-Optimal-v0 | bc/mse | 2 | 1.00 | 10 | 0.0% | 0.90 | 1.40 | – |" in text
-    assert "| GRAIL/MiniGrid-Optimal-v0 | graql/kl | 2 | 1.00 | 10 | 0.0% | – | – | – |" in text
+    assert "| GRAIL/MiniGrid-Optimal-v0 | BC-GRAIL | 2 | 1.00 | 10 | 0.0% | 0.90 | 1.40 | – |" in text
+    assert "| GRAIL/MiniGrid-Optimal-v0 | GRAQL | 2 | 1.00 | 10 | 0.0% | – | – | – |" in text
 
 
 def test_profiles_gaps_and_calibration_are_written_from_the_ceilings(tmp_path):
@@ -168,12 +214,12 @@ def test_profiles_gaps_and_calibration_are_written_from_the_ceilings(tmp_path):
     posterior = [record(task, "bc", "loglik", 0.1, 0.9, reliability=reliability_bins([0.9, 0.9], [True, False]))]
     board = leaderboard.build([], None, 50, records=good + weak + posterior)
     (summary,) = domain_summaries(board.boards, reps=200)
-    assert summary.profile_strata == 3 and set(summary.gaps) == {"bc/mse", "graql/kl"}  # own scorers only
-    assert summary.gaps["bc/mse"].point < summary.gaps["graql/kl"].point  # nearer the ceiling
-    point, low, high = summary.profiles["graql/kl"]  # F1 0.5 is chance: normalised 0, not above 0
+    assert summary.profile_strata == 3 and set(summary.gaps) == {"BC-GRAIL", "GRAQL"}  # canonical only
+    assert summary.gaps["BC-GRAIL"].point < summary.gaps["GRAQL"].point  # nearer the ceiling
+    point, low, high = summary.profiles["GRAQL"]  # F1 0.5 is chance: normalised 0, not above 0
     assert len(point) == len(TAUS) and point[0] == 0.5 and all(lo <= p <= hi for p, lo, hi in zip(point, low, high))
     written = {p.name for p in write_robust(board, tmp_path, reps=200)}
     assert {"PROFILES.md", "performance_profiles.png", "CALIBRATION.md", "reliability.png"} <= written
     text = (tmp_path / "CALIBRATION.md").read_text()
-    assert "| minigrid | bc/loglik | 1 |" in text and "| 0.40 |" in text  # ECE: |0.5 - 0.9|
+    assert "loglik" in text and "| 0.40 |" in text  # ECE: |0.5 - 0.9|
     assert "## minigrid (3 strata)" in (tmp_path / "PROFILES.md").read_text()

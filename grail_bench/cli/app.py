@@ -37,7 +37,8 @@ EXECUTOR_HELP = "serial, local (a process pool) or ray (default: local with --wo
 ADDRESS_HELP = "A Ray cluster to run on: auto or HOST:PORT (implies --executor ray)."
 MODE_HELP = ("offline (the paper's protocol), online, open-set or zero-shot (a third of the goals never fitted; "
              "goal-conditioned recognizers only). --online and --open-set are shortcuts.")
-STORE_HELP = "Results database (default: ~/.local/share/grail-bench/results.sqlite)."
+STORE_HELP = ("Results database (default: results.sqlite in the grail-bench folder of the user data directory, "
+              "~/.local/share).")
 
 
 @app.callback()
@@ -167,7 +168,8 @@ def leaderboard_(
     store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE", help="Results database."),
     markdown_path: Optional[Path] = typer.Option(None, "--markdown", help="Also write the leaderboard as Markdown here."),
     reference: Optional[Path] = typer.Option(None, "--reference",
-                                             help="CSV of reported values (task,recognizer,observability,f1) to show beside ours."),
+                                             help="CSV of reported values (columns task, recognizer, observability, f1) to show beside "
+                                                  "ours."),
     task: Optional[List[str]] = typer.Option(None, "--task", "-t", help="Only these tasks."),
     scorer: Optional[List[str]] = typer.Option(
         None, "--scorer", help="Only these scorers (NAME), or recognizer/scorer pairs (e.g. bc/mse)."),
@@ -195,8 +197,10 @@ def leaderboard_(
     from grail_bench.report import leaderboard, plots
     from grail_bench.report.html import write_site
     from grail_bench.report.reference import read_reference
+    from grail_bench.report.claims import headline_claims
     from grail_bench.report.reproduce import write_robust
     from grail_bench.report.rows import ablation_rows
+    from grail_bench.report.summary import domain_summaries
     from grail_bench.report.tables import ablation_markdown, ablation_table, mode_markdown, mode_table
     from grail_bench.report.text import markdown, rich_tables
 
@@ -247,11 +251,20 @@ def leaderboard_(
             return
         for table in rich_tables(board.boards):
             console.print(table)
+        if board.variants or board.archive:
+            say(f"{sum(len(b.columns) for b in board.variants)} named variants and {len(board.archive)} archived "
+                "configurations are not shown here: see --markdown or --html")
+        summaries = claims = None
+        if markdown_path is not None or html is not None:
+            with console.status("domain summaries and headline claims (bootstrap intervals)"):
+                summaries = domain_summaries(board.boards)
+                claims = headline_claims(board.records)
         if markdown_path is not None:
-            write_text(markdown_path, markdown(board.boards, board.records, fits=board.fits), "Markdown")
+            write_text(markdown_path, markdown(board.boards, board.records, fits=board.fits, variants=board.variants,
+                                               archive=board.archive, summaries=summaries, claims=claims), "Markdown")
         if html is not None:
             with console.status("web page (bootstrap intervals)"):
-                index = write_site(board, html)[0]
+                index = write_site(board, html, summaries=summaries, claims=claims)[0]
             say(f"web page written to {index}")
         if profiles is not None:
             with console.status("performance profiles (bootstrap bands)"):
@@ -443,8 +456,8 @@ def study(
     name: Optional[str] = typer.Argument(None, help="The study to run (without one: the list)."),
     show_list: bool = typer.Option(False, "--list", help="List the studies."),
     store_path: Optional[Path] = typer.Option(
-        None, "--store", help="Results database the study reads (causes; default: $GRAIL_BENCH_STORE or "
-                              "~/.local/share/grail-bench/results.sqlite)."),
+        None, "--store", help="Results database the study reads (causes; default: $GRAIL_BENCH_STORE, else "
+                              "results.sqlite in the grail-bench folder of ~/.local/share)."),
     task: Optional[List[str]] = typer.Option(
         None, "--task", "-t", help="A task to study; repeatable (off-route: required; causes, readings: a subset "
                                    "of their six)."),

@@ -1,13 +1,15 @@
 """The paper-style table model: offline records grouped into boards, computed once and drawn by every renderer.
 
-One board per domain, regime and observation protocol, like the paper's
-Table 2: a row per goal count and observability level (and per reading of the
-task's parameters, where runs used other than its defaults), a column per
-recognizer (``name/scorer`` when a recognizer was run with several scorers),
-each cell an :class:`~grail_bench.harness.modes.offline.OfflineRecord`. Values
-a publication reports are attached on the rows of each task's default protocol
-only, beside each recognizer's default configuration where it ran in several
-(the others are variants, so no cell is counted twice); Bayes ceilings come in already computed
+Every record's configuration is named first (:mod:`grail_bench.report.configs`): canonical, a named variant or
+archived. **Main boards** (one per domain, regime and observation protocol, like the paper's Table 2) show the
+canonical configurations: a row per goal count and observability level (and per reading of the task's
+parameters, where runs used other than its defaults), a column per method named as the paper names it, each
+cell an :class:`~grail_bench.harness.modes.offline.OfflineRecord`. References (the demonstrator) sit after the
+methods and never count as a row's best. **Variant boards** (one per domain) show every named variant, a
+column per label. **Archived** configurations are listed (:func:`archive`), in no board.
+
+Values a publication reports are attached beside canonical columns, on the rows of each task's default
+protocol and parameters only; Bayes ceilings come in already computed
 (:func:`grail_bench.harness.ceiling.ceilings_for`), so no renderer computes one.
 """
 
@@ -16,80 +18,133 @@ from __future__ import annotations
 import json
 from collections import defaultdict
 from dataclasses import dataclass, field
-from functools import lru_cache
-from typing import Any, Iterable, Sequence
-
+from typing import Any, Iterable, Literal, Sequence
 
 from grail_bench.harness.ceiling import Ceiling, Cell
 from grail_bench.harness.modes.offline import OfflineRecord
-from grail_bench.recognizers.registry import UnknownRecognizerError, build, recognizer_info
+from grail_bench.report.configs import ConfigKey, Configuration, config_key, configurations, method_of
 from grail_bench.report.reference import Reported
 from grail_bench.task import find_task, variant
 from grail_bench.task.overrides import TaskOverrides
 
-Row = tuple[int, str, str, float, str]  # (goals, task, protocol, observability, variant of the task's parameters)
-CellKey = tuple[int, str, str, float, str, str]  # a row and a column label
+BoardKind = Literal["canonical", "variant"]
+
+
+@dataclass(frozen=True, order=True)
+class BoardRow:
+    """One row of a board (rows sort by goal count, task, protocol, level, then reading).
+
+    Attributes:
+        goals: The task's goal count (0 for a task not registered here).
+        task: The task id.
+        protocol: The observation protocol as stored (``subset``, ``prefix+floor``).
+        observability: The observed fraction (or count) of the level.
+        reading: How the runs' task parameters differ from the task's defaults (empty: the defaults).
+    """
+
+    goals: int
+    task: str
+    protocol: str
+    observability: float
+    reading: str = ""
+
+    @property
+    def name(self) -> str:
+        """The task as tables show it: the short name, and the reading of its parameters if any."""
+        return short_name(self.task) + (f" ({self.reading})" if self.reading else "")
+
+    @property
+    def stratum(self) -> tuple[str, str, float]:
+        """``(task as shown, protocol, level)``: what summaries compare methods over."""
+        return self.name, self.protocol, self.observability
+
+
+Row = BoardRow
+CellKey = tuple[BoardRow, str]  # a row and a column label
 
 
 @dataclass
 class Board:
-    """One table: a domain, regime and protocol; its rows, columns, cells, reported values and ceilings."""
+    """One table: its rows, columns (labels), cells, reported values and ceilings.
+
+    Attributes:
+        title: ``minigrid / optimal (subset)`` (main) or ``minigrid: variants``.
+        columns: Column labels, methods first (sorted), references after them.
+        kind: ``canonical`` (a main board) or ``variant``.
+        domain: The domain of its tasks.
+        regime: The regime of a main board's tasks (empty on variant boards).
+        configs: Each column's configuration.
+    """
 
     title: str
     columns: list[str]
-    rows: list[Row] = field(default_factory=list)
+    kind: BoardKind = "canonical"
+    domain: str = ""
+    regime: str = ""
+    rows: list[BoardRow] = field(default_factory=list)
     cells: dict[CellKey, OfflineRecord] = field(default_factory=dict)
     reported: dict[CellKey, Reported] = field(default_factory=dict)
-    ceilings: dict[Row, Ceiling] = field(default_factory=dict)
-    pairs_only: dict[Row, Ceiling] = field(default_factory=dict)
+    ceilings: dict[BoardRow, Ceiling] = field(default_factory=dict)
+    pairs_only: dict[BoardRow, Ceiling] = field(default_factory=dict)
+    configs: dict[str, Configuration] = field(default_factory=dict)
 
-    def best(self, row: Row) -> float | None:
-        """The best mean F1 of a row."""
-        means = [self.cells[(*row, c)].f1_mean for c in self.columns if (*row, c) in self.cells]
+    def cell(self, row: BoardRow, column: str) -> OfflineRecord | None:
+        return self.cells.get((row, column))
+
+    def is_reference(self, column: str) -> bool:
+        config = self.configs.get(column)
+        return config is not None and config.reference
+
+    @property
+    def methods(self) -> list[str]:
+        """The columns that are methods (ranked and summarised), not references."""
+        return [c for c in self.columns if not self.is_reference(c)]
+
+    @property
+    def protocols(self) -> list[str]:
+        return sorted({row.protocol for row in self.rows})
+
+    def best(self, row: BoardRow) -> float | None:
+        """The best mean F1 of a row among the methods (references excluded)."""
+        means = [self.cells[(row, c)].f1_mean for c in self.methods if (row, c) in self.cells]
         return max(means) if means else None
 
     def has_reported(self, column: str) -> bool:
-        return any(key[-1] == column for key in self.reported)
+        return any(key[1] == column for key in self.reported)
+
+    def recognizer(self, column: str) -> str:
+        config = self.configs.get(column)
+        return config.recognizer if config else column
 
 
-@lru_cache(maxsize=None)
-def paper_method(recognizer: str) -> tuple[str, str | None]:
-    """``(published name, published scorer)`` from the recognizer's metadata (its own name and no scorer if
-    it is not registered here)."""
-    try:
-        info = recognizer_info(recognizer)
-    except UnknownRecognizerError:
-        return recognizer, None
-    return info.paper_name, info.default_scorer
+@dataclass(frozen=True)
+class ArchiveEntry:
+    """An archived configuration: what it was, where it ran, and its records.
 
+    Attributes:
+        config: Its :class:`~grail_bench.report.configs.Configuration` (``kind == "archived"``).
+        tasks: The tasks it ran.
+        seeds: The seeds of its runs.
+        rows: How many stored rows (one per seed, level and protocol) it has.
+        records: Its records (one per task, protocol and level).
+    """
 
-@lru_cache(maxsize=None)
-def default_config(recognizer: str) -> str | None:
-    """The recognizer's default configuration as canonical JSON (None when it is not registered here or does
-    not build without arguments)."""
-    try:
-        return _canonical(build(recognizer).config)
-    except Exception:  # noqa: BLE001 - a plugin that cannot build on its own has no default to prefer
-        return None
-
-
-def _canonical(config: dict[str, Any]) -> str:
-    return json.dumps(config, sort_keys=True, default=str)
-
-
-def _is_default(record: OfflineRecord) -> bool:
-    return _canonical(record.recognizer_config) == default_config(record.recognizer)
+    config: Configuration
+    tasks: tuple[str, ...]
+    seeds: tuple[int, ...]
+    rows: int
+    records: tuple[OfflineRecord, ...]
 
 
 def own_scorer_records(records: Sequence[OfflineRecord]) -> list[OfflineRecord]:
     """Each recognizer's records under its own (the paper's) scorer (a plugin no longer installed: all of them)."""
-    own = {name: paper_method(name)[1] for name in {r.recognizer for r in records}}
+    own = {name: method_of(name)[1] for name in {r.recognizer for r in records}}
     return [r for r in records if own[r.recognizer] in (None, r.scorer)]
 
 
-def row_name(row: Row) -> str:
-    """A board row's task as tables show it: the short name, and the reading of its parameters if any."""
-    return short_name(row[1]) + (f" ({row[4]})" if row[4] else "")
+def row_name(row: BoardRow) -> str:
+    """A board row's task as tables show it (:attr:`BoardRow.name`)."""
+    return row.name
 
 
 def short_name(task_id: str) -> str:
@@ -104,11 +159,11 @@ def domain_of(task_id: str) -> str:
 
 
 def column_label(record: Any, variants: dict[tuple[str, str], list[str] | None]) -> str:
-    """``recognizer/scorer`` (just the recognizer for plugins with their own scoring).
+    """``recognizer/scorer`` (just the recognizer for plugins with their own scoring), for the per-configuration
+    tables beside the boards.
 
-    A recognizer run with several configurations gets one column per
-    configuration, named by the settings that tell them apart (``sac_steps=60000``)
-    or, when only the task's parameters differ, by the configuration hash.
+    A recognizer run with several configurations gets one label per configuration, named by the settings that
+    tell them apart (``sac_steps=60000``) or, when only the task's parameters differ, by the configuration hash.
     """
     label = record.recognizer
     if record.scorer != "default":
@@ -156,66 +211,131 @@ def ceiling_cells(records: Iterable[OfflineRecord]) -> list[Cell]:
                                                                        c.level))
 
 
+class _Rows:
+    """Board rows of records: the task's goal count and the reading of the runs' parameters, computed once."""
+
+    def __init__(self, records: Iterable[OfflineRecord]) -> None:
+        self.tasks = {t: find_task(t) for t in {r.task for r in records}}
+        self.readings: dict[tuple[str, TaskOverrides], str] = {}
+
+    def reading(self, r: OfflineRecord) -> str:
+        """How the run's task parameters differ from the task's defaults (rows stored before a parameter
+        existed read as its implicit value, so they share the row of the runs that state it)."""
+        task = self.tasks[r.task]
+        if task is None:
+            return ""
+        key = (r.task, TaskOverrides.of(r.task_params))
+        if key not in self.readings:
+            self.readings[key] = variant(task, r.task_params)
+        return self.readings[key]
+
+    def row(self, r: OfflineRecord) -> BoardRow:
+        task = self.tasks[r.task]
+        return BoardRow(len(task.goals) if task else 0, r.task, r.protocol, r.observability, self.reading(r))
+
+    def domain(self, task_id: str) -> str:
+        task = self.tasks[task_id]
+        return task.domain if task else domain_of(task_id)
+
+
+class _Boards:
+    """Boards filled record by record: columns as configurations appear, rows with their ceilings."""
+
+    def __init__(self, ceilings: dict[Cell, Ceiling] | None, pairs_only: dict[Cell, Ceiling] | None) -> None:
+        self.boards: dict[str, Board] = {}
+        self.seen: dict[str, set[BoardRow]] = defaultdict(set)
+        self.ceilings, self.pairs_only = ceilings or {}, pairs_only or {}
+
+    def add(self, title: str, kind: BoardKind, domain: str, regime: str, r: OfflineRecord, row: BoardRow,
+            config: Configuration) -> Board:
+        board = self.boards.get(title)
+        if board is None:
+            board = self.boards[title] = Board(title=title, columns=[], kind=kind, domain=domain, regime=regime)
+        if config.label not in board.configs:
+            board.columns.append(config.label)
+            board.configs[config.label] = config
+        if row not in self.seen[title]:
+            self.seen[title].add(row)
+            board.rows.append(row)
+            key = cell_of_record(r)
+            if key in self.ceilings:
+                board.ceilings[row] = self.ceilings[key]
+            if key in self.pairs_only:
+                board.pairs_only[row] = self.pairs_only[key]
+        board.cells[(row, config.label)] = r
+        return board
+
+    def done(self) -> list[Board]:
+        """The boards by title, rows sorted, methods by label and references after them."""
+        for board in self.boards.values():
+            board.rows.sort()
+            board.columns.sort(key=lambda c: (board.is_reference(c), c))
+        return [self.boards[k] for k in sorted(self.boards)]
+
+
 def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, str, float], Reported] | None = None,
-                 ceilings: dict[Cell, Ceiling] | None = None,
-                 pairs_only: dict[Cell, Ceiling] | None = None) -> list[Board]:
-    """Group records into boards (see the module docstring).
+                 ceilings: dict[Cell, Ceiling] | None = None, pairs_only: dict[Cell, Ceiling] | None = None,
+                 configs: dict[ConfigKey, Configuration] | None = None) -> list[Board]:
+    """The main boards: canonical configurations only (see the module docstring).
 
     Args:
         records: Offline records (:func:`grail_bench.harness.modes.offline.aggregate`).
-        reference: Reported values to show beside ours (on rows of the task's default parameters only, and
-            beside the recognizer's default configuration where the row has it).
+        reference: Reported values to show beside canonical columns (on rows of the task's default protocol and
+            parameters only).
         ceilings: Bayes ceilings by cell (:func:`cell_of_record`), computed beforehand.
         pairs_only: Pairs-only ceilings, keyed alike.
+        configs: The records' configurations when already named (:func:`~grail_bench.report.configs.configurations`).
     """
     records = list(records)
-    tasks = {t: find_task(t) for t in {r.task for r in records}}
-    readings: dict[tuple[str, TaskOverrides], str] = {}
-
-    def reading_of(r: OfflineRecord) -> str:
-        """How the run's task parameters differ from the task's defaults (rows stored before a parameter
-        existed read as its implicit value, so they share the row of the runs that state it)."""
-        key = (r.task, TaskOverrides.of(r.task_params))
-        if key not in readings:
-            readings[key] = variant(tasks[r.task], r.task_params) if tasks[r.task] else key[1].label()
-        return readings[key]
-
-    def cell_of(r: OfflineRecord) -> tuple[Any, ...]:
-        """A record's cell whatever its configuration: task, reading, protocol, level, recognizer, scorer."""
-        return r.task, reading_of(r), r.protocol, r.observability, r.recognizer, r.scorer
-
-    variants = config_variants(records)
-    # A recognizer run in several configurations on a row: the reported value sits beside its default one only.
-    at_default = {cell_of(r) for r in records if _is_default(r)}
-    ceilings, pairs_only = ceilings or {}, pairs_only or {}
-    boards: dict[str, Board] = {}
+    configs = configs if configs is not None else configurations(records)
+    rows, boards = _Rows(records), _Boards(ceilings, pairs_only)
     for r in records:
-        task = tasks[r.task]
+        config = configs[config_key(r)]
+        if not config.canonical:
+            continue
+        task, row = rows.tasks[r.task], rows.row(r)
         title = (f"{task.domain} / {task.regime}" if task else r.task) + f" ({r.protocol})"
-        board = boards.setdefault(title, Board(title=title, columns=[]))
-        label = column_label(r, variants)
-        if label not in board.columns:
-            board.columns.append(label)
-        reading = reading_of(r) if task else ""
-        row = (len(task.goals) if task else 0, r.task, r.protocol, r.observability, reading)
-        if row not in board.rows:
-            board.rows.append(row)
-            key = cell_of_record(r)
-            if key in ceilings:
-                board.ceilings[row] = ceilings[key]
-            if key in pairs_only:
-                board.pairs_only[row] = pairs_only[key]
-        board.cells[(*row, label)] = r
-        paper_protocol = task is not None and r.protocol == task.protocol_label and not reading
-        beside_default = _is_default(r) or cell_of(r) not in at_default
-        if reference and paper_protocol and beside_default and paper_method(r.recognizer)[1] in (r.scorer, None):
+        board = boards.add(title, "canonical", rows.domain(r.task), task.regime if task else "", r, row, config)
+        paper_protocol = task is not None and r.protocol == task.protocol_label and not row.reading
+        if reference and paper_protocol and not config.reference:
             reported = reference.get((r.task, r.recognizer, round(r.observability, 6)))
             if reported:
-                board.reported[(*row, label)] = reported
-    for board in boards.values():
-        board.rows.sort()
-        board.columns.sort()
-    return [boards[k] for k in sorted(boards)]
+                board.reported[(row, config.label)] = reported
+    return boards.done()
+
+
+def variant_boards(records: Iterable[OfflineRecord], ceilings: dict[Cell, Ceiling] | None = None,
+                   pairs_only: dict[Cell, Ceiling] | None = None,
+                   configs: dict[ConfigKey, Configuration] | None = None) -> list[Board]:
+    """One board per domain of its named variants, a column per label (no reported values beside them)."""
+    records = list(records)
+    configs = configs if configs is not None else configurations(records)
+    rows, boards = _Rows(records), _Boards(ceilings, pairs_only)
+    for r in records:
+        config = configs[config_key(r)]
+        if config.kind == "variant":
+            domain = rows.domain(r.task)
+            boards.add(f"{domain}: variants", "variant", domain, "", r, rows.row(r), config)
+    return boards.done()
+
+
+def archive(records: Iterable[OfflineRecord],
+            configs: dict[ConfigKey, Configuration] | None = None) -> list[ArchiveEntry]:
+    """The archived configurations (one entry per stored configuration hash and scorer), by method and label."""
+    records = list(records)
+    configs = configs if configs is not None else configurations(records)
+    groups: dict[tuple[str, str], list[OfflineRecord]] = defaultdict(list)
+    for r in records:
+        config = configs[config_key(r)]
+        if config.kind == "archived":
+            groups[(config.label, r.config_hash)].append(r)
+    out = []
+    for group in groups.values():
+        config = configs[config_key(group[0])]
+        out.append(ArchiveEntry(config, tuple(sorted({r.task for r in group})),
+                                tuple(sorted({int(s) for r in group for s in r.seeds})),
+                                sum(r.n_seeds for r in group), tuple(group)))
+    return sorted(out, key=lambda e: (e.config.method, e.config.changes_text, e.config.label))
 
 
 def placement_counts(boards: Iterable[Board]) -> dict[str, int]:

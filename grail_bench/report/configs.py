@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Literal
+from typing import Any, Iterable, Literal
 
 from grail_bench.harness.planning import config_hash, fitted_config
 from grail_bench.recognizers.registry import UnknownRecognizerError, build, recognizer_info
@@ -29,6 +29,9 @@ Kind = Literal["canonical", "variant", "archived"]
 
 #: How a name and its differences are joined in a label.
 SEPARATOR = " · "
+
+#: Recognizers that are references (what a method could reach), not methods: shown apart, never ranked.
+REFERENCES = frozenset({"demonstrator"})
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,7 @@ class Configuration:
             (a setting the run did not store, or set to None as not in play, has value None; labels omit those).
         scorer: The scorer when it is not the method's own, else None.
         config_hash: The stored configuration's hash (archived labels carry its first 6 characters).
+        recognizer: The registered recognizer name.
     """
 
     kind: Kind
@@ -49,6 +53,7 @@ class Configuration:
     changes: tuple[tuple[str, Any], ...] = ()
     scorer: str | None = None
     config_hash: str = ""
+    recognizer: str = ""
 
     @property
     def label(self) -> str:
@@ -63,6 +68,18 @@ class Configuration:
     @property
     def canonical(self) -> bool:
         return self.kind == "canonical"
+
+    @property
+    def reference(self) -> bool:
+        """A reference (the demonstrator), shown beside the methods but never ranked or summarised."""
+        return self.recognizer in REFERENCES
+
+    @property
+    def changes_text(self) -> str:
+        """The settings that differ from today's default, ``n_epochs 25, off_support stay`` (a setting the run
+        did not store reads ``n_epochs unset``); ``none`` when only the task or the hashed fields differ."""
+        parts = [f"{k} {value_text(v) if v is not None else 'unset'}" for k, v in self.changes]
+        return ", ".join(parts) or "none"
 
 
 def value_text(value: Any) -> str:
@@ -109,6 +126,24 @@ def _canonical_json(value: Any) -> str:
     return json.dumps(value, sort_keys=True, default=str)
 
 
+ConfigKey = tuple[str, str, str, str]  # task, recognizer, scorer, config hash: what a configuration's records share
+
+
+def config_key(record: Any) -> ConfigKey:
+    """The key a record's configuration is known by (its hash covers its task's parameters and settings)."""
+    return record.task, record.recognizer, record.scorer, record.config_hash
+
+
+def configurations(records: Iterable[Any]) -> dict[ConfigKey, Configuration]:
+    """Every distinct configuration of ``records`` named once, by :func:`config_key`."""
+    out: dict[ConfigKey, Configuration] = {}
+    for r in records:
+        key = config_key(r)
+        if key not in out:
+            out[key] = configuration(r)
+    return out
+
+
 def configuration(record: Any) -> Configuration:
     """Name a stored configuration (any record or row with ``task``, ``recognizer``, ``scorer``,
     ``config_hash``, ``task_params`` and ``recognizer_config``)."""
@@ -120,13 +155,13 @@ def configuration(record: Any) -> Configuration:
                                                     record.recognizer, rebuilt) == record.config_hash
     if own is None:  # a plugin no longer installed: nothing to compare with, its runs shown as they are
         return Configuration("variant", method, tuple(sorted(record.recognizer_config.items())), scorer,
-                             record.config_hash)
+                             record.config_hash, record.recognizer)
     if not current:
         return Configuration("archived", method, _changes(record.recognizer_config, default), scorer,
-                             record.config_hash)
+                             record.config_hash, record.recognizer)
     changes = _changes(record.recognizer_config, default)
     kind: Kind = "canonical" if not changes and scorer is None else "variant"
-    return Configuration(kind, method, changes, scorer, record.config_hash)
+    return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer)
 
 
 def _changes(stored: dict[str, Any], default_json: str | None) -> tuple[tuple[str, Any], ...]:

@@ -3,19 +3,25 @@
 The page (``DIR/index.html``) is rendered from a
 :class:`~grail_bench.report.leaderboard.Leaderboard` through a Jinja2
 template and needs nothing but a browser: no server, no network, CSS and a
-small sorting/filtering script inline, figures inline as SVG, readable with
-scripts off. Beside it, ``records.json`` holds the records behind every cell
-(also embedded in the page).
+small sorting/filtering script inline, figures as SVG files beside it
+(``DIR/figures/``, loaded lazily), readable with scripts off. Its first screen is the per-domain summaries and the headline
+claims checked against the data.
 
-Tables follow the boards (one per domain, regime and protocol; a row per task
-and observability; a column per recognizer and scorer). Each cell shows the
-mean F1 over seeds with a 95 % bootstrap interval
-(:mod:`grail_bench.stats.robust`); the cells whose intervals overlap the best
-one's are all marked, rather than one winner by a hair. Each domain gets an
-aggregate (IQM with a bootstrap stratified by task, protocol and level, over
-the strata every compared recognizer ran) and the probability of improvement
-between its recognizers. Every other mode with runs gets a table (and the
-online accuracy curves).
+The main boards (one per domain, regime and protocol; a row per task and
+observability; a column per method in its canonical configuration, the
+demonstrator after them as a reference) come first; each domain's named
+variants follow, folded; the archived configurations are listed with links to
+their runs. Each cell shows the mean F1 over seeds with a 95 % bootstrap
+interval (:mod:`grail_bench.stats.robust`); the method cells whose intervals
+overlap the best one's are all marked, rather than one winner by a hair.
+
+To keep the page small (:data:`MAX_PAGE_BYTES`; the figures alone weigh about
+as much as the rest), figures are files of their own and the page embeds only
+what a cell's details need: its confusion matrix, and its configuration's fit
+diagnostics with training curves thinned to :data:`CURVE_POINTS` points and
+every value to :data:`DIGITS` significant digits. Beside it, ``records.json``
+holds every record in full (archived ones too, with their configuration
+hashes) and ``fits.json`` every fit diagnostic.
 """
 
 from __future__ import annotations
@@ -28,26 +34,28 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from grail_bench.harness.ceiling import normalised
+from grail_bench.harness.diagnostics import FitSummary
 from grail_bench.report import plots
-from grail_bench.report.boards import (
-    Board,
-    column_label,
-    config_variants,
-    own_scorer_records,
-    row_name,
-)
+from grail_bench.report.boards import ArchiveEntry, Board
+from grail_bench.report.configs import config_key
 from grail_bench.report.leaderboard import Leaderboard
 from grail_bench.report.reference import MARKS, Reported
 from grail_bench.report.rows import calibration_rows, timing_rows
-from grail_bench.report.summary import domain_summaries, profile_figure_data
+from grail_bench.report.summary import DomainSummary, domain_summaries, profile_figure_data
 from grail_bench.report.text import comparison_lines
-from grail_bench.stats.robust import (
-    Interval,
-    pooled_mean,
-    stratified_bootstrap,
-    tied_best,
-)
-from grail_bench.task import find_task
+from grail_bench.stats.robust import Interval, pooled_mean, stratified_bootstrap, tied_best
+
+#: The published page must stay under this size (records and diagnostics beyond a cell's details live beside it).
+MAX_PAGE_BYTES = 1_500_000
+
+#: Training curves embedded for a cell's details are thinned to at most this many points each.
+CURVE_POINTS = 60
+
+#: Significant digits of the diagnostics embedded for a cell's details.
+DIGITS = 3
+
+#: Where figures are written, beside the page.
+FIGURES = "figures"
 
 
 @dataclass
@@ -62,11 +70,14 @@ class Cell:
     std: float
     seeds: int
     runs: list[int]  # the invocations that stored its rows
+    top2: float | None = None
+    mean_rank: float | None = None
     paper: Reported | None = None
     place: str | None = None
     verdict: str | None = None
     normalised: float | None = None
     best: bool = False
+    reference: bool = False
 
     @property
     def mark(self) -> str:
@@ -74,21 +85,28 @@ class Cell:
 
 
 @dataclass
+class Column:
+    """One configuration's column: its label, recognizer, and whether it is a reference (never ranked)."""
+
+    label: str
+    recognizer: str
+    reference: bool = False
+    reported: bool = False
+
+
+@dataclass
 class Section:
-    """One table of the page."""
+    """One table of the page: a main board, or a domain's variants."""
 
     id: str
     title: str
     domain: str
     regime: str
-    columns: list[tuple[str, str]]  # (label, recognizer)
+    columns: list[Column]
+    kind: str = "canonical"
+    protocols: bool = False  # a protocol column (variant boards span several)
     rows: list[dict[str, Any]] = field(default_factory=list)
     figure: str | None = None
-
-
-def _domain_regime(board: Board) -> tuple[str, str]:
-    task = find_task(board.rows[0][1])
-    return (task.domain, task.regime) if task else (board.title, "")
 
 
 def _runs(rows: Sequence[Any]) -> tuple[list[dict[str, Any]], dict[str, int]]:
@@ -110,27 +128,47 @@ def _runs(rows: Sequence[Any]) -> tuple[list[dict[str, Any]], dict[str, int]]:
     return runs, index
 
 
-def _figure(section: Section, cells: dict[tuple, Cell], own: set[int]) -> str | None:
-    """F1 against observability per task of a section, a line and interval band per own-scorer column."""
+def _record_key(r: Any) -> tuple:
+    return r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability
+
+
+def _figure(section: Section) -> Any:
+    """F1 against observability per task of a main board, a line and interval band per column (its drawing, or
+    None when no task has several levels)."""
     tasks = sorted({row["key"] for row in section.rows})
     levels = {t: {row["obs"] for row in section.rows if row["key"] == t} for t in tasks}
     tasks = [t for t in tasks if len(levels[t]) > 1]
     if not tasks:
         return None
     lines = []
-    for label, _ in section.columns:
-        points = [(task, lv, c.mean, c.interval.low, c.interval.high) for (task, lv, lab, sid), c in cells.items()
-                  if lab == label and sid == section.id and c.record in own and task in tasks]
-        lines.append((label, points))
-    return plots.svg(lambda: plots.section_lines(tasks, lines))
+    for i, column in enumerate(section.columns):
+        points = [(row["key"], row["obs"], c.mean, c.interval.low, c.interval.high)
+                  for row in section.rows if (c := row["cells"][i]) is not None and row["key"] in tasks]
+        lines.append((column.label, points))
+    return lambda: plots.section_lines(tasks, lines)
 
 
-def _studies(board: Leaderboard) -> list[dict[str, Any]]:
+class _Figures:
+    """The page's figures: each drawn once as SVG text, named by the file it is written to."""
+
+    def __init__(self) -> None:
+        self.files: dict[str, str] = {}
+
+    def add(self, name: str, draw: Any) -> str | None:
+        """The figure's path relative to the page (None for no drawing)."""
+        if draw is None:
+            return None
+        path = f"{FIGURES}/{name}.svg"
+        self.files[path] = plots.svg(draw)
+        return path
+
+
+def _studies(board: Leaderboard, figures: _Figures) -> list[dict[str, Any]]:
     """The tables (and the online figure) of the other modes' runs, when there are any."""
     out = []
     for name, study in board.studies.items():
         records, mode = study.records, study.mode
-        figure = plots.svg(lambda: plots.online(records, study.curves)) if name == "online" else None
+        figure = figures.add(name, (lambda: plots.online(records, study.curves)) if name == "online" else None)
         out.append({
             "id": name, "title": mode.title, "intro": mode.intro, "figure": figure,
             "header": [(c.header, isinstance(c.value(records[0]), str)) for c in mode.columns],
@@ -139,90 +177,145 @@ def _studies(board: Leaderboard) -> list[dict[str, Any]]:
     return out
 
 
-def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0) -> dict[str, Any]:
+class _Cells:
+    """Builds the page's sections from boards, numbering records as ``records.json`` does."""
+
+    def __init__(self, board: Leaderboard, reps: int, seed: int) -> None:
+        self.reps, self.seed = reps, seed
+        self.runs, run_index = _runs(board.rows)
+        self.runs_of: dict[tuple, set[int]] = defaultdict(set)  # the runs behind each record
+        for r in board.rows:
+            self.runs_of[_record_key(r)].add(run_index[r.provenance or f"versions:{r.versions}"])
+        self.position = {id(r): i for i, r in enumerate(board.records)}
+        self.shown: dict[int, Cell] = {}  # by record id: every cell of every board
+
+    def section(self, sid: str, b: Board) -> Section:
+        columns = [Column(c, b.recognizer(c), b.is_reference(c), b.has_reported(c)) for c in b.columns]
+        section = Section(sid, b.title, b.domain, b.regime, columns, b.kind, len(b.protocols) > 1)
+        for row in b.rows:
+            ceiling = b.ceilings.get(row)
+            shown: dict[str, Cell] = {}
+            for column in columns:
+                record = b.cell(row, column.label)
+                if record is not None:
+                    shown[column.label] = self.cell(b, row, column, record, ceiling)
+            ranked = {k: c.interval for k, c in shown.items() if not c.reference}
+            for label in tied_best(ranked):
+                shown[label].best = True
+            section.rows.append({"task": row.task, "key": row.name, "name": row.name, "goals": row.goals,
+                                 "obs": row.observability, "protocol": row.protocol, "ceiling": ceiling,
+                                 "pairs_only": b.pairs_only.get(row),
+                                 "cells": [shown.get(c.label) for c in columns]})
+        return section
+
+    def cell(self, b: Board, row: Any, column: Column, record: Any, ceiling: Any) -> Cell:
+        interval = stratified_bootstrap({0: list(record.f1_values)}, pooled_mean, reps=self.reps, seed=self.seed)
+        reported = b.reported.get((row, column.label))
+        verdict = reported.verdict(list(record.f1_values)) if reported else None
+        cell = Cell(self.position[id(record)], record.recognizer, record.f1_mean, interval, record.f1_iqm,
+                    record.f1_std, record.n_seeds, sorted(self.runs_of[_record_key(record)]), record.top2_mean,
+                    record.mean_rank_mean, reported, reported.place(record.f1_mean) if reported else None,
+                    verdict.verdict if verdict else None,
+                    normalised(record.f1_mean, ceiling.accuracy, ceiling.chance) if ceiling else None,
+                    reference=column.reference)
+        self.shown[cell.record] = cell
+        return cell
+
+
+def _thin(values: list[float], points: int = CURVE_POINTS) -> list[float]:
+    """At most ``points`` evenly spaced values of a curve, its first and last kept."""
+    if len(values) <= points:
+        return values
+    step = (len(values) - 1) / (points - 1)
+    return [values[round(i * step)] for i in range(points)]
+
+
+def _round(value: Any) -> Any:
+    """Every float in ``value`` (nested lists and dicts) to :data:`DIGITS` significant digits."""
+    if isinstance(value, float):
+        return float(f"{value:.{DIGITS}g}")
+    if isinstance(value, list | tuple):
+        return [_round(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _round(v) for k, v in value.items()}
+    return value
+
+
+def _thin_fit(fit: FitSummary) -> dict[str, Any]:
+    """A fit's diagnostics as a cell's details show them: curves thinned, values rounded."""
+    data = fit.to_dict()
+    data["curves"] = {g: {name: _thin(v) for name, v in curves.items()} for g, curves in fit.curves.items()}
+    return _round(data)
+
+
+def _archive(entries: Sequence[ArchiveEntry], runs_of: dict[tuple, set[int]]) -> list[dict[str, Any]]:
+    return [{"config": e.config, "tasks": [t.removeprefix("GRAIL/") for t in e.tasks], "seeds": e.seeds,
+             "rows": e.rows, "records": len(e.records),
+             "runs": sorted({i for r in e.records for i in runs_of[_record_key(r)]})} for e in entries]
+
+
+def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0, summaries: Sequence[DomainSummary] | None = None,
+               claims: Sequence[Any] | None = None) -> dict[str, Any]:
     """Everything the template shows.
 
     Args:
         board: The leaderboard (records, boards with ceilings and reported values, other modes).
         reps: Bootstrap replicates of every interval.
         seed: Seed of every bootstrap (same seed, same page).
+        summaries: The domain summaries when already computed (else computed here, with ``reps`` and ``seed``).
+        claims: The headline claims when already checked (else checked here).
     """
     records = board.records
-    runs, run_index = _runs(board.rows)
-    runs_of: dict[tuple, set[int]] = defaultdict(set)  # the runs behind each record
-    for r in board.rows:
-        key = (r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability)
-        runs_of[key].add(run_index[r.provenance or f"versions:{r.versions}"])
-    variants = config_variants(records)
-    position = {id(r): i for i, r in enumerate(records)}
-
-    sections: list[Section] = []
-    cells: dict[tuple, Cell] = {}
-    by_domain: dict[str, list[Section]] = defaultdict(list)
-    for n, b in enumerate(board.boards):
-        domain, regime = _domain_regime(b)
-        section = Section(f"s{n}", b.title, domain, regime,
-                          [(c, next(r.recognizer for k, r in b.cells.items() if k[-1] == c)) for c in b.columns])
-        for row in b.rows:
-            ceiling = b.ceilings.get(row)
-            shown: dict[str, Cell] = {}
-            for label, _ in section.columns:
-                record = b.cells.get((*row, label))
-                if record is None:
-                    continue
-                interval = stratified_bootstrap({0: list(record.f1_values)}, pooled_mean, reps=reps, seed=seed)
-                reported = b.reported.get((*row, label))
-                verdict = reported.verdict(list(record.f1_values)) if reported else None
-                key = (record.task, record.recognizer, record.scorer, record.config_hash, record.protocol,
-                       record.observability)
-                cell = Cell(position[id(record)], record.recognizer, record.f1_mean, interval, record.f1_iqm,
-                            record.f1_std, record.n_seeds, sorted(runs_of[key]), reported,
-                            reported.place(record.f1_mean) if reported else None,
-                            verdict.verdict if verdict else None,
-                            normalised(record.f1_mean, ceiling.accuracy, ceiling.chance) if ceiling else None)
-                shown[label] = cells[(row_name(row), row[3], label, section.id)] = cell
-            for label in tied_best({k: c.interval for k, c in shown.items()}):
-                shown[label].best = True
-            section.rows.append({"task": row[1], "key": row_name(row), "name": row_name(row), "goals": row[0],
-                                 "obs": row[3],
-                                 "ceiling": ceiling, "pairs_only": b.pairs_only.get(row),
-                                 "cells": [shown.get(label) for label, _ in section.columns]})
-        by_domain[domain].append(section)
-        sections.append(section)
-    own = {position[id(r)] for r in own_scorer_records(records)}  # records under their recognizer's own scorer
+    cells, figures = _Cells(board, reps, seed), _Figures()
+    sections = [cells.section(f"s{n}", b) for n, b in enumerate(board.boards)]
+    variants = [cells.section(f"v{n}", b) for n, b in enumerate(board.variants)]
     for section in sections:
-        section.figure = _figure(section, cells, own)
+        section.figure = figures.add(section.id, _figure(section))
+    if summaries is None:
+        summaries = domain_summaries(board.boards, reps, seed)
+    if claims is None:
+        from grail_bench.report.claims import headline_claims
 
-    summaries = domain_summaries(board.boards, reps, seed)
+        claims = headline_claims(records, reps=reps, seed=seed)
     calibration = calibration_rows(records)
     figure_data = profile_figure_data(summaries)
-    cell_of = {c.record: c for c in cells.values()}
     exported = []
     for i, r in enumerate(records):
-        c = cell_of.get(i)
-        exported.append({**r.to_dict(), "id": i, "column": column_label(r, variants),
+        c, config = cells.shown.get(i), board.config(r)
+        exported.append({**r.to_dict(), "id": i, "column": config.label, "kind": config.kind,
                          "f1_boot95_low": c.interval.low if c else None,
                          "f1_boot95_high": c.interval.high if c else None,
                          "paper_f1": c.paper.text if c and c.paper else None,
                          "paper_place": c.place if c else None,
                          "paper_verdict": c.verdict if c else None,
                          "normalised_f1": c.normalised if c else None,
-                         "runs": c.runs if c else []})
-    return {"sections": sections, "summaries": summaries, "runs": runs, "records": exported,
-            "timings": timing_rows(records, board.fits), "domains": sorted(by_domain),
-            "regimes": sorted({s.regime for s in sections}),
+                         "runs": sorted(cells.runs_of[_record_key(r)])})
+    shown_fits = {(r["task"], r["recognizer"], r["config_hash"]) for i, r in enumerate(exported) if i in cells.shown}
+    details = [{k: exported[i][k] for k in ("id", "task", "column", "protocol", "observability", "recognizer",
+                                            "config_hash", "confusion")} for i in sorted(cells.shown)]
+    return {"sections": sections, "variants": variants, "archive": _archive(board.archive, cells.runs_of),
+            "summaries": summaries, "claims": list(claims), "runs": cells.runs, "records": exported,
+            "details": details, "timings": timing_rows(records, board.fits),
+            "domains": sorted({s.domain for s in sections + variants}),
+            "regimes": sorted({s.regime for s in sections if s.regime}),
             "recognizers": sorted({r.recognizer for r in records}), "reps": reps, "seed": seed,
-            "studies": _studies(board), "n_seeds": sorted({r.n_seeds for r in records}),
+            "studies": _studies(board, figures), "n_seeds": sorted({r.n_seeds for r in records}),
             "comparison": comparison_lines(board.boards),
-            "profiles_figure": plots.svg(lambda: plots.profiles(figure_data)) if figure_data else None,
+            "profiles_figure": figures.add("profiles", (lambda: plots.profiles(figure_data)) if figure_data else None),
             "calibration": calibration,
-            "calibration_figure": plots.svg(lambda: plots.reliability(calibration)) if calibration else None,
-            "fits": {"|".join(key): summary.to_dict() for key, summary in sorted(board.fits.items())}}
+            "calibration_figure": figures.add("reliability",
+                                              (lambda: plots.reliability(calibration)) if calibration else None),
+            "figures": figures.files,
+            "fits": {"|".join(key): s.to_dict() for key, s in sorted(board.fits.items())},
+            "shown_fits": {"|".join(key): _thin_fit(s) for key, s in sorted(board.fits.items())
+                           if key in shown_fits}}
 
 
-def _json_for_script(data: Any) -> str:
-    """JSON safe inside a ``<script>`` element."""
-    return json.dumps(data, sort_keys=True, default=str).replace("</", "<\\/")
+def json_for_script(data: Any) -> str:
+    """JSON safe inside a ``<script>`` element: ``<``, ``>`` and ``&`` written as ``\\u003c``, ``\\u003e`` and
+    ``\\u0026``, so no string in it can end the element or open a comment."""
+    text = json.dumps(data, sort_keys=True, default=str, separators=(",", ":"))
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
 def render(page: dict[str, Any], title: str = "grail-bench leaderboard") -> str:
@@ -232,18 +325,28 @@ def render(page: dict[str, Any], title: str = "grail-bench leaderboard") -> str:
     env = jinja2.Environment(loader=jinja2.PackageLoader("grail_bench.report", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]), undefined=jinja2.StrictUndefined,
                              trim_blocks=True, lstrip_blocks=True)
-    env.filters["f2"] = lambda v: "–" if v is None else f"{v:.2f}"
+    env.filters["f2"] = lambda v: "–" if v is None or v != v else f"{v:.2f}"
     return env.get_template("leaderboard.html").render(
-        **page, title=title, version=version("grail-bench"), records_json=_json_for_script(page["records"]),
-        fits_json=_json_for_script(page["fits"]))
+        **page, title=title, version=version("grail-bench"), records_json=json_for_script(page["details"]),
+        fits_json=json_for_script(page["shown_fits"]))
 
 
-def write_site(board: Leaderboard, out: str | Path, title: str = "grail-bench leaderboard") -> list[Path]:
-    """Render the page into ``out`` (``index.html`` and ``records.json``); returns the files written."""
+def write_site(board: Leaderboard, out: str | Path, title: str = "grail-bench leaderboard",
+               summaries: Sequence[DomainSummary] | None = None, claims: Sequence[Any] | None = None) -> list[Path]:
+    """Render the page into ``out``: ``index.html``, ``records.json``, ``fits.json`` and the figures
+    (``figures/*.svg``, stale ones removed); returns the files written (``summaries`` and ``claims``: see
+    :func:`build_page`)."""
     out = Path(out)
-    page = build_page(board)
-    out.mkdir(parents=True, exist_ok=True)
-    index, data = out / "index.html", out / "records.json"
+    page = build_page(board, summaries=summaries, claims=claims)
+    (out / FIGURES).mkdir(parents=True, exist_ok=True)
+    for old in (out / FIGURES).glob("*.svg"):
+        old.unlink()
+    index, data, fits = out / "index.html", out / "records.json", out / "fits.json"
     index.write_text(render(page, title), encoding="utf-8")
     data.write_text(json.dumps(page["records"], indent=1, sort_keys=True, default=str) + "\n", encoding="utf-8")
-    return [index, data]
+    fits.write_text(json.dumps(page["fits"], sort_keys=True, default=str) + "\n", encoding="utf-8")
+    written = [index, data, fits]
+    for name, svg in page["figures"].items():
+        written.append(out / name)
+        written[-1].write_text(svg, encoding="utf-8")
+    return written

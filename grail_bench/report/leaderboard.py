@@ -1,7 +1,8 @@
 """The leaderboard as one model, computed once from stored rows and drawn by every renderer.
 
-:func:`build` aggregates the rows of each mode, computes the Bayes ceilings
-the tables and the online figure need (once; each level cached on disk) and
+:func:`build` aggregates the rows of each mode, names every configuration
+(canonical, named variant or archived), computes the Bayes ceilings the
+boards and the online figure need (once; each level cached on disk) and
 attaches the reported values; the terminal tables, Markdown, the figures and
 the web page all read the resulting :class:`Leaderboard`.
 """
@@ -17,7 +18,8 @@ from grail_bench.harness.diagnostics import FitRow, FitSummary, summarize
 from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import MODES, Mode, ResultRow
 from grail_bench.harness.modes.offline import OfflineRecord
-from grail_bench.report.boards import Board, build_boards, ceiling_cells
+from grail_bench.report.boards import ArchiveEntry, Board, archive, build_boards, ceiling_cells, variant_boards
+from grail_bench.report.configs import ConfigKey, Configuration, config_key, configurations
 from grail_bench.report.reference import Reported
 
 
@@ -38,11 +40,14 @@ class Leaderboard:
     Attributes:
         rows: The offline rows (each carries its run's provenance).
         records: Their across-seed records.
-        boards: The paper-style tables, with reported values and ceilings attached.
+        boards: The main boards (canonical configurations), with reported values and ceilings attached.
         ceilings: The Bayes ceilings by cell (:class:`~grail_bench.harness.ceiling.Cell`).
         reference: The reported values, if any.
         studies: Per mode beyond the offline one that has rows, its :class:`Study`.
         fits: The offline fits' diagnostics by ``(task, recognizer, config hash)``, where stored.
+        configs: Every record's configuration by :func:`~grail_bench.report.configs.config_key`.
+        variants: One board per domain of the named variants.
+        archive: The archived configurations.
     """
 
     rows: list[ResultRow]
@@ -52,6 +57,13 @@ class Leaderboard:
     reference: dict[tuple[str, str, float], Reported] | None = None
     studies: dict[str, Study] = field(default_factory=dict)
     fits: dict[tuple[str, str, str], FitSummary] = field(default_factory=dict)
+    configs: dict[ConfigKey, Configuration] = field(default_factory=dict)
+    variants: list[Board] = field(default_factory=list)
+    archive: list[ArchiveEntry] = field(default_factory=list)
+
+    def config(self, record: Any) -> Configuration:
+        """The configuration of one of the records."""
+        return self.configs[config_key(record)]
 
 
 def _progress(enabled: bool, total: int) -> tuple[Any, Any]:
@@ -88,7 +100,9 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
         mode_rows = list(mode_rows)
         if mode_rows:
             studies_out[name] = Study(MODES[name], mode_rows, MODES[name].aggregate(mode_rows))
-    cells = ceiling_cells(records) if ceiling_samples is not None else []
+    configs = configurations(records)
+    shown = [r for r in records if configs[config_key(r)].kind != "archived"]  # archived runs show no ceiling
+    cells = ceiling_cells(shown) if ceiling_samples is not None else []
     online = studies_out.get("online")
     curves = _online_curve_cells(online.records) if online is not None and ceiling_samples is not None else {}
     # The offline levels and the online fractions in one pass, so every worker helps with both.
@@ -99,8 +113,9 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
         pairs_only = ceilings_for(cells, ceiling_samples, tick, pairs_only=True, executor=executor) if cells else {}
     if online is not None:
         online.curves = {key: curve_of(curve, ceilings) for key, curve in curves.items()}
-    return Leaderboard(rows, records, build_boards(records, reference, ceilings, pairs_only), ceilings, reference,
-                       studies_out, summarize(fits))
+    return Leaderboard(rows, records, build_boards(records, reference, ceilings, pairs_only, configs), ceilings,
+                       reference, studies_out, summarize(fits), configs,
+                       variant_boards(records, ceilings, pairs_only, configs), archive(records, configs))
 
 
 def _online_curve_cells(records: Sequence[Any]) -> dict[tuple[str, str], list[Cell]]:

@@ -1,9 +1,10 @@
-"""Per-domain summaries in the manner of rliable, computed once from the boards and drawn by the page and reports.
+"""Per-domain summaries in the manner of rliable, computed once from the main boards and drawn by every renderer.
 
-For each domain, every recognizer under its own scorer is compared over the
-(task, protocol, level) strata that all of them ran (common ground: a
-recognizer run on more strata is not aggregated over more work); a recognizer
-sharing no stratum with the others is left out and named. Per recognizer:
+For each domain, every canonical method (references such as the demonstrator excluded) is compared over the
+(task, protocol, level) strata that all of them ran (common ground: a method run on more strata is not
+aggregated over more work). A method lacking strata another ran is not dropped silently: the summary names
+the strata it lacks (a gap in the data); only when no stratum is shared by all is the method with the fewest
+left out, and named. Per method:
 
 * the interquartile mean of F1 over every seed of those strata, with a 95 %
   bootstrap interval stratified by stratum, and the plain mean;
@@ -23,7 +24,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from grail_bench.harness.ceiling import normalised
-from grail_bench.report.boards import Board, own_scorer_records, row_name
+from grail_bench.report.boards import Board
 from grail_bench.stats.robust import (
     Interval,
     optimality_gap,
@@ -35,15 +36,31 @@ from grail_bench.stats.robust import (
     stratified_bootstrap_curve,
     tied_best,
 )
-from grail_bench.task import find_task
+from grail_bench.task.observation import level_text
 
 #: Thresholds of normalised F1 the performance profiles are drawn at.
 TAUS = np.round(np.linspace(0.0, 1.0, 21), 2)
 
+Stratum = tuple[str, str, float]  # (task as shown, protocol, level): :attr:`grail_bench.report.boards.BoardRow.stratum`
+
 
 @dataclass
 class DomainSummary:
-    """One domain's comparison (see the module docstring)."""
+    """One domain's comparison (see the module docstring).
+
+    Attributes:
+        domain: The domain.
+        names: The methods compared (their labels).
+        iqm: Per method, the IQM of F1 over the shared strata with its 95 % interval.
+        mean: Per method, the plain mean over the same runs.
+        best: The methods whose interval overlaps the best IQM's.
+        poi: Per ordered pair ``(a, b)``, the probability that a run of ``a`` scores above one of ``b``.
+        shared: The strata every compared method ran, sorted.
+        all_strata: Per method, how many strata it ran in the domain.
+        missing: Per compared method, the strata another method ran and it did not (empty when none).
+        left_out: Methods sharing no stratum with the others, left out of the comparison.
+        recognizer: Per method, its recognizer's registered name.
+    """
 
     domain: str
     names: list[str]
@@ -51,20 +68,51 @@ class DomainSummary:
     mean: dict[str, float]
     best: set[str]
     poi: dict[tuple[str, str], Interval]
-    strata: int
+    shared: list[Stratum]
     all_strata: dict[str, int]
+    missing: dict[str, list[Stratum]]
     left_out: list[str]
     recognizer: dict[str, str]
     profile_strata: int = 0
     profiles: dict[str, tuple[list[float], list[float], list[float]]] = field(default_factory=dict)
     gaps: dict[str, Interval] = field(default_factory=dict)
 
+    @property
+    def strata(self) -> int:
+        """How many strata the comparison covers."""
+        return len(self.shared)
 
-def common_strata(strata: dict[str, dict[tuple, list[float]]]) -> tuple[list[str], set[tuple], list[str]]:
-    """The columns a domain summary compares, the strata they all ran, and the columns left out.
+    @property
+    def strata_text(self) -> list[str]:
+        """The shared strata, per task and protocol (:func:`describe_strata`)."""
+        return describe_strata(self.shared)
 
-    Every compared column is aggregated over the same strata (common ground). If no stratum is shared by
-    all, the column with the fewest strata is left out until one is.
+    @property
+    def gaps_text(self) -> dict[str, str]:
+        """Per method lacking strata, which ones (``MiniGrid-Optimal (prefix) at 10%, 20%``), for the reader."""
+        return {n: "; ".join(describe_strata(m)) for n, m in self.missing.items() if m}
+
+
+def describe_strata(strata: Sequence[Stratum]) -> list[str]:
+    """``MiniGrid-Optimal (subset) at 10%, 20%, 30%`` per task and protocol; more than four levels read as a
+    range, ``10%–100% (10 levels)``."""
+    levels: dict[tuple[str, str], list[float]] = defaultdict(list)
+    for name, protocol, level in strata:
+        levels[(name, protocol)].append(level)
+    out = []
+    for (name, protocol), lv in sorted(levels.items()):
+        lv = sorted(set(lv))
+        at = (", ".join(level_text(x) for x in lv) if len(lv) <= 4
+              else f"{level_text(lv[0])}–{level_text(lv[-1])} ({len(lv)} levels)")
+        out.append(f"{name} ({protocol}) at {at}")
+    return out
+
+
+def common_strata(strata: dict[str, dict[Any, list[float]]]) -> tuple[list[str], set, list[str]]:
+    """The methods a domain summary compares, the strata they all ran, and the methods left out.
+
+    Every compared method is aggregated over the same strata (common ground). If no stratum is shared by
+    all, the method with the fewest strata is left out until one is.
     """
     names = sorted(strata, key=lambda n: (-len(strata[n]), n))
     left_out = []
@@ -76,43 +124,41 @@ def common_strata(strata: dict[str, dict[tuple, list[float]]]) -> tuple[list[str
     return [], set(), sorted(left_out)
 
 
-def _domain(board: Board) -> str:
-    task = find_task(board.rows[0][1])
-    return task.domain if task else board.title
-
-
 def domain_summaries(boards: Sequence[Board], reps: int = 2000, seed: int = 0) -> list[DomainSummary]:
-    """Every domain's summary, from the boards' own-scorer cells."""
-    strata: dict[str, dict[str, dict[tuple, list[float]]]] = defaultdict(lambda: defaultdict(dict))
-    normal: dict[str, dict[str, dict[tuple, list[float]]]] = defaultdict(lambda: defaultdict(dict))
+    """Every domain's summary, from the main boards' method cells (variant boards and references ignored)."""
+    strata: dict[str, dict[str, dict[Stratum, list[float]]]] = defaultdict(lambda: defaultdict(dict))
+    normal: dict[str, dict[str, dict[Stratum, list[float]]]] = defaultdict(lambda: defaultdict(dict))
     recognizer: dict[str, dict[str, str]] = defaultdict(dict)
     for board in boards:
-        domain = _domain(board)
-        own = {id(r) for r in own_scorer_records(list(board.cells.values()))}
-        for key, record in board.cells.items():
-            if id(record) not in own:
+        if board.kind != "canonical":
+            continue
+        methods = set(board.methods)
+        for (row, label), record in board.cells.items():
+            if label not in methods:
                 continue
-            row, label = key[:5], key[5]
-            stratum = (row_name(row), board.title, row[3])
-            strata[domain][label][stratum] = list(record.f1_values)
-            recognizer[domain][label] = record.recognizer
+            strata[board.domain][label][row.stratum] = list(record.f1_values)
+            recognizer[board.domain][label] = record.recognizer
             ceiling = board.ceilings.get(row)
             if ceiling is not None and normalised(0.0, ceiling.accuracy, ceiling.chance) is not None:
-                normal[domain][label][stratum] = [normalised(v, ceiling.accuracy, ceiling.chance)
-                                                  for v in record.f1_values]
+                normal[board.domain][label][row.stratum] = [normalised(v, ceiling.accuracy, ceiling.chance)
+                                                            for v in record.f1_values]
     return [_summary(d, strata[d], normal[d], recognizer[d], reps, seed) for d in sorted(strata)]
 
 
-def _summary(domain: str, strata: dict[str, dict[tuple, list[float]]], normal: dict[str, dict[tuple, list[float]]],
-             recognizer: dict[str, str], reps: int, seed: int) -> DomainSummary:
+def _summary(domain: str, strata: dict[str, dict[Stratum, list[float]]],
+             normal: dict[str, dict[Stratum, list[float]]], recognizer: dict[str, str], reps: int,
+             seed: int) -> DomainSummary:
     names, shared, left_out = common_strata(strata)
+    everything = set().union(*(set(strata[n]) for n in names)) if names else set()
     common = {n: {k: v for k, v in strata[n].items() if k in shared} for n in names}
     iqms = {n: stratified_bootstrap(common[n], pooled_iqm, reps=reps, seed=seed) for n in names}
     out = DomainSummary(
         domain=domain, names=names, iqm=iqms, mean={n: pooled_mean(common[n]) for n in names}, best=tied_best(iqms),
         poi={(a, b): probability_of_improvement_ci(common[a], common[b], reps=reps, seed=seed)
              for a in names for b in names if a != b},
-        strata=len(shared), all_strata={n: len(strata[n]) for n in names}, left_out=left_out, recognizer=recognizer)
+        shared=sorted(shared), all_strata={n: len(strata[n]) for n in [*names, *left_out]},
+        missing={n: sorted(everything - set(strata[n])) for n in names}, left_out=left_out,
+        recognizer=recognizer)
     with_ceiling = {n: normal[n] for n in names if n in normal}
     if len(with_ceiling) == len(names) and names:
         shared_normal = set.intersection(*(set(v) for v in with_ceiling.values())) & shared
@@ -141,7 +187,7 @@ def profiles_markdown(summaries: Sequence[DomainSummary]) -> str:
         taus = [0.25, 0.5, 0.75, 0.9]
         index = [int(np.argmin(np.abs(TAUS - t))) for t in taus]
         lines += [f"## {s.domain} ({s.profile_strata} strata)", "",
-                  "| recognizer | optimality gap | " + " | ".join(f"share > {t:.2f}" for t in taus) + " |",
+                  "| method | optimality gap | " + " | ".join(f"share > {t:.2f}" for t in taus) + " |",
                   "|---|---|" + "---|" * len(taus)]
         for n in s.names:
             gap = s.gaps[n]

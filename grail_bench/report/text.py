@@ -2,40 +2,54 @@
 
 Every table is built once as a header and rows of text (a *grid*), then drawn
 by rich or written as Markdown; nothing here computes a statistic or a ceiling.
+Names in Markdown are escaped (``<`` reads ``&lt;``), so no configuration's name
+becomes markup.
 """
 
 from __future__ import annotations
 
+import html
 from typing import Any, Callable, Sequence
 
-from rich.table import Table
+from rich.text import Text
 
 from grail_bench.harness.ceiling import Ceiling, normalised
 from grail_bench.report.boards import (
+    ArchiveEntry,
     Board,
-    Row,
-    paper_method,
+    BoardRow,
     placement_counts,
-    row_name,
     verdict_counts,
 )
+from grail_bench.report.layout import Fitted, grid_table, stacked
 from grail_bench.report.reference import MARKS
-from grail_bench.report.rows import timing_rows
+from grail_bench.report.summary import DomainSummary
+from grail_bench.report.tables import runs_markdown
 from grail_bench.task.observation import level_text
 
 Grid = tuple[list[str], list[list[tuple[str, bool]]]]  # header; per row, (text, bold) cells
 
 VERDICT_MARKS = {"consistent": "", "higher": "↑", "lower": "↓"}
 
+#: What a board's bracketed values and marks mean (terminal captions and the Markdown intro).
+LEGEND = ("[0.83] = normalised F1, (F1 - chance) / (ceiling - chance); = ▲ ▼: inside, above, below the "
+          "paper's 95 % interval; ↑ ↓: a Welch test finds ours higher, lower; bold: best of its row (methods "
+          "only); (reference): shown for comparison, never ranked")
 
-def _cell(board: Board, row: Row, column: str, ci: bool = False) -> tuple[str, bool]:
-    record = board.cells.get((*row, column))
+
+def md(text: str) -> str:
+    """Text safe in a Markdown table cell: HTML escaped (``<`` -> ``&lt;``), ``|`` escaped."""
+    return html.escape(str(text), quote=False).replace("|", "\\|")
+
+
+def _cell(board: Board, row: BoardRow, column: str, ci: bool = False) -> tuple[str, bool]:
+    record = board.cell(row, column)
     if record is None:
         return "–", False
     text = f"{record.f1_mean:.2f} ± {record.f1_std:.2f}"
     if ci:
         text += f" ({record.f1_ci95_low:.2f}–{record.f1_ci95_high:.2f})"
-    reported = board.reported.get((*row, column))
+    reported = board.reported.get((row, column))
     if reported is not None:
         place = reported.place(record.f1_mean)
         verdict = reported.verdict(list(record.f1_values))
@@ -45,7 +59,7 @@ def _cell(board: Board, row: Row, column: str, ci: bool = False) -> tuple[str, b
     if ceiling is not None:
         norm = normalised(record.f1_mean, ceiling.accuracy, ceiling.chance)
         text += f" [{norm:.2f}]" if norm is not None else ""
-    return text, record.f1_mean == board.best(row)
+    return text, not board.is_reference(column) and record.f1_mean == board.best(row)
 
 
 def _ceiling_text(ceiling: Ceiling | None) -> str:
@@ -54,38 +68,55 @@ def _ceiling_text(ceiling: Ceiling | None) -> str:
     return f"{ceiling.accuracy:.2f}" + (f" ± {ceiling.stderr:.2f}" if ceiling.method == "monte-carlo" else "")
 
 
-def board_grid(board: Board, paper_label: Callable[[str], str] = str, ci: bool = False) -> Grid:
-    """The table model both renderers draw: a header and, per row, ``(text, best)`` cells."""
-    header = ["task", "goals", "obs", "ceiling"] + (["pairs-only"] if board.pairs_only else [])
+def column_header(board: Board, column: str, name: Callable[[str], str] = str) -> str:
+    """A column's header: its label, and ``(reference)`` after a reference's."""
+    return name(column) + (" (reference)" if board.is_reference(column) else "")
+
+
+def board_grid(board: Board, paper_label: Callable[[str], str] = str, ci: bool = False,
+               name: Callable[[str], str] = str) -> Grid:
+    """The table model both renderers draw: a header and, per row, ``(text, best)`` cells.
+
+    Args:
+        paper_label: The header of the reported values beside a column, from the column's label.
+        ci: Also show each cell's 95 % Student-t interval over seeds.
+        name: How names (labels, tasks) are written (:func:`md` for Markdown).
+    """
+    protocols = len(board.protocols) > 1
+    header = ["task", *(["protocol"] if protocols else []), "goals", "obs", "ceiling"]
+    header += ["pairs-only"] if board.pairs_only else []
     for c in board.columns:
-        header.append(c)
+        header.append(column_header(board, c, name))
         if board.has_reported(c):
             header.append(paper_label(c))
     rows = []
     for row in board.rows:
-        cells = [(row_name(row), False), (str(row[0]), False), (level_text(row[3]), False),
+        cells = [(name(row.name), False), *([(name(row.protocol), False)] if protocols else []),
+                 (str(row.goals), False), (level_text(row.observability), False),
                  (_ceiling_text(board.ceilings.get(row)), False)]
         if board.pairs_only:
             cells.append((_ceiling_text(board.pairs_only.get(row)), False))
         for c in board.columns:
             cells.append(_cell(board, row, c, ci))
             if board.has_reported(c):
-                cells.append((str(board.reported.get((*row, c), "–")), False))
+                cells.append((str(board.reported.get((row, c), "–")), False))
         rows.append(cells)
     return header, rows
 
 
-def rich_tables(boards: Sequence[Board]) -> list[Table]:
-    """Terminal tables (best mean per row in bold)."""
+def rich_tables(boards: Sequence[Board]) -> list[Fitted]:
+    """Terminal tables (best mean per row in bold, references dim): a column per configuration where the
+    console is wide enough, else each row's values stacked under its task; names are never cut."""
     tables = []
     for board in boards:
         header, rows = board_grid(board, lambda c: f"{c} (paper)")
-        table = Table(title=f"F1 (mean ± std over seeds) [normalised F1]: {board.title}")
-        for name in header:
-            table.add_column(name, justify="center", style="dim" if name.endswith("(paper)") else None)
-        for cells in rows:
-            table.add_row(*(f"[bold]{text}[/]" if best else text for text, best in cells))
-        tables.append(table)
+        dim = {i for i, h in enumerate(header) if h.endswith(("(paper)", "(reference)"))}
+        cells = [[Text(text, style="bold" if best else "dim" if i in dim else "") for i, (text, best) in
+                  enumerate(row)] for row in rows]
+        title = f"F1 (mean ± std over seeds): {board.title}"
+        keys = 1 + (len(board.protocols) > 1)
+        tables.append(Fitted(grid_table(title, header, cells, LEGEND, first_style=None),
+                             stacked(title, header, cells, keys=keys, caption=LEGEND)))
     return tables
 
 
@@ -103,49 +134,110 @@ def comparison_lines(boards: Sequence[Board]) -> list[str]:
     return lines
 
 
+def _board_markdown(board: Board, ci: bool, level: str = "##") -> list[str]:
+    header, rows = board_grid(board, lambda c: f"{md(c)} *(paper)*", ci, name=md)
+    lines = [f"{level} {md(board.title)}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(f"**{text}**" if best else text for text, best in cells) + " |" for cells in rows]
+    return lines + [""]
+
+
+def summaries_markdown(summaries: Sequence[DomainSummary]) -> list[str]:
+    """The domain summaries: per domain the strata compared, each method's IQM with its interval and mean, and
+    the strata any method lacks."""
+    lines = ["## Summary per domain", "",
+             "Per domain, every method in its canonical configuration (references such as the demonstrator apart)",
+             "over the (task, protocol, level) strata all of them ran: interquartile mean (IQM) of F1 over every",
+             "seed with a 95 % bootstrap interval stratified by stratum, and the plain mean. Bold: every method",
+             "whose interval overlaps the best one's.", ""]
+    for s in summaries:
+        lines += [f"### {md(s.domain)}", "",
+                  f"Over the {s.strata} strata all {len(s.names)} methods ran: "
+                  + "; ".join(md(t) for t in s.strata_text) + ".", "",
+                  "| method | IQM | 95 % interval | mean | strata run |", "|---|---|---|---|---|"]
+        for n in s.names:
+            iqm = f"{s.iqm[n].point:.2f}"
+            lines.append(f"| {md(n)} | {f'**{iqm}**' if n in s.best else iqm} | [{s.iqm[n].low:.2f}, "
+                         f"{s.iqm[n].high:.2f}] | {s.mean[n]:.2f} | {s.all_strata[n]} |")
+        lines.append("")
+        notes = [f"- {md(n)} lacks strata other methods ran (a gap in the published data): {md(text)}."
+                 for n, text in s.gaps_text.items()]
+        notes += [f"- {md(n)} is left out: it shares no stratum with the others." for n in s.left_out]
+        lines += notes + ([""] if notes else [])
+    return lines
+
+
+def archive_markdown(entries: Sequence[ArchiveEntry]) -> list[str]:
+    """The archived configurations: method, label, what differs from today's default, tasks, seeds, rows."""
+    if not entries:
+        return []
+    lines = ["## Archive", "",
+             "Configurations today's code would store under another hash (a superseded default, or a setting or",
+             "task parameter since added, removed or refused): kept for provenance, out of every board and",
+             "summary. Changes: the settings that differ from today's default.", "",
+             "| method | label | changes | tasks | seeds | rows | config hash |", "|---|---|---|---|---|---|---|"]
+    for e in entries:
+        tasks = ", ".join(md(t.removeprefix("GRAIL/")) for t in e.tasks)
+        seeds = _span(e.seeds)
+        lines.append(f"| {md(e.config.method)} | {md(e.config.label)} | {md(e.config.changes_text)} | {tasks} | "
+                     f"{seeds} | {e.rows} | `{md(e.config.config_hash)}` |")
+    return lines + [""]
+
+
+def _span(values: Sequence[int]) -> str:
+    """``0–9`` for consecutive integers, else ``0, 2, 5``."""
+    if values and list(values) == list(range(values[0], values[-1] + 1)) and len(values) > 2:
+        return f"{values[0]}–{values[-1]}"
+    return ", ".join(map(str, values))
+
+
 def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
-             title: str = "grail-bench leaderboard", fits: dict | None = None) -> str:
-    """The leaderboard as Markdown, with seeds, timings and ranking metrics under the tables.
+             title: str = "grail-bench leaderboard", fits: dict | None = None, *,
+             variants: Sequence[Board] = (), archive: Sequence[ArchiveEntry] = (),
+             summaries: Sequence[DomainSummary] = (), claims: Sequence[Any] | None = None) -> str:
+    """The leaderboard as Markdown: claims and summaries, the main boards, variants and archive, then seeds,
+    timings and ranking metrics.
 
     Args:
+        boards: The main boards (canonical configurations).
         ci: Also show each cell's 95 % Student-t interval over seeds (the paper's appendix format).
         title: The document's heading.
         fits: Fit diagnostics by (task, recognizer, config hash), for the share of fits reaching their goal.
+        variants: The variant boards (a "Variants" section).
+        archive: The archived configurations (an "Archive" section).
+        summaries: The domain summaries (:func:`grail_bench.report.summary.domain_summaries`).
+        claims: The headline claims checked (:func:`grail_bench.report.claims.headline_claims`), if any.
     """
-    lines = [f"# {title}", "",
-             "F1 of each recognizer, mean ± std over seeds" + (" (95 % CI over seeds)" if ci else "")
+    lines = [f"# {md(title)}", "",
+             "F1 of each method in its canonical configuration (today's default, under its own scorer, named",
+             "as the paper names it), mean ± std over seeds" + (" (95 % CI over seeds)" if ci else "")
              + " (best of each row in bold). Where the task has a",
              "Bayes ceiling (the best accuracy any recognizer can reach under that protocol and level; ± its",
              "Monte Carlo standard error), the cell adds the normalised F1 in brackets,",
              "(F1 - chance) / (ceiling - chance). The pairs-only ceiling is the accuracy of scoring each goal",
              "from the observed pairs through that goal's own demonstrator (as GRAIL, GRAQL and DRACO score,",
-             "with perfect policies): how far a method is from what its form allows.",
+             "with perfect policies): how far a method is from what its form allows. The demonstrator (perfect",
+             "imitation) is a reference, shown after the methods and never ranked.",
              "Columns marked *(paper)* are the values the GRAIL paper (AAMAS 2026) reports, transcribed",
              "from its tables and text; they were not produced by grail-bench, and are shown on the rows",
-             "of each task's default protocol only.", ""]
+             "of each task's default protocol only. Other configurations are under Variants (named by how they",
+             "differ) and, if run by an earlier version, under Archive.", ""]
+    if claims is not None:
+        from grail_bench.report.claims import claims_markdown
+
+        lines += [claims_markdown(claims).rstrip("\n"), ""]
+    if summaries:
+        lines += summaries_markdown(summaries)
     comparison = comparison_lines(boards)
     if comparison:
         lines += [" ".join(comparison), ""]
     for board in boards:
-        header, rows = board_grid(board, lambda c: f"{paper_method(c.split('/')[0])[0]} *(paper)*", ci)
-        lines += [f"## {board.title}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-        lines += ["| " + " | ".join(f"**{text}**" if best else text for text, best in cells) + " |"
-                  for cells in rows]
-        lines.append("")
-    lines += ["## Runs, timings and ranking", "",
-              "Top-2: share of observations whose true goal is among the 2 best scored; mean rank of the true",
-              "goal (1 = best); both averaged over levels and protocols (– where rows stored before they were",
-              "recorded take part). Set: the goals scored within 10 % of the scores' range of the best (the",
-              "set-valued answer of the planning-based GR literature); its precision (1/size when it holds the",
-              "true goal), recall (whether it does) and spread (its size). Goal reached: of the goal policies",
-              "fitted over all seeds, how many reach their goal when rolled out greedily from the task's start",
-              "(– where no diagnostics are stored).", "",
-              "| task | column | seeds | fit s/goal | score µs/observation | ties | top-2 | mean rank | set precision | "
-              "set recall | set spread | goal reached |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for t in timing_rows(records, fits):
-        ranking = " | ".join("–" if t[k] is None else f"{t[k]:.2f}"
-                             for k in ("top2", "mean_rank", "set_precision", "set_recall", "set_spread"))
-        lines.append(f"| {t['task']} | {t['column']} | {t['seeds']} | {t['fit_seconds_per_goal']:.2f} | "
-                     f"{t['score_us_per_observation']:.0f} | {t['tie_rate']:.1%} | {ranking} | {t['reached'] or '–'} |")
+        lines += _board_markdown(board, ci)
+    if variants:
+        lines += ["## Variants", "",
+                  "Every other configuration today's code runs, per domain, named by how it differs from the",
+                  "method's canonical one (a setting and its value, or another scorer).", ""]
+        for board in variants:
+            lines += _board_markdown(board, ci, "###")
+    lines += archive_markdown(archive)
+    lines += runs_markdown(records, fits, intervals=ci)
     return "\n".join(lines) + "\n"
