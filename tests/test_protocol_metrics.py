@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 from imitation.data.types import Trajectory
-from scipy import stats
 
+from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import seed_list
 from grail_bench.core.trajectory import goal_horizon
 from grail_bench.stats import metrics
@@ -86,14 +86,38 @@ def test_classification_equals_scikit_learn_to_the_last_bit(rng):
         assert metrics.per_class_f1(y_true, y_pred, n).tolist() == per_class.tolist()
 
 
-def test_summarize_t_interval():
+def test_summarize_is_mean_std_iqm_and_a_percentile_bootstrap_of_the_mean():
     values = [0.5, 0.7, 0.9, 0.6]
     s = metrics.summarize(values)
-    half = stats.t.ppf(0.975, 3) * np.std(values, ddof=1) / 2
-    assert s["mean"] == pytest.approx(0.675)
-    assert s["ci_low"] == pytest.approx(0.675 - half) and s["ci_high"] == pytest.approx(0.675 + half)
-    assert metrics.summarize([1.0, 1.0]) == {"mean": 1.0, "std": 0.0, "ci_low": 1.0, "ci_high": 1.0}
-    assert metrics.summarize([0.4])["std"] == 0.0
+    means = np.asarray(values)[np.random.default_rng(metrics.BOOTSTRAP_SEED).integers(
+        0, 4, size=(metrics.BOOTSTRAP_REPS, 4))].mean(axis=1)
+    assert s.mean == pytest.approx(0.675) and s.std == pytest.approx(np.std(values, ddof=1))
+    assert s.ci95 == pytest.approx(tuple(np.percentile(means, [2.5, 97.5])))
+    assert s.iqm == pytest.approx(0.65) and s.values == tuple(values)
+    assert metrics.summary_fields("f1", values) == {"f1_mean": s.mean, "f1_ci95_low": s.ci95[0],
+                                                   "f1_ci95_high": s.ci95[1]}
+
+
+@pytest.mark.parametrize("values", [[0.0, 1.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0, 0.98], [0.02, 0.0, 0.0],
+                                    [0.999, 1.0], [0.3]])
+def test_an_interval_of_f1_never_leaves_zero_one(values):
+    low, high = metrics.summarize(values).ci95
+    assert 0.0 <= low <= high <= 1.0
+    assert min(values) <= low and high <= max(values)
+
+
+def test_one_seed_or_identical_values_give_the_value_itself_and_same_seed_same_interval():
+    assert metrics.summarize([0.4]) == metrics.Summary(0.4, 0.0, (0.4, 0.4), 0.4, (0.4,))
+    assert metrics.summarize([0.1] * 3).ci95 == (pytest.approx(0.1), pytest.approx(0.1))
+    assert metrics.summarize([0.0, 1.0]).ci95 == (0.0, 1.0)  # replicate means 0, 0.5, 1 with p 1/4, 1/2, 1/4
+    values = [0.2, 0.5, 0.55, 0.9, 0.4]
+    assert metrics.summarize(values).ci95 == metrics.summarize(values).ci95
+    assert metrics.summarize(values, seed=1).ci95 != metrics.summarize(values).ci95
+
+
+def test_summarize_refuses_no_values():
+    with pytest.raises(UserError):
+        metrics.summarize([])
 
 
 @pytest.mark.parametrize("scores, label, rank, top2", [

@@ -98,7 +98,7 @@ def f1_vs_observability(records: Records, out: Path) -> list[Path]:
                 continue
             x = [r.observability * 100 for r in line]
             ax.plot(x, [r.f1_mean for r in line], marker="o", color=colours[name], label=name)
-            ax.fill_between(x, np.clip([r.f1_ci95_low for r in line], 0, 1), np.clip([r.f1_ci95_high for r in line], 0, 1),
+            ax.fill_between(x, [r.f1_ci95_low for r in line], [r.f1_ci95_high for r in line],
                             color=colours[name], alpha=0.2)
         ax.set_title(short_name(task), fontsize=9)
         ax.set_xlabel("observed (%)")
@@ -207,28 +207,28 @@ def write_all(records: Records, out: Path, models: dict[tuple[str, str], float])
             + training_time(records, out) + model_size(models, out))
 
 
-def ablation(rows: list[dict[str, Any]]) -> Any:
+def ablation(rows: Sequence[Any]) -> Any:
     """Grouped bars per task: F1 (mean over levels) and scoring time, by recognizer and scorer (a figure).
 
     ``rows`` are :func:`grail_bench.report.rows.ablation_rows`.
     """
     plt = pyplot()
-    tasks = sorted({r["task"] for r in rows})
-    colours = {name: f"C{i}" for i, name in enumerate(sorted({r["scorer"] for r in rows}))}  # one per scorer
+    tasks = sorted({r.task for r in rows})
+    colours = {name: f"C{i}" for i, name in enumerate(sorted({r.scorer for r in rows}))}  # one per scorer
     fig, axes = plt.subplots(len(tasks), 2, figsize=(11, 3.2 * len(tasks)), squeeze=False)
     for ax_f1, ax_time, task in zip(axes[:, 0], axes[:, 1], tasks):
-        mine = [r for r in rows if r["task"] == task]
-        recs = sorted({r["recognizer"] for r in mine})
-        scorers = sorted({r["scorer"] for r in mine})
+        mine = [r for r in rows if r.task == task]
+        recs = sorted({r.recognizer for r in mine})
+        scorers = sorted({r.scorer for r in mine})
         width = 0.8 / len(scorers)
         for i, scorer in enumerate(scorers):
             xs, f1s, times = [], [], []
             for j, rec in enumerate(recs):
-                hit = [r for r in mine if r["recognizer"] == rec and r["scorer"] == scorer]
+                hit = [r for r in mine if r.recognizer == rec and r.scorer == scorer]
                 if hit:
                     xs.append(j + i * width)
-                    f1s.append(hit[0]["f1_overall"])
-                    times.append(hit[0]["score_us"])
+                    f1s.append(hit[0].f1_overall)
+                    times.append(hit[0].score_us)
             ax_f1.bar(xs, f1s, width, label=scorer, color=colours[scorer])
             ax_time.bar(xs, times, width, label=scorer, color=colours[scorer])
         for ax, ylabel in ((ax_f1, "F1 (mean over observability)"), (ax_time, "scoring µs / observation")):
@@ -261,7 +261,7 @@ def online(records: Records, ceilings: dict[tuple[str, str], list[float] | None]
             x = np.asarray(r.fractions) * 100
             colour = colours[label(r)]
             ax.plot(x, r.accuracy_curve, color=colour, label=f"{label(r)} ({r.n_seeds} seeds)")
-            ax.fill_between(x, np.clip(r.accuracy_curve_low, 0, 1), np.clip(r.accuracy_curve_high, 0, 1),
+            ax.fill_between(x, r.accuracy_curve_low, r.accuracy_curve_high,
                             color=colour, alpha=0.2)
         ceiling = (ceilings or {}).get((task, protocol))
         if ceiling is not None:
@@ -340,24 +340,23 @@ def fit_curves(curves: dict[int, dict[str, Sequence[float]]], labels: Sequence[s
     return fig
 
 
-def budgets(curves: Sequence[dict[str, Any]]) -> Any:
+def budgets(curves: Sequence[Any]) -> Any:
     """Budget studies: per (recognizer, parameter) a column, F1 with its 95 % band against the value (log scale)
     above, fit seconds per goal below; one line per task (a figure)."""
     plt = pyplot()
-    panels = sorted({(c["recognizer"], c["param"]) for c in curves})
+    panels = sorted({(c.recognizer, c.param) for c in curves})
     fig, axes = plt.subplots(2, len(panels), figsize=(3.8 * len(panels), 5.6), squeeze=False, sharex="col")
     for col, (recognizer, param) in enumerate(panels):
         top, bottom = axes[0, col], axes[1, col]
-        mine = [c for c in curves if (c["recognizer"], c["param"]) == (recognizer, param)]
+        mine = [c for c in curves if (c.recognizer, c.param) == (recognizer, param)]
         for i, c in enumerate(mine):
-            x = [p["value"] for p in c["points"]]
-            label = f"{short_name(c['task'])} {level_text(c['observability'])}"
-            top.plot(x, [p["f1_mean"] for p in c["points"]], marker="o", color=f"C{i}", label=label)
-            top.fill_between(x, np.clip([p["f1_ci95_low"] for p in c["points"]], 0, 1),
-                             np.clip([p["f1_ci95_high"] for p in c["points"]], 0, 1), color=f"C{i}", alpha=0.2)
-            if c.get("plateau") is not None:
-                top.axvline(c["plateau"], color=f"C{i}", linestyle=":", linewidth=1)
-            bottom.plot(x, [p["fit_seconds_per_goal"] for p in c["points"]], marker="o", color=f"C{i}")
+            x = [p.value for p in c.points]
+            label = f"{short_name(c.task)} {level_text(c.observability)}"
+            top.plot(x, [p.f1_mean for p in c.points], marker="o", color=f"C{i}", label=label)
+            top.fill_between(x, [p.f1_ci95_low for p in c.points], [p.f1_ci95_high for p in c.points], color=f"C{i}", alpha=0.2)
+            if c.plateau is not None:
+                top.axvline(c.plateau, color=f"C{i}", linestyle=":", linewidth=1)
+            bottom.plot(x, [p.fit_seconds_per_goal for p in c.points], marker="o", color=f"C{i}")
         top.set_title(f"{recognizer}: {param}", fontsize=9)
         top.set_ylim(0, 1.05)
         top.set_ylabel("F1")
@@ -386,20 +385,20 @@ def profiles(data: Sequence[dict[str, Any]]) -> Any:
     return fig
 
 
-def reliability(rows: Sequence[dict[str, Any]]) -> Any:
+def reliability(rows: Sequence[Any]) -> Any:
     """Reliability diagrams: per domain, each posterior column's accuracy against its mean confidence per bin,
     the diagonal being perfect calibration (a figure; rows are :func:`grail_bench.report.rows.calibration_rows`)."""
     plt = pyplot()
-    domains = sorted({r["domain"] for r in rows})
+    domains = sorted({r.domain for r in rows})
     fig, axes = plt.subplots(1, len(domains), figsize=(4.0 * len(domains), 3.6), squeeze=False)
     for ax, domain in zip(axes.flat, domains):
         ax.plot([0, 1], [0, 1], color="grey", linestyle=":", linewidth=1)
-        for i, r in enumerate(r for r in rows if r["domain"] == domain):
-            b = np.asarray(r["bins"], dtype=float)
+        for i, r in enumerate(r for r in rows if r.domain == domain):
+            b = np.asarray(r.bins, dtype=float)
             used = b[:, 0] > 0
-            ece = "–" if r["ece"] is None else f"{r['ece']:.3f}"
+            ece = "–" if r.ece is None else f"{r.ece:.3f}"
             ax.plot(b[used, 1] / b[used, 0], b[used, 2] / b[used, 0], marker="o", color=f"C{i % 10}",
-                    label=f"{r['column']} (ECE {ece})")
+                    label=f"{r.column} (ECE {ece})")
         ax.set_title(domain, fontsize=9)
         ax.set_xlabel("confidence (posterior of the predicted goal)")
         ax.set_ylabel("accuracy")

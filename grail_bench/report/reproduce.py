@@ -349,8 +349,55 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     return written
 
 
+@dataclass(frozen=True)
+class BudgetPoint:
+    """One studied value of a budget curve: F1 over seeds (mean and 95 % bootstrap interval, inside [0, 1]) and
+    the fit's seconds per goal."""
+
+    value: Any
+    n_seeds: int
+    f1_mean: float
+    f1_ci95_low: float
+    f1_ci95_high: float
+    fit_seconds_per_goal: float
+
+
+@dataclass(frozen=True)
+class BudgetCurve:
+    """One recognizer's budget (or scaling) study on one task, protocol and level.
+
+    Attributes:
+        section: The profile section.
+        param: The studied parameter (``n_goals`` for a scaling study).
+        task: The task (a scaling study: the range of its tasks).
+        recognizer, protocol, observability: What the points are of.
+        points: The studied values, in increasing order.
+        scaling: Whether it is a scaling study (then ``exponent``, else ``plateau``).
+        plateau: The smallest value whose mean F1 reaches the best value's interval (:func:`plateau`).
+        exponent: The fit-cost exponent against the goal count (None with a single goal count).
+    """
+
+    section: str
+    param: str
+    task: str
+    recognizer: str
+    protocol: str
+    observability: float
+    points: tuple[BudgetPoint, ...]
+    scaling: bool = False
+    plateau: Any = None
+    exponent: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """As ``budgets.json`` holds it: flat JSON-able data, with the plateau of a budget study or the exponent
+        of a scaling study."""
+        data = dataclasses.asdict(self)
+        del data["scaling"], data["plateau" if self.scaling else "exponent"]
+        return data
+
+
 def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Request]]],
-                  plans: Plans = ()) -> list[dict[str, Any]]:
+                  plans: Plans = ()) -> list[BudgetCurve]:
     """Per study section, task and recognizer: the studied values with F1 over seeds and fit seconds per goal
     (``plans``: what the sweep planned, see :func:`_owned`).
 
@@ -367,17 +414,17 @@ def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Req
             for level in sorted({r.observability for r in group}):
                 points = sorted(((section.value_of(r), r) for r in group if r.observability == level),
                                 key=lambda vr: vr[0])
-                curve = {"section": section.name, "param": section.vary.param, "task": task,
-                         "recognizer": recognizer, "protocol": protocol, "observability": level,
-                         "points": [{"value": v, "n_seeds": r.n_seeds, "f1_mean": r.f1_mean,
-                                     "f1_ci95_low": r.f1_ci95_low, "f1_ci95_high": r.f1_ci95_high,
-                                     "fit_seconds_per_goal": r.fit_seconds_per_goal} for v, r in points]}
+                curve = BudgetCurve(section.name, section.vary.param, task, recognizer, protocol, level,
+                                    tuple(BudgetPoint(v, r.n_seeds, r.f1_mean, r.f1_ci95_low, r.f1_ci95_high,
+                                                      r.fit_seconds_per_goal) for v, r in points))
                 if section.vary.of == "tasks":
                     sizes = [v for v, _ in points]
                     costs = [v * r.fit_seconds_per_goal for v, r in points]
-                    curve["exponent"] = scaling_exponent(sizes, costs) if len(set(sizes)) > 1 else None
+                    curve = dataclasses.replace(curve, scaling=True, exponent=scaling_exponent(sizes, costs)
+                                                if len(set(sizes)) > 1 else None)
                 else:
-                    curve["plateau"] = plateau([(v, r.f1_mean, r.f1_ci95_low) for v, r in points])
+                    curve = dataclasses.replace(curve, plateau=plateau([(v, r.f1_mean, r.f1_ci95_low)
+                                                                        for v, r in points]))
                 out.append(curve)
     return out
 
@@ -390,7 +437,7 @@ def write_budgets(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Req
         return []
     written = [out / "BUDGETS.md", out / "budgets.json"]
     written[0].write_text(budgets_markdown(curves, title), encoding="utf-8")
-    written[1].write_text(json.dumps(curves, indent=1) + "\n", encoding="utf-8")
+    written[1].write_text(json.dumps([c.to_dict() for c in curves], indent=1) + "\n", encoding="utf-8")
     return written + plots.save(plots.budgets(curves), out, "budgets")
 
 

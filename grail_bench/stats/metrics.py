@@ -14,11 +14,14 @@ plain argmax to the last bit.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
-from scipy import stats
 from scipy.special import softmax
+
+from grail_bench.core.errors import UserError
+from grail_bench.stats import robust
 
 #: How predictions break ties between goals of equal best score, as stored rows record it (the store's
 #: ``ties`` column): expected over a uniform choice among the tied goals. Rows stored before carry none;
@@ -188,26 +191,59 @@ def goal_set(scores: np.ndarray, tolerance: float) -> np.ndarray:
     return np.flatnonzero(scores >= best - tolerance * (best - worst))
 
 
-def summarize(values: Sequence[float], confidence: float = 0.95) -> dict[str, float]:
-    """Mean, sample standard deviation and a Student-t confidence interval.
+@dataclass(frozen=True)
+class Summary:
+    """One metric across seeds.
 
-    With one value the interval collapses to it; with identical values too.
+    Attributes:
+        mean: The mean over seeds.
+        std: The sample standard deviation (0 with one seed).
+        ci95: ``(low, high)``, the seeded 95 % percentile bootstrap interval of the mean
+            (:data:`BOOTSTRAP_REPS` resamples of the seeds, seed :data:`BOOTSTRAP_SEED`). Every resampled mean
+            lies within the values' range, so the interval of a metric bounded in [0, 1] stays in [0, 1];
+            with one seed, or identical values, it is the value itself.
+        iqm: The interquartile mean (:func:`grail_bench.stats.robust.iqm`).
+        values: The per-seed values, in seed order.
     """
-    x = np.asarray(values, dtype=float)
+
+    mean: float
+    std: float
+    ci95: tuple[float, float]
+    iqm: float
+    values: tuple[float, ...]
+
+
+#: Resamples and seed of every across-seed interval (:func:`summarize`): same values, same interval.
+BOOTSTRAP_REPS = 2000
+BOOTSTRAP_SEED = 0
+
+
+def summarize(values: Sequence[float], reps: int = BOOTSTRAP_REPS, seed: int = BOOTSTRAP_SEED) -> Summary:
+    """Mean, sample standard deviation, 95 % interval of the mean and IQM of per-seed values.
+
+    The interval is a percentile bootstrap of the mean (resampling the seeds with replacement,
+    :func:`grail_bench.stats.robust.stratified_bootstrap` with one stratum), not a Student-t interval: it
+    never leaves the values' range, so a bounded metric's interval keeps its bounds.
+
+    Raises:
+        UserError: Without values.
+    """
+    x = np.asarray(values, dtype=float).ravel()
+    if x.size == 0:
+        raise UserError("a summary over seeds needs at least one value")
     mean = float(x.mean())
-    if len(x) < 2:
-        return {"mean": mean, "std": 0.0, "ci_low": mean, "ci_high": mean}
-    std = float(x.std(ddof=1))
-    if std == 0.0:
-        return {"mean": mean, "std": 0.0, "ci_low": mean, "ci_high": mean}
-    low, high = stats.t.interval(confidence, df=len(x) - 1, loc=mean, scale=std / np.sqrt(len(x)))
-    return {"mean": mean, "std": std, "ci_low": float(low), "ci_high": float(high)}
+    if x.size == 1 or np.all(x == x[0]):
+        return Summary(mean, 0.0, (mean, mean), mean, tuple(x.tolist()))
+    interval = robust.stratified_bootstrap({0: x}, robust.pooled_mean, reps=reps, seed=seed)
+    low, high = np.clip([interval.low, interval.high], x.min(), x.max())  # no rounding past the values' range
+    return Summary(mean, float(x.std(ddof=1)), (float(low), float(high)), float(robust.iqm(x)), tuple(x.tolist()))
 
 
 def summary_fields(name: str, values: Sequence[float]) -> dict[str, float]:
-    """``{name}_mean``, ``{name}_ci95_low`` and ``{name}_ci95_high`` of :func:`summarize`, as records carry them."""
+    """``{name}_mean``, ``{name}_ci95_low`` and ``{name}_ci95_high`` of :func:`summarize`, flat as records carry
+    them."""
     s = summarize(values)
-    return {f"{name}_mean": s["mean"], f"{name}_ci95_low": s["ci_low"], f"{name}_ci95_high": s["ci_high"]}
+    return {f"{name}_mean": s.mean, f"{name}_ci95_low": s.ci95[0], f"{name}_ci95_high": s.ci95[1]}
 
 
 def thin(values: Sequence[float], points: int = 50) -> list[float]:

@@ -78,7 +78,8 @@ def record_fields(group: Sequence[Any], intervals: Sequence[str] = (), means: Se
 
     Args:
         group: One cell's rows (see :func:`cells`).
-        intervals: Row metrics summarised as mean and 95 % t-interval across seeds.
+        intervals: Row metrics summarised as mean and 95 % interval across seeds (the seeded percentile bootstrap
+            of the mean, :func:`grail_bench.stats.metrics.summarize`: within the metric's bounds).
         means: Row metrics summarised as their mean only.
     """
     first = group[0]
@@ -111,13 +112,19 @@ def label(r: Record) -> str:
     return f"{r.recognizer}/{r.scorer}"
 
 
+#: What the bracketed interval of a mode's column is (its tables' intros and legends).
+INTERVAL_NOTE = ("[low, high]: 95 % interval of the mean over seeds, a seeded percentile bootstrap "
+                 f"({metrics.BOOTSTRAP_REPS} resamples of the seeds, seed {metrics.BOOTSTRAP_SEED}); it stays within "
+                 "the seeds' values, so within the metric's bounds, and is the value itself with one seed.")
+
+
 def interval(key: str, percent: bool = False) -> Callable[[Any], str]:
-    """A column text: ``mean [low, high]`` of a record's metric, the interval clipped to [0, 1]."""
+    """A column text: ``mean [low, high]`` of a record's metric and its 95 % interval (see :data:`INTERVAL_NOTE`)."""
     fmt = "{:.0%}" if percent else "{:.2f}"
 
     def text(record: Any) -> str:
         mean, low, high = (getattr(record, f"{key}_{part}") for part in ("mean", "ci95_low", "ci95_high"))
-        return f"{fmt.format(mean)} [{fmt.format(max(low, 0.0))}, {fmt.format(min(high, 1.0))}]"
+        return f"{fmt.format(mean)} [{fmt.format(low)}, {fmt.format(high)}]"
 
     return text
 

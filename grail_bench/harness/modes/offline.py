@@ -5,7 +5,8 @@ demonstration at each level (protocol and rounding of the run's
 :class:`~grail_bench.task.observation.ObservationSpec`), score with each
 scorer, and store accuracy, macro precision, recall and F1, ties, ranking
 metrics and timings (:class:`ResultRow`). Across seeds: mean, std, a 95 %
-t-interval and the IQM (:class:`OfflineRecord`).
+percentile bootstrap interval of the mean (inside [0, 1]; :func:`grail_bench.stats.metrics.summarize`) and the
+IQM (:class:`OfflineRecord`).
 
 Goals tied at the best score share the prediction (uniform tie-breaking, in
 expectation; see :mod:`grail_bench.stats.metrics`): accuracy is its
@@ -25,7 +26,7 @@ import numpy as np
 
 from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, record_fields
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
-from grail_bench.stats import metrics, robust
+from grail_bench.stats import metrics
 from grail_bench.task.observation import level_text
 
 #: A goal is in the set-valued answer when its score is within this share of the scores' range of the best.
@@ -180,11 +181,12 @@ def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
     """Across-seed records, one per configuration and level, sorted by task, recognizer, scorer, protocol, level."""
     records = []
     for group in cells(rows):
-        f1 = [r.f1 for r in group]
+        f1 = metrics.summarize([r.f1 for r in group])
         n_obs = sum(r.n_observations for r in group)
         records.append(OfflineRecord(
-            **record_fields(group, ("f1",), ("accuracy", "precision", "recall")),
-            f1_std=metrics.summarize(f1)["std"], f1_iqm=robust.iqm(f1), f1_values=tuple(f1),
+            **record_fields(group, (), ("accuracy", "precision", "recall")),
+            f1_mean=f1.mean, f1_ci95_low=f1.ci95[0], f1_ci95_high=f1.ci95[1], f1_std=f1.std, f1_iqm=f1.iqm,
+            f1_values=f1.values,
             score_us_per_observation=float(np.mean([r.score_us_per_observation for r in group])),
             tie_rate=sum(r.n_ties for r in group) / n_obs if n_obs else 0.0,
             brier_mean=_mean_or_none([r.brier for r in group]), nll_mean=_mean_or_none([r.nll for r in group]),

@@ -37,7 +37,19 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from grail_bench.core.trajectory import Goal
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, interval, record_fields
+from grail_bench.harness.modes.base import (
+    INTERVAL_NOTE,
+    LEAD,
+    WHO,
+    Column,
+    Mode,
+    Record,
+    Run,
+    SeedRun,
+    cells,
+    interval,
+    record_fields,
+)
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.recognizers.contract import Capabilities, RecognizerError
 from grail_bench.stats import metrics
@@ -288,9 +300,9 @@ def aggregate(rows: Iterable[OnlineRow]) -> list[OnlineRecord]:
         parsed = [json.loads(r.curve) for r in group]
         for key in ("accuracy", "f1"):
             per_fraction = [metrics.summarize(v) for v in zip(*(c[key] for c in parsed))]
-            fields[f"{key}_curve"] = [s["mean"] for s in per_fraction]
-            fields[f"{key}_curve_low"] = [s["ci_low"] for s in per_fraction]
-            fields[f"{key}_curve_high"] = [s["ci_high"] for s in per_fraction]
+            fields[f"{key}_curve"] = [s.mean for s in per_fraction]
+            fields[f"{key}_curve_low"] = [s.ci95[0] for s in per_fraction]
+            fields[f"{key}_curve_high"] = [s.ci95[1] for s in per_fraction]
         records.append(OnlineRecord(
             fractions=parsed[0]["fractions"],
             score_us_per_prefix=float(np.mean([r.score_us_per_prefix for r in group])), **fields,
@@ -311,7 +323,7 @@ MODE = Mode(
     key=("task", "recognizer", "scorer", "config_hash", "seed", "protocol"),
     run=run, aggregate=aggregate, columns=COLUMNS,
     title="online recognition (every prefix scored)",
-    intro=("Mean over seeds [95 % interval]. Convergence: the observed fraction from which the prediction "
+    intro=("Mean over seeds; " + INTERVAL_NOTE + " Convergence: the observed fraction from which the prediction "
            "stays correct (100 % when it is wrong at the end, counted in 'never'). Step accuracy: the share "
            "of prefixes predicted correctly. F1 AUC: area under macro F1 against the observed fraction."),
     takes_levels=False,

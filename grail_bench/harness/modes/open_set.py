@@ -35,7 +35,19 @@ import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Demos, Goal
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, interval, record_fields
+from grail_bench.harness.modes.base import (
+    INTERVAL_NOTE,
+    LEAD,
+    WHO,
+    Column,
+    Mode,
+    Record,
+    Run,
+    SeedRun,
+    cells,
+    interval,
+    record_fields,
+)
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.recognizers.contract import Capabilities
 from grail_bench.stats import metrics
@@ -206,7 +218,7 @@ MODE = Mode(
     key=("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol"),
     run=run, aggregate=aggregate, columns=COLUMNS,
     title="open set (one goal held out per seed)",
-    intro=("Mean over seeds [95 % interval]. AUROC: known against held-out goal, observations ranked by "
+    intro=("Mean over seeds; " + INTERVAL_NOTE + " AUROC: known against held-out goal, observations ranked by "
            "their best score. F1 over the known goals plus 'none of these', answered when the best score "
            "is below the 5 % quantile of the training demonstrations' best scores."),
     min_goals=3, held_out=lambda n_goals: 1,

@@ -27,7 +27,19 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from grail_bench.core.trajectory import Goal
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, interval, record_fields
+from grail_bench.harness.modes.base import (
+    INTERVAL_NOTE,
+    LEAD,
+    WHO,
+    Column,
+    Mode,
+    Record,
+    Run,
+    SeedRun,
+    cells,
+    interval,
+    record_fields,
+)
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.stats import metrics
 from grail_bench.task.observation import level_text
@@ -147,7 +159,7 @@ MODE = Mode(
     key=("task", "recognizer", "scorer", "config_hash", "seed", "observability", "protocol"),
     run=run, aggregate=aggregate, columns=COLUMNS,
     title="zero-shot goals (a third of the goals never fitted)",
-    intro=("Mean over seeds [95 % interval]. Per seed, a third of the goals have no training demonstrations; "
+    intro=("Mean over seeds; " + INTERVAL_NOTE + " Per seed, a third of the goals have no training demonstrations; "
            "the recognizer is fitted on the others and then scores all of them. F1 per class, averaged over "
            "the held-out goals and over the trained ones; chance is 1/K."),
     min_goals=3, held_out=n_held_out, scores_unfitted=True,
