@@ -11,6 +11,7 @@ the other goals' states (BC's ``augment``), and score with the occupancy (the ``
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import field
 from typing import TYPE_CHECKING, Any, Literal, Sequence
@@ -57,6 +58,14 @@ def off_support_setting() -> Any:
 
 #: Discrete observation spaces with at most this many states keep each goal's support as a table over every state.
 SUPPORT_TABLE_STATES = 1 << 16
+#: On continuous observations, squared distances from a matrix product within this share of the squared radius
+#: (and of the training states' squared extent) of it are settled by the goal's KD-tree, as the radius was measured.
+_ROUNDING = 1e-12
+#: Kernel terms smaller than ``exp(_EXPONENT_FLOOR)`` times the goal's largest count as that (never subnormal,
+#: which is slow to compute and changes no sum).
+_EXPONENT_FLOOR = -700.0
+#: Entries of one ``(states, stacked training states)`` product at most; more states are taken in blocks.
+_BLOCK_ENTRIES = 1 << 22
 
 
 def training_states(trajs: Sequence[Trajectory]) -> list[np.ndarray]:
@@ -128,19 +137,23 @@ class Evidence:
         self.radius: dict[Goal, float] = {}
         if self.discrete:
             self._keys = {g: np.unique(self.keys(np.concatenate(self.states[g]))) for g in self.goals}
-            self._table = None
-            if n_states(observation_space) <= SUPPORT_TABLE_STATES:  # one extra all-False row: a goal without support
-                self._table = np.zeros((len(self.goals) + 1, n_states(observation_space)), dtype=bool)
+            self._off_table = None
+            if n_states(observation_space) <= SUPPORT_TABLE_STATES:  # one extra all-True row: a goal without support
+                self._off_table = np.ones((len(self.goals) + 1, n_states(observation_space)), dtype=bool)
                 for g, keys in self._keys.items():
-                    self._table[self._row[g], keys] = True
+                    self._off_table[self._row[g], keys] = False
         else:
             from scipy.spatial import cKDTree
 
-            self._trees = {}
+            self._trees, self._distinct = {}, {}
             for g in self.goals:
-                distinct = np.unique(self.flat(np.concatenate(self.states[g])), axis=0)
+                distinct, visits = np.unique(self.flat(np.concatenate(self.states[g])), axis=0, return_counts=True)
                 self._trees[g] = cKDTree(distinct)
                 self.radius[g] = support_radius(distinct, self._trees[g])
+                if len(distinct):
+                    self._distinct[g] = distinct, visits
+        self._others: dict[Goal, np.ndarray] = {}
+        self._replacements: dict[tuple[str, np.dtype], tuple[np.ndarray, np.ndarray | None]] = {}
         self.alpha: float | None = None
         self.bandwidth: float | None = None
         if self.discrete:
@@ -184,10 +197,10 @@ class Evidence:
         every = self.flat(np.concatenate([s for g in self.goals for s in self.states[g]]))
         spread = every.std(axis=0)
         self._centre, self._scale = every.mean(axis=0), np.where(spread > 0, spread, 1.0)
-        self._points = {g: self._scaled(np.concatenate(self.states[g])) for g in self.goals}
+        self._points = {g: self._scaled(np.concatenate(self.states[g])) for g in self._distinct}
         scores = np.zeros(len(BANDWIDTHS))
         held_out = False
-        for g in self.goals:
+        for g in self._distinct:
             if len(self.states[g]) < 2:
                 continue
             held_out = True
@@ -205,6 +218,11 @@ class Evidence:
     def _scaled(self, states: np.ndarray) -> np.ndarray:
         return (self.flat(states) - self._centre) / self._scale
 
+    @functools.cached_property
+    def _packed(self) -> _Packed:
+        """Every goal's distinct training states stacked for one matrix product (built at first use)."""
+        return _Packed.of(self)
+
     def log_occupancy(self, goals: Sequence[Goal], states: np.ndarray) -> np.ndarray:
         """``(K, T)``: the log of each goal's occupancy at each state (a density on continuous observations).
 
@@ -214,8 +232,8 @@ class Evidence:
         if self.discrete:
             keys = self.keys(states)
             if self._log_table is not None:
-                rows = [self._row.get(tuple(g), len(self.goals)) for g in goals]
-                return self._log_table[np.asarray(rows)[:, None], keys[None, :]]
+                rows = _rows(goals, self.goals)
+                return self._log_table[:-1, keys] if rows is None else self._log_table[rows[:, None], keys[None, :]]
             out = np.full((len(goals), len(keys)), -math.log(self._size))
             for k, goal in enumerate(goals):
                 if tuple(goal) in self._counts:
@@ -225,16 +243,25 @@ class Evidence:
                     visits[found] = counts[np.searchsorted(sorted_keys, keys[found])]
                     out[k] = np.log(visits + self.alpha) - math.log(counts.sum() + self.alpha * self._size)
             return out
-        scaled = self._scaled(states)
-        jacobian = float(np.sum(np.log(self._scale)))  # the density of raw coordinates, not of scaled ones
-        out = np.empty((len(goals), len(scaled)))
-        for k, goal in enumerate(goals):
-            points = self._points.get(tuple(goal))
-            if points is None:
-                out[k] = -self._log_volume()
-                continue
-            out[k] = _log_kde(_squared_distances(scaled, points), self.bandwidth, len(points), scaled.shape[1])
-            out[k] -= jacobian
+        packed = self._packed
+        rows = _rows(goals, packed.goals)
+        own = packed.by_blocks(states, self._log_kde_block)
+        if rows is None:
+            return own
+        missing = rows < 0
+        return np.where(missing[:, None], -self._log_volume() if missing.any() else 0.0, own[rows])
+
+    def _log_kde_block(self, features: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """``(T, G)``: the log density of each packed goal at a block of states (``features``: theirs)."""
+        packed = self._packed
+        terms = features @ packed.occupancy  # (T, M): -|x - y|^2 / (2 h^2) in scaled coordinates
+        largest = np.maximum.reduceat(terms, packed.starts, axis=1)  # each goal's nearest state's term
+        terms -= np.repeat(largest, packed.sizes, axis=1)  # so the sums cannot underflow
+        np.maximum(terms, _EXPONENT_FLOOR, out=terms)  # a term that small is nothing beside the largest (1)
+        np.exp(terms, out=terms)
+        out = np.log(terms @ packed.counts)
+        out += largest
+        out += packed.constant
         return out
 
     def _log_volume(self) -> float:
@@ -260,26 +287,43 @@ class Evidence:
         """``(K, T)``: whether each state lies off each goal's support."""
         if self.discrete:
             keys = self.keys(states)
-            if self._table is not None:
-                rows = [self._row.get(tuple(g), len(self.goals)) for g in goals]
-                return ~self._table[np.asarray(rows)[:, None], keys[None, :]]
+            if self._off_table is not None:
+                rows = _rows(goals, self.goals)
+                return self._off_table[:-1, keys] if rows is None else self._off_table[rows[:, None], keys[None, :]]
             return np.stack([~_member(self._keys.get(tuple(g), np.empty(0, np.int64)), keys) for g in goals])
-        flat = self.flat(states)
-        off = np.ones((len(goals), len(flat)), dtype=bool)
-        for k, goal in enumerate(goals):
-            goal = tuple(goal)
-            if goal in self._trees:
-                off[k] = self._trees[goal].query(flat, k=1)[0] > self.radius[goal]
+        packed = self._packed
+        rows = _rows(goals, packed.goals)
+        own = packed.by_blocks(states, self._off_support_block)
+        return own if rows is None else np.where(rows[:, None] < 0, True, own[rows])
+
+    def _off_support_block(self, features: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """``(T, G)``: whether a block of states lies off each packed goal's support."""
+        packed = self._packed
+        nearest = np.minimum.reduceat(features @ packed.support, packed.starts, axis=1)  # squared distances
+        off = nearest > packed.high
+        beyond = nearest > packed.low  # off, or within rounding of the radius
+        if np.count_nonzero(beyond) != np.count_nonzero(off):  # those: the distance as the goal's KD-tree measures it
+            unsure = beyond != off
+            flat = self.flat(states)
+            for t, k in zip(*np.nonzero(unsure)):
+                goal = packed.goals[k]
+                off[t, k] = self._trees[goal].query(flat[t], k=1)[0] > self.radius[goal]
         return off
 
     def others_off_support(self, goal: Goal) -> np.ndarray:
-        """The distinct training states of every other goal that lie off ``goal``'s support, sorted, ``(N, ...)``."""
+        """The distinct training states of every other goal that lie off ``goal``'s support, sorted, ``(N, ...)``
+        (read-only; computed once per goal)."""
         goal = tuple(goal)
-        others = [s for g in self.goals if g != goal for s in self.states[g]]
-        if not others:
-            return np.empty((0, *self.observation_space.shape), dtype=self.observation_space.dtype)
-        distinct = np.unique(np.concatenate(others), axis=0)
-        return distinct[self.off_support([goal], distinct)[0]]
+        if goal not in self._others:
+            others = [s for g in self.goals if g != goal for s in self.states[g]]
+            if not others:
+                found = np.empty((0, *self.observation_space.shape), dtype=self.observation_space.dtype)
+            else:
+                distinct = np.unique(np.concatenate(others), axis=0)
+                found = distinct[self.off_support([goal], distinct)[0]]
+            found.flags.writeable = False
+            self._others[goal] = found
+        return self._others[goal]
 
     def replace_off_support(self, output: PolicyOutput, goals: Sequence[Goal], states: np.ndarray,
                             rule: str) -> PolicyOutput:
@@ -295,21 +339,34 @@ class Evidence:
         if rule == "trust":
             return output
         off = self.off_support(goals, states)
-        if not off.any():
+        if not np.count_nonzero(off):
             return output
         mask = off[:, :, None]
         if output.probs is not None:
-            n = output.probs.shape[-1]
-            if rule == "uniform":
-                row = np.full(n, 1.0 / n)
-            else:
-                row = np.eye(n)[self._noop(rule) - int(self.action_space.start)]
-            return dataclasses.replace(output, probs=np.where(mask, row.astype(output.probs.dtype), output.probs))
-        mean, std = self.replacement(rule)
-        out = {"mean": np.where(mask, mean.astype(output.mean.dtype), output.mean)}
+            row, _ = self._replacement(rule, output.probs)
+            return dataclasses.replace(output, probs=np.where(mask, row, output.probs))
+        mean, std = self._replacement(rule, output.mean)
+        out = {"mean": np.where(mask, mean, output.mean)}
         if std is not None and output.std is not None:
             out["std"] = np.where(mask, std.astype(output.std.dtype), np.broadcast_to(output.std, output.mean.shape))
         return dataclasses.replace(output, **out)
+
+    def _replacement(self, rule: str, like: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """What ``rule`` puts at an off-support state, in ``like``'s dtype: action probabilities (discrete actions)
+        or :meth:`replacement`'s mean and std; made once per rule and dtype."""
+        key = (rule, like.dtype)
+        if key not in self._replacements:
+            if isinstance(self.action_space, spaces.Discrete):
+                n = int(self.action_space.n)
+                if rule == "uniform":
+                    row = np.full(n, 1.0 / n)
+                else:
+                    row = np.eye(n)[self._noop(rule) - int(self.action_space.start)]
+                self._replacements[key] = row.astype(like.dtype), None
+            else:
+                mean, std = self.replacement(rule)
+                self._replacements[key] = mean.astype(like.dtype), std
+        return self._replacements[key]
 
     def replacement(self, rule: str) -> tuple[np.ndarray, np.ndarray | None]:
         """The mean and std (None: the policy's own) an off-support state gets under ``rule`` on a Box action space.
@@ -328,6 +385,89 @@ class Evidence:
         if self.noop is None:
             raise UserError(f"off_support={rule!r} needs the domain's no-op action (noop_action); it declares none")
         return self.noop
+
+
+@dataclasses.dataclass(frozen=True)
+class _Packed:
+    """Every goal's distinct training states stacked (continuous observations), so that a batch of states meets all
+    of them in one matrix product: ``features(x) @ support`` gives the squared distances to them and
+    ``features(x) @ occupancy`` the kernel's exponents, ``features(x) = [x', x' * x', 1]``, ``x'`` the state less
+    the training states' mean (which keeps the expansion's cancellation small).
+
+    Attributes:
+        goals: The goals with training states, in the evidence's order; ``G`` of them, ``M`` stacked states.
+        centre: ``(D,)`` the training states' mean.
+        starts, sizes: ``(G,)`` where each goal's states begin among the stacked ones, and how many it has.
+        support: ``(2D + 1, M)``: squared Euclidean distances in raw coordinates.
+        low, high: ``(G,)`` each goal's squared support radius less and plus the rounding allowance; a squared
+            distance between them is settled by the goal's KD-tree.
+        occupancy: ``(2D + 1, M)``: ``-|x - y|^2 / (2 h^2)`` in scaled coordinates.
+        counts: ``(M, G)``: each stacked state's visits by its goal (zero for the others).
+        constant: ``(G,)``: each goal's log normaliser (its visits, the kernel's and the scaling's).
+    """
+
+    goals: list[Goal]
+    centre: np.ndarray
+    starts: np.ndarray
+    sizes: np.ndarray
+    support: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    occupancy: np.ndarray
+    counts: np.ndarray
+    constant: np.ndarray
+
+    @classmethod
+    def of(cls, evidence: Evidence) -> _Packed:
+        goals = list(evidence._distinct)
+        stacked = [evidence._distinct[g][0] - evidence._centre for g in goals]
+        y = np.concatenate(stacked)
+        m, dim = y.shape
+        sizes = np.array([len(s) for s in stacked])
+        starts = np.cumsum(sizes) - sizes
+        counts = np.zeros((m, len(goals)))
+        for k, g in enumerate(goals):
+            counts[starts[k]: starts[k] + sizes[k], k] = evidence._distinct[g][1]
+        squared = np.einsum("md,md->m", y, y)
+        support = np.concatenate([-2.0 * y.T, np.ones((dim, m)), squared[None]])
+        radius2 = np.array([evidence.radius[g] ** 2 for g in goals])
+        allowance = _ROUNDING * (16.0 * float(squared.max()) + radius2)
+        h = evidence.bandwidth
+        weight = 1.0 / (evidence._scale * evidence._scale)  # scaled coordinates' squared distances, from raw ones
+        kappa = 1.0 / (2.0 * h * h)
+        occupancy = np.concatenate([2.0 * kappa * weight[:, None] * y.T, np.repeat(-kappa * weight[:, None], m, 1),
+                                    -kappa * (weight @ (y * y).T)[None]])
+        jacobian = float(np.sum(np.log(evidence._scale)))
+        constant = -np.log(counts.sum(axis=0)) - dim * math.log(h * math.sqrt(2.0 * math.pi)) - jacobian
+        return cls(goals, evidence._centre, starts, sizes, support, radius2 - allowance, radius2 + allowance,
+                   occupancy, counts, constant)
+
+    def features(self, states: np.ndarray) -> np.ndarray:
+        """``(T, 2D + 1)``: ``[x', x' * x', 1]`` for ``(T, ...)`` states."""
+        dim = len(self.centre)
+        out = np.empty((len(states), 2 * dim + 1))
+        np.subtract(states.reshape(len(states), dim), self.centre, out=out[:, :dim])
+        np.multiply(out[:, :dim], out[:, :dim], out=out[:, dim: 2 * dim])
+        out[:, 2 * dim] = 1.0
+        return out
+
+    def by_blocks(self, states: np.ndarray, block: Any) -> np.ndarray:
+        """``(G, T)``: ``block(features, states)``'s ``(T, G)`` over blocks of states small enough that their
+        ``(T, M)`` products stay within :data:`_BLOCK_ENTRIES` entries, transposed."""
+        states = np.asarray(states)
+        step = max(1, _BLOCK_ENTRIES // self.support.shape[1])
+        if len(states) <= step:
+            return block(self.features(states), states).T
+        return np.concatenate([block(self.features(states[i: i + step]), states[i: i + step])
+                               for i in range(0, len(states), step)]).T
+
+
+def _rows(goals: Sequence[Goal], known: list[Goal]) -> np.ndarray | None:
+    """Each of ``goals``' row among ``known`` (-1: not there), or None when ``goals`` are ``known`` in order."""
+    if goals == known:
+        return None
+    at = {g: i for i, g in enumerate(known)}
+    return np.array([at.get(tuple(g), -1) for g in goals], dtype=np.int64)
 
 
 def _squared_distances(queries: np.ndarray, points: np.ndarray) -> np.ndarray:
