@@ -168,7 +168,7 @@ def test_ablation_table_markdown_and_plot(tmp_path):
     out = cli(["run", "-r", "bc", "--set", "bc.n_epochs=3", "--scorer", "mse", "--scorer", "loglik",
                "--seeds", "1", "-o", "0.3", "--no-progress"], tmp_path)
     assert out.returncode == 0, out.stderr
-    assert "bc/mse" in out.stdout and "bc/loglik" in out.stdout
+    assert "BC-GRAIL · n_epochs 3 " in out.stdout and "BC-GRAIL · n_epochs 3 · loglik" in out.stdout  # variants
     png, md = tmp_path / "ablation.png", tmp_path / "ABLATION.md"
     out = cli(["leaderboard", "--ablation", "--plot", str(png), "--markdown", str(md)], tmp_path)
     assert out.returncode == 0, out.stderr
@@ -176,8 +176,11 @@ def test_ablation_table_markdown_and_plot(tmp_path):
     text = md.read_text()
     assert "| GRAIL/MiniGrid-Biased-v0 (prefix) | bc | loglik |" in text
     assert "| GRAIL/MiniGrid-Biased-v0 (prefix) | bc | mse |" in text
-    out = cli(["leaderboard", "--scorer", "mse"], tmp_path)
-    assert "bc/mse" in out.stdout and "bc/loglik" not in out.stdout
+    narrowed = tmp_path / "MSE.md"
+    out = cli(["leaderboard", "--scorer", "mse", "--markdown", str(narrowed)], tmp_path)
+    assert out.returncode == 0, out.stderr
+    text = narrowed.read_text()
+    assert "BC-GRAIL · n_epochs 3" in text and "loglik" not in text
 
 
 def test_protocols_are_listed(tmp_path):

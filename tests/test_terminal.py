@@ -148,3 +148,13 @@ def test_budget_curves_are_typed_and_stay_flat_json():
     text = budgets_markdown([curve], "quick")
     assert "| 40 (plateau) | 2 | 0.90 | [0.80, 1.00] | 0.70 |" in text
     assert "percentile bootstrap" in text
+
+
+def test_the_leaderboard_says_how_its_intervals_are_made_only_where_it_shows_them():
+    from grail_bench.report.tables import runs_markdown
+
+    records = [offline_record(0.1)]
+    with_intervals = " ".join(runs_markdown(records, intervals=True))
+    assert "percentile bootstrap" in with_intervals and "within [0, 1]" in with_intervals
+    assert "percentile bootstrap" not in " ".join(runs_markdown(records))
+    assert f"| {TASK} | BC-GRAIL | 3 | 2.00 | 100 | 0.0% |" in "\n".join(runs_markdown(records))

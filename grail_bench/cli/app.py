@@ -147,8 +147,8 @@ def run(
 
 
 def _show(records: list, mode, executor) -> None:  # noqa: ANN001 - a Mode and an Executor
-    """A run's tables: offline, the paper-style F1 tables (with Bayes ceilings, those not cached yet computed on
-    the run's executor) and the timings."""
+    """A run's tables: offline, the paper-style F1 tables of its canonical configurations and of its named
+    variants (with Bayes ceilings, those not cached yet computed on the run's executor) and the timings."""
     from grail_bench.report import leaderboard
     from grail_bench.report.tables import mode_table, timing_table
     from grail_bench.report.text import rich_tables
@@ -158,7 +158,7 @@ def _show(records: list, mode, executor) -> None:  # noqa: ANN001 - a Mode and a
         return
     with console.status("Bayes ceilings (computed once, then cached)"):
         board = leaderboard.build([], records=records, executor=executor)
-    for table in rich_tables(board.boards):
+    for table in rich_tables([*board.boards, *board.variants]):
         console.print(table)
     console.print(timing_table(records))
 
