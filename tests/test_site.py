@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -13,12 +14,14 @@ from typer.testing import CliRunner
 
 from grail_bench.cli import app
 from grail_bench.harness.diagnostics import FitRow, to_json
-from grail_bench.task import make_task
+from grail_bench.harness.planning import config_hash, fitted_config
 from grail_bench.harness.store import OnlineRow, OpenSetRow, ResultRow, ResultsStore
 from grail_bench.recognizers.contract import FitDiagnostics
+from grail_bench.recognizers.registry import build
 from grail_bench.report import leaderboard
-from grail_bench.report.html import build_page, render, write_site
+from grail_bench.report.html import MAX_PAGE_BYTES, build_page, json_for_script, render, write_site
 from grail_bench.report.summary import common_strata
+from grail_bench.task import make_task
 from grail_bench.report.reference import paper_reference_path as reference_path
 from grail_bench.report.reference import read_reference
 
@@ -28,16 +31,23 @@ TASKS = {  # task -> levels
     "GRAIL/MiniGrid-Biased-v0": (0.2, 0.3, 0.4),
     "GRAIL/PandaReach-Optimal-v0": (0.02,),
 }
-METHODS = [("bc", "mse", 0.8), ("graql", "kl", 0.6), ("bc", "kl", 0.79)]
+METHODS = [("bc", "mse", 0.8), ("graql", "kl", 0.6), ("bc", "kl", 0.79)]  # BC-GRAIL, GRAQL, variant BC-GRAIL · kl
 STAMP = json.dumps({"command": ["grail-bench", "run", "-r", "bc</script>"], "git_commit": "abc123", "python": "3.11",
                     "platform": "Linux", "cpu": "test CPU", "cores": 2, "date": "2026-11-22T00:00:00+00:00"})
 
 
+def stored(task_id: str, name: str, settings: dict | None = None, drop: str | None = None) -> tuple[str, str]:
+    """``(config JSON, config hash)`` as planning stores them for ``name`` with ``settings`` on the task at its
+    defaults; ``drop``: a setting the stored configuration lacks (stored before the setting existed)."""
+    config = fitted_config(make_task(task_id), name, build(name, settings).config)
+    if drop is not None:
+        del config["config"][drop]
+    return json.dumps(config, sort_keys=True, default=str), config_hash(config)
+
+
 def config(task_id: str) -> str:
-    """The configuration JSON of a run at the task's defaults."""
-    task = make_task(task_id)
-    return json.dumps({"task": {"params": dict(task.params), "env": dict(task.env_params), "n_demos": task.n_demos,
-                                "n_train": task.n_train}})
+    """The configuration JSON of a bc run at the task's defaults."""
+    return stored(task_id, "bc")[0]
 
 
 def rows(seeds: int = 5) -> list[ResultRow]:
@@ -51,8 +61,9 @@ def rows(seeds: int = 5) -> list[ResultRow]:
                 for seed in range(seeds):
                     f1 = float(np.clip(level_f1 + rng.normal(0, 0.1), 0, 1))
                     k = 4 if "4Goals" in task or "Panda" in task else 2
-                    out.append(ResultRow(task, rec, scorer, "h" + rec, seed, lv, make_task(task).protocol_label,
-                                         f1, f1, f1, f1, 6, 0, 1.5, 40.0, config(task), '{"torch": "2.13.0"}',
+                    config_json, hashed = stored(task, rec)
+                    out.append(ResultRow(task, rec, scorer, hashed, seed, lv, make_task(task).protocol_label,
+                                         f1, f1, f1, f1, 6, 0, 1.5, 40.0, config_json, '{"torch": "2.13.0"}',
                                          provenance=STAMP if seed < 3 else None,
                                          confusion=json.dumps(np.eye(k, dtype=int).tolist())))
     return out
@@ -71,14 +82,15 @@ def open_set_rows() -> list[OpenSetRow]:
             for rec, scorer, auroc in (("bc", "mse", 0.6), ("graql", "kl", 0.9)) for seed in range(3)]
 
 
-def fit_rows() -> list[FitRow]:
-    """Diagnostics of the bc fits on the 2-goal optimal task (2 seeds)."""
+def fit_rows(loss: list[float] | None = None) -> list[FitRow]:
+    """Diagnostics of the bc fits on the 2-goal optimal task (2 seeds); ``loss``: goal 0's training curve."""
     out = []
     for seed in range(2):
         d = FitDiagnostics(goals=((7, 1), (7, 7)), agreement_train=(0.9, 0.8), agreement_held_out=(0.85, 0.7),
                            imitation=((0.8, 0.3), (0.25, 0.75)), reached=(True, seed == 0), rollout_length=(11, 60),
-                           demo_length=(11.0, 11.0), curves={0: {"loss": [1.2, 0.8, 0.5]}, 1: {"loss": [1.3, 0.9]}})
-        out.append(FitRow("GRAIL/MiniGrid-Optimal-v0", "bc", "hbc", seed, "offline", to_json(d)))
+                           demo_length=(11.0, 11.0), curves={0: {"loss": loss or [1.2, 0.8, 0.5]}, 1: {"loss": [1.3, 0.9]}})
+        out.append(FitRow("GRAIL/MiniGrid-Optimal-v0", "bc", stored("GRAIL/MiniGrid-Optimal-v0", "bc")[1], seed,
+                          "offline", to_json(d)))
     return out
 
 
@@ -87,17 +99,56 @@ def board(offline, reference=None, online=(), open_set=(), fits=()):
     return leaderboard.build(offline, reference, None, studies={"online": online, "open-set": open_set}, fits=fits)
 
 
+def bc_rows(rows_: list[ResultRow], settings: dict | None = None, drop: str | None = None,
+            f1: float | None = None) -> list[ResultRow]:
+    """Copies of bc's own-scorer rows stored under another configuration of bc (see :func:`stored`)."""
+    out = []
+    for r in rows_:
+        if (r.recognizer, r.scorer) == ("bc", "mse"):
+            config_json, hashed = stored(r.task, "bc", settings, drop)
+            out.append(dataclasses.replace(r, config=config_json, config_hash=hashed, f1=r.f1 if f1 is None else f1))
+    return out
+
+
+def superseded(rows_: list[ResultRow]) -> list[ResultRow]:
+    """bc's rows as an earlier version stored them: its configuration lacked ``ent_weight`` (a setting added since)."""
+    return bc_rows(rows_, drop="ent_weight", f1=0.1)
+
+
+def stay_variant(rows_: list[ResultRow]) -> list[ResultRow]:
+    """bc's rows run with ``off_support="stay"``: a named variant."""
+    return bc_rows(rows_, {"off_support": "stay"})
+
+
+ODD_NAMES = ("<!--<script>", "</script>")
+
+
+def odd_names(rows_: list[ResultRow]) -> list[ResultRow]:
+    """Rows of two plugins not registered here (records of unknown plugins), named like markup."""
+    return [dataclasses.replace(r, recognizer=name, scorer="default") for name in ODD_NAMES
+            for r in rows_ if r.recognizer == "graql" and r.task == "GRAIL/MiniGrid-Optimal-v0"]
+
+
 def n_records(rs: list[ResultRow]) -> int:
     return len({(r.task, r.recognizer, r.scorer, r.config_hash, r.protocol, r.observability) for r in rs})
 
 
+def page_of(offline, reference=None, reps=100, **studies) -> dict:
+    """The page model of rows (no headline claims: :mod:`grail_bench.report.claims` is tested on its own)."""
+    return build_page(board(offline, reference, **studies), reps=reps, claims=[])
+
+
+def main_cells(page: dict) -> list:
+    return [c for s in page["sections"] for row in s.rows for c in row["cells"] if c is not None]
+
+
 @pytest.fixture(scope="module")
 def page() -> dict:
-    return build_page(board(rows(), read_reference(reference_path())), reps=500)
+    return page_of(rows(), read_reference(reference_path()), reps=500)
 
 
 def test_page_has_a_cell_per_record_and_a_run_per_invocation(page):
-    cells = [c for s in page["sections"] for row in s.rows for c in row["cells"] if c is not None]
+    cells = main_cells(page) + [c for s in page["variants"] for row in s.rows for c in row["cells"] if c is not None]
     assert len(cells) == len(page["records"]) == n_records(rows())
     assert len(page["runs"]) == 2  # the stamped sweep, and rows stored before provenance existed
     assert page["runs"][0]["git_commit"] == "abc123" and page["runs"][1]["command"] is None
@@ -108,79 +159,133 @@ def test_page_has_a_cell_per_record_and_a_run_per_invocation(page):
     assert {tuple(c.runs) for c in cells} == {(0, 1)}  # seeds 0-2 by the stamped sweep, 3-4 from before
 
 
-def test_ties_are_every_cell_overlapping_the_best(page):
-    for s in page["sections"]:
+def test_main_boards_show_methods_by_their_published_names_and_variants_by_label(page):
+    assert {c.label for s in page["sections"] for c in s.columns} == {"BC-GRAIL", "GRAQL"}
+    assert [c.label for s in page["variants"] for c in s.columns] == ["BC-GRAIL · kl", "BC-GRAIL · kl"]
+    assert [s.title for s in page["variants"]] == ["minigrid: variants", "panda_reach: variants"]
+    assert all(r["kind"] in ("canonical", "variant") for r in page["records"]) and not page["archive"]
+
+
+def test_ties_are_every_method_cell_overlapping_the_best(page):
+    for s in page["sections"] + page["variants"]:
         for row in s.rows:
             present = [c for c in row["cells"] if c is not None]
             best = max(present, key=lambda c: c.mean)
             assert best.best
             for c in present:
                 assert c.best == (c.interval.low <= best.interval.high and best.interval.low <= c.interval.high)
-    # bc/mse (0.8) and bc/kl (0.79) are mostly not told apart; graql/kl (0.6) mostly is.
-    flags = [(page["records"][c.record], c.best) for s in page["sections"] for row in s.rows for c in row["cells"]
-             if c is not None]
-    share = {name: np.mean([best for r, best in flags if f"{r['recognizer']}/{r['scorer']}" == name])
-             for name in ("bc/mse", "bc/kl", "graql/kl")}
-    assert share["bc/mse"] > 0.5 and share["bc/kl"] > 0.5 and share["graql/kl"] < 0.5
+    # BC-GRAIL (0.8) mostly stands clear of GRAQL (0.6).
+    flags = [(page["records"][c.record]["column"], c.best) for c in main_cells(page)]
+    share = {name: np.mean([best for label, best in flags if label == name]) for name in ("BC-GRAIL", "GRAQL")}
+    assert share["BC-GRAIL"] > 0.5 and share["GRAQL"] < 0.5
 
 
 def test_domain_summary_iqm_and_probability_of_improvement(page):
     minigrid = next(s for s in page["summaries"] if s.domain == "minigrid")
-    assert minigrid.names == ["bc/mse", "graql/kl"]  # own scorers only
-    assert minigrid.strata == 9 and minigrid.all_strata == {"bc/mse": 9, "graql/kl": 9}
-    assert minigrid.iqm["bc/mse"].point > minigrid.iqm["graql/kl"].point
-    p, q = minigrid.poi[("bc/mse", "graql/kl")], minigrid.poi[("graql/kl", "bc/mse")]
+    assert minigrid.names == ["BC-GRAIL", "GRAQL"]  # canonical configurations only: BC-GRAIL · kl is a variant
+    assert minigrid.strata == 9 and minigrid.all_strata == {"BC-GRAIL": 9, "GRAQL": 9}
+    assert minigrid.strata_text == ["MiniGrid-Biased (prefix) at 20%, 30%, 40%",
+                                    "MiniGrid-Optimal (subset) at 10%, 20%, 30%",
+                                    "MiniGrid-Optimal-4Goals (subset) at 10%, 20%, 30%"]
+    assert minigrid.iqm["BC-GRAIL"].point > minigrid.iqm["GRAQL"].point
+    p, q = minigrid.poi[("BC-GRAIL", "GRAQL")], minigrid.poi[("GRAQL", "BC-GRAIL")]
     assert p.point == pytest.approx(1 - q.point) and p.point > 0.8
-    assert minigrid.best == {"bc/mse"}
+    assert minigrid.best == {"BC-GRAIL"}
 
 
-def test_summaries_compare_recognizers_on_the_strata_they_share():
+def test_summaries_compare_methods_on_the_strata_they_share_and_name_the_gaps():
     strata = {"a": {1: [0.5], 2: [0.6], 3: [0.7]}, "b": {2: [0.1], 3: [0.2]}, "c": {9: [0.3]}}
     names, shared, left_out = common_strata(strata)
     assert names == ["a", "b"] and shared == {2, 3} and left_out == ["c"]
-    # A recognizer run on more strata is aggregated over the shared ones only.
-    extra = [ResultRow("GRAIL/MiniGrid-Optimal-6Goals-v0", "bc", "mse", "hbc", seed, 0.1, "subset", 0.0, 0.0, 0.0,
-                       0.0, 6, 0, 1.5, 40.0, config("GRAIL/MiniGrid-Optimal-6Goals-v0"), "{}") for seed in range(3)]
-    with_extra = build_page(board(rows() + extra), reps=100)
-    minigrid = next(s for s in with_extra["summaries"] if s.domain == "minigrid")
-    assert minigrid.all_strata == {"bc/mse": 10, "graql/kl": 9} and minigrid.strata == 9
-    plain = next(s for s in build_page(board(rows()), reps=100)["summaries"] if s.domain == "minigrid")
-    assert minigrid.iqm["bc/mse"].point == plain.iqm["bc/mse"].point  # the extra zeros do not count
+    # A method run on more strata is aggregated over the shared ones only, and the others' gap is named.
+    task = "GRAIL/MiniGrid-Optimal-6Goals-v0"
+    config_json, hashed = stored(task, "bc")
+    extra = [ResultRow(task, "bc", "mse", hashed, seed, 0.1, "subset", 0.0, 0.0, 0.0, 0.0, 6, 0, 1.5, 40.0,
+                       config_json, "{}") for seed in range(3)]
+    minigrid = next(s for s in page_of(rows() + extra)["summaries"] if s.domain == "minigrid")
+    assert minigrid.all_strata == {"BC-GRAIL": 10, "GRAQL": 9} and minigrid.strata == 9
+    assert minigrid.gaps_text == {"GRAQL": "MiniGrid-Optimal-6Goals (subset) at 10%"}
+    plain = next(s for s in page_of(rows())["summaries"] if s.domain == "minigrid")
+    assert minigrid.iqm["BC-GRAIL"].point == plain.iqm["BC-GRAIL"].point  # the extra zeros do not count
+    assert plain.gaps_text == {}
 
 
-def test_paper_values_appear_on_the_default_protocol(page):
-    from grail_bench.task import make_task
-
+def test_paper_values_appear_beside_canonical_columns_on_the_default_protocol(page):
     papered = [r for r in page["records"] if r["paper_f1"] is not None]
     assert papered and all(r["protocol"] == make_task(r["task"]).protocol_label for r in papered)
-    assert {(r["recognizer"], r["scorer"]) for r in papered} == {("bc", "mse"), ("graql", "kl")}  # the paper's scorers
+    assert {r["column"] for r in papered} == {"BC-GRAIL", "GRAQL"}  # not beside the variant BC-GRAIL · kl
     places = {r["task"]: r["paper_place"] for r in papered}
     assert places["GRAIL/MiniGrid-Optimal-v0"] in ("inside", "above", "below")  # the appendix gives intervals
     assert places["GRAIL/MiniGrid-Biased-v0"] is None  # the text gives a range only
 
 
+def test_a_superseded_default_is_archived_and_a_variant_named():
+    page = page_of(rows() + superseded(rows()) + stay_variant(rows()))
+    archived = {e["config"].label.split(" · ")[0] for e in page["archive"]}
+    assert archived == {"BC-GRAIL"} and sorted(t for e in page["archive"] for t in e["tasks"]) == sorted(
+        t.removeprefix("GRAIL/") for t in TASKS)  # one entry per stored hash, which names its tasks
+    for entry in page["archive"]:
+        assert entry["config"].changes_text == "ent_weight unset" and entry["seeds"] == (0, 1, 2, 3, 4)
+        assert entry["runs"] == [0, 1] and entry["rows"] == 5 * sum(len(TASKS[f"GRAIL/{t}"]) for t in entry["tasks"])
+    # Out of every board and summary: the archived runs scored 0.1, the canonical ones about 0.8.
+    archived_ids = {r["id"] for r in page["records"] if r["kind"] == "archived"}
+    shown = {c.record for s in page["sections"] + page["variants"] for row in s.rows for c in row["cells"] if c}
+    assert archived_ids and not archived_ids & shown
+    assert {c.label for s in page["sections"] for c in s.columns} == {"BC-GRAIL", "GRAQL"}
+    minigrid = next(s for s in page["summaries"] if s.domain == "minigrid")
+    assert minigrid.names == ["BC-GRAIL", "GRAQL"] and minigrid.mean["BC-GRAIL"] > 0.6
+    variants = {c.label for s in page["variants"] for c in s.columns}
+    assert variants == {"BC-GRAIL · kl", "BC-GRAIL · off_support stay"}
+
+
 def test_same_rows_same_page():
-    first = render(build_page(board(rows()), reps=200))
-    assert first == render(build_page(board(rows()), reps=200))
+    first = render(page_of(rows()))
+    assert first == render(page_of(rows()))
 
 
-def test_embedded_records_cannot_close_the_script(page):
+def test_embedded_json_escapes_markup():
+    text = json_for_script({"name": "</script><!--<b>&amp;"})
+    assert not {"<", ">", "&"} & set(text)
+    assert json.loads(text) == {"name": "</script><!--<b>&amp;"}
+
+
+def test_embedded_details_cannot_close_the_script(page):
     html = render(page)
     assert "bc</script>" not in html
     start = html.index('<script type="application/json" id="records">') + len('<script type="application/json" id="records">')
     embedded = json.loads(html[start:html.index("</script>", start)])
-    assert len(embedded) == len(page["records"])
+    assert {r["id"] for r in embedded} == {r["id"] for r in page["records"]}  # every shown cell's details
     for ref in ('src="http', "src='http", 'href="http', "href='http", "url(http", "@import"):
         assert ref not in html  # nothing loads from the network
 
 
+def test_the_page_stays_small_whatever_the_records_hold(page):
+    """Full records, fits and figures live beside the page: it embeds only what a cell's details need."""
+    html = render(page)
+    assert len(html.encode()) < 200_000 < MAX_PAGE_BYTES
+    assert '"task_params"' not in html and "<svg" not in html  # records.json and figures/ hold them
+    assert page["figures"] and all(name.startswith("figures/") for name in page["figures"])
+
+
+def test_details_embed_thinned_curves_and_rounded_values():
+    """Long training curves (a fit logs thousands of points) do not grow the page: each is thinned and rounded."""
+    from grail_bench.report.html import CURVE_POINTS
+
+    page = page_of(rows(seeds=2), fits=fit_rows([1 / (i + 3) for i in range(20_000)]))
+    (key,) = page["shown_fits"]
+    loss = page["shown_fits"][key]["curves"]["0"]["loss"]
+    assert len(loss) == CURVE_POINTS and loss[0] == 0.333 and loss[-1] == pytest.approx(1 / 20_002, rel=1e-3)
+    assert len(page["fits"][key]["curves"]["0"]["loss"]) == 20_000  # fits.json keeps every point
+    assert len(render(page).encode()) < 200_000
+
+
 def test_online_and_open_set_runs_get_tables_of_their_own(page):
     assert page["studies"] == []  # none stored, none shown
-    with_studies = build_page(board(rows(seeds=2), online=online_rows(), open_set=open_set_rows()), reps=100)
+    with_studies = page_of(rows(seeds=2), online=online_rows(), open_set=open_set_rows())
     online, open_set = with_studies["studies"]
     assert (online["id"], open_set["id"]) == ("online", "open-set")
     assert [r["recognizer"] for r in online["rows"]] == ["bc", "graql"]  # one row per recognizer over 3 seeds
-    assert online["figure"].startswith("<svg") and open_set["figure"] is None
+    assert with_studies["figures"][online["figure"]].startswith("<svg") and open_set["figure"] is None
     auroc = [h for h, _ in open_set["header"]].index("AUROC")
     assert [r["cells"][auroc][1] for r in open_set["rows"]] == pytest.approx([0.6, 0.9])
     html = render(with_studies)
@@ -194,8 +299,9 @@ def test_cli_writes_the_page(tmp_path):
     out = tmp_path / "site"
     result = CliRunner().invoke(app, ["leaderboard", "--store", str(store_path), "--no-ceiling", "--html", str(out)])
     assert result.exit_code == 0, result.output
-    assert (out / "index.html").stat().st_size > 0
+    assert (out / "index.html").stat().st_size > 0 and list((out / "figures").glob("s*.svg"))
     assert len(json.loads((out / "records.json").read_text())) == n_records(rows(seeds=2))
+    assert "BC-GRAIL" in (out / "index.html").read_text()
     missing = CliRunner().invoke(app, ["leaderboard", "--store", str(tmp_path / "none.sqlite"), "--html", str(out)])
     assert missing.exit_code != 0 and "no results store" in missing.output
 
@@ -232,6 +338,20 @@ def site(tmp_path_factory) -> Path:
     return out / "index.html"
 
 
+@pytest.fixture(scope="module")
+def odd_site(tmp_path_factory) -> Path:
+    """A page with a superseded bc configuration, a named variant of bc, and plugins named like markup."""
+    out = tmp_path_factory.mktemp("odd-site")
+    few = rows(seeds=2)
+    write_site(board(few + superseded(few) + stay_variant(few) + odd_names(few)), out)
+    return out / "index.html"
+
+
+def canonical(rs: list[ResultRow]) -> list[ResultRow]:
+    """The rows of the methods' canonical configurations in :func:`rows` (bc/kl is a variant)."""
+    return [r for r in rs if (r.recognizer, r.scorer) in (("bc", "mse"), ("graql", "kl"))]
+
+
 def open_page(browser, site: Path, **context):
     ctx = browser.new_context(viewport={"width": 1300, "height": 900}, **context)
     page = ctx.new_page()
@@ -244,14 +364,24 @@ def open_page(browser, site: Path, **context):
     return page, errors, requests
 
 
+def loaded(image) -> bool:
+    """Whether a (lazily loaded) figure loads once scrolled to."""
+    image.scroll_into_view_if_needed()
+    image.page.wait_for_function("i => i.complete", arg=image.element_handle())
+    return image.evaluate("i => i.naturalWidth") > 0
+
+
 def test_page_loads_offline_without_errors(browser, site, tmp_path):
     page, errors, requests = open_page(browser, site)
     assert errors == []
     assert requests and all(url.startswith(("file://", "data:")) for url in requests)
     assert page.title() == "grail-bench leaderboard"
-    assert page.locator("td.cell").count() == n_records(rows())
+    assert page.locator("td.cell").count() == n_records(rows())  # main boards and (folded) variants
+    assert page.locator("section.board td.cell").count() == n_records(canonical(rows()))
     assert page.evaluate("JSON.parse(document.getElementById('records').textContent).length") == n_records(rows())
     assert page.locator("form#filters").is_visible()
+    figures = page.locator("section.board figure img")
+    assert figures.count() and all(loaded(figures.nth(i)) for i in range(figures.count()))  # beside the page
     shot = tmp_path / "leaderboard.png"
     page.screenshot(path=str(shot), full_page=True)
     assert shot.stat().st_size > 10_000
@@ -307,7 +437,10 @@ def test_filters_hide_exactly_what_they_should(browser, site):
     assert page.locator("section.study tbody tr:visible").count() == 2  # graql's online and open-set rows
     assert page.locator("section.study tr[data-recognizer=bc]:visible").count() == 0
     page.select_option("select[name=recognizer]", "")
-    assert page.locator("td.cell:visible").count() == n_records(rows())
+    assert page.locator("td.cell:visible").count() == n_records(canonical(rows()))  # variants stay folded
+    page.locator("details.variant-board summary").first.click()
+    assert page.locator("details.variant-board td.cell:visible").count() == n_records(
+        [r for r in rows() if r.scorer == "kl" and r.recognizer == "bc" and "Panda" not in r.task])
     assert page.locator("section.study tbody tr:visible").count() == 4
     assert errors == []
     page.context.close()
@@ -321,7 +454,7 @@ def test_online_table_sorts_by_value(browser, site):
     assert column_values(page, table, col) == pytest.approx([0.8, 0.6])
     table.locator("thead th").nth(col).click()
     assert column_values(page, table, col) == pytest.approx([0.6, 0.8])
-    assert page.locator("section#online figure svg").count() == 1
+    assert loaded(page.locator("section#online figure img"))
     assert errors == []
     page.context.close()
 
@@ -339,10 +472,10 @@ def test_a_cell_shows_its_confusion_imitation_and_curves_on_demand(browser, site
     page, errors, _ = open_page(browser, site)
     assert not page.locator("#details").is_visible()
     index = page.evaluate("JSON.parse(document.getElementById('records').textContent).find(r => r.task === "
-                          "'GRAIL/MiniGrid-Optimal-v0' && r.column === 'bc/mse' && r.observability === 0.1).id")
+                          "'GRAIL/MiniGrid-Optimal-v0' && r.column === 'BC-GRAIL' && r.observability === 0.1).id")
     page.locator(f"td.cell[data-record='{index}'] button.diag").click()
     panel = page.locator("#details")
-    assert panel.is_visible() and "bc" in page.locator("#details-title").inner_text()
+    assert panel.is_visible() and "BC-GRAIL" in page.locator("#details-title").inner_text()
     heatmaps = panel.locator("svg.heatmap")
     assert heatmaps.count() == 2  # confusion and imitation
     assert heatmaps.nth(1).locator("rect").count() == 4 and "0.80" in heatmaps.nth(1).text_content()
@@ -362,7 +495,8 @@ def test_page_reads_without_scripts(browser, site):
     assert page.locator("td.cell").first.is_visible()
     assert not page.locator("form#filters").is_visible()  # nothing to filter with, so not shown
     assert page.locator("button.diag:visible").count() == 0  # details need the script: no dead buttons
-    assert page.locator("figure svg").count() >= 1
+    assert page.locator("figure img").count() >= 1
+    assert page.locator("#summary table").first.is_visible() and page.locator("#claims").is_visible()
     page.context.close()
 
 
@@ -374,8 +508,8 @@ def test_profiles_and_calibration_show_offline(browser, tmp_path):
     params = {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
 
     def record(rec, scorer, level, values, **extra):
-        return OfflineRecord(task=task.id, recognizer=rec, scorer=scorer, protocol="subset", config_hash="h" + rec,
-                             n_seeds=2, seeds=[0, 1], fit_seconds_per_goal=1.0, task_params=params,
+        return OfflineRecord(task=task.id, recognizer=rec, scorer=scorer, protocol="subset",
+                             config_hash=stored(task.id, rec)[1], recognizer_config=build(rec).config, n_seeds=2, seeds=[0, 1], fit_seconds_per_goal=1.0, task_params=params,
                              observability=level, f1_mean=float(np.mean(values)), f1_std=0.1, f1_ci95_low=0.0,
                              f1_ci95_high=1.0, f1_iqm=float(np.mean(values)), f1_values=values, accuracy_mean=0.5,
                              precision_mean=0.5, recall_mean=0.5, score_us_per_observation=1.0, tie_rate=0.0, **extra)
@@ -385,8 +519,76 @@ def test_profiles_and_calibration_show_offline(browser, tmp_path):
     records.append(record("bc", "loglik", 0.1, (0.8, 0.9), reliability=reliability_bins([0.9, 0.6], [True, False])))
     write_site(leaderboard.build([], None, 50, records=records), tmp_path)
     page, errors, requests = open_page(browser, tmp_path / "index.html")
-    assert page.locator("#profiles svg").count() == 1 and page.locator("#calibration svg").count() == 1
-    assert "bc/loglik" in page.locator("#calibration table").inner_text()
+    page.locator("#profiles-box summary").click()
+    assert loaded(page.locator("#profiles img")) and loaded(page.locator("#calibration img"))
+    assert "loglik" in page.locator("#calibration table").inner_text()
     assert "optimality gap" in page.locator("#summary").inner_text()
     assert errors == [] and all(url.startswith(("file://", "data:")) for url in requests)
+    page.context.close()
+
+
+def test_first_screen_shows_every_methods_summary_and_the_claims(browser, site):
+    page, errors, _ = open_page(browser, site)
+    height = page.viewport_size["height"]
+    for domain, methods in (("minigrid", {"BC-GRAIL", "GRAQL"}), ("panda_reach", {"BC-GRAIL"})):
+        summary = page.locator(f".domain-summary[data-domain={domain}]")
+        assert set(summary.locator("tbody td:first-child").all_inner_texts()) == methods
+        assert summary.bounding_box()["y"] < height
+    claims = page.locator("#claims table")
+    assert claims.locator("tbody tr").count() >= 1 and claims.bounding_box()["y"] < height
+    assert "verdict" in claims.locator("thead").inner_text()
+    assert errors == []
+    page.context.close()
+
+
+def test_no_main_board_header_carries_a_hash(browser, site):
+    import re
+
+    page, _, _ = open_page(browser, site)
+    headers = page.locator("section.board thead th").all_inner_texts()
+    hashes = {r.config_hash for r in rows()}
+    assert not [h for h in headers if re.search(r"[0-9a-f]{6}", h) or any(x[:6] in h for x in hashes)]
+    assert {"BC-GRAIL", "GRAQL"} <= set(headers) and "BC-GRAIL · kl" not in headers
+    page.context.close()
+
+
+def test_published_page_stays_small(site):
+    assert site.stat().st_size < 200_000 < MAX_PAGE_BYTES  # records.json, fits.json and figures/ hold the rest
+
+
+def test_superseded_and_variant_configurations_on_the_page(browser, odd_site):
+    page, errors, _ = open_page(browser, odd_site)
+    archive = page.locator("#archive table").inner_text()
+    assert "BC-GRAIL · archived" in archive and "ent_weight unset" in archive
+    assert "archived" not in " ".join(page.locator("section.board thead th").all_inner_texts())
+    assert "archived" not in page.locator("#summary").inner_text()
+    variants = page.locator("#variants details summary").all_inner_texts()  # named while folded
+    variants = " ".join(variants)
+    assert "BC-GRAIL · off_support stay" in variants and "BC-GRAIL · kl" in variants
+    iqm = page.locator(".domain-summary[data-domain=minigrid] tr[data-recognizer=bc] td").nth(1)
+    assert float(iqm.inner_text()) > 0.6  # the superseded runs (F1 0.1) do not count
+    assert errors == []
+    page.context.close()
+
+
+def test_names_like_markup_render_escaped_and_the_page_still_works(browser, odd_site):
+    page, errors, _ = open_page(browser, odd_site)
+    assert errors == []
+    board = page.locator("details.variant-board[data-domain=minigrid]")
+    board.locator("summary").click()
+    headers = board.locator("thead th").all_inner_texts()
+    for name in ODD_NAMES:
+        assert any(h.startswith(name) for h in headers)  # shown as text, not parsed as markup
+    assert page.locator("script").count() == 3  # the two JSON blocks and the page's own script
+    # Filters: the plugin named "</script>" has its options and its cells.
+    page.select_option("select[name=recognizer]", "</script>")
+    assert board.locator("td.cell:visible").count() == len(TASKS["GRAIL/MiniGrid-Optimal-v0"])
+    page.select_option("select[name=recognizer]", "")
+    # Sorting the odd column, then its details.
+    col = next(i for i, h in enumerate(headers) if h.startswith("<!--<script>"))
+    board.locator("thead th").nth(col).click()
+    assert board.locator("thead th").nth(col).get_attribute("aria-sort") == "descending"
+    board.locator("td.cell[data-recognizer='<!--<script>'] button.diag").first.click()
+    assert "<!--<script>" in page.locator("#details-title").inner_text()
+    assert errors == []
     page.context.close()
