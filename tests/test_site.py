@@ -254,7 +254,7 @@ def test_embedded_details_cannot_close_the_script(page):
     assert "bc</script>" not in html
     start = html.index('<script type="application/json" id="records">') + len('<script type="application/json" id="records">')
     embedded = json.loads(html[start:html.index("</script>", start)])
-    assert {r["id"] for r in embedded} == {r["id"] for r in page["records"]}  # every shown cell's details
+    assert {r["id"] for r in embedded} == {c.record for c in main_cells(page)}  # the main boards' cells
     for ref in ('src="http', "src='http", 'href="http', "href='http", "url(http", "@import"):
         assert ref not in html  # nothing loads from the network
 
@@ -352,14 +352,33 @@ def canonical(rs: list[ResultRow]) -> list[ResultRow]:
     return [r for r in rs if (r.recognizer, r.scorer) in (("bc", "mse"), ("graql", "kl"))]
 
 
-def open_page(browser, site: Path, **context):
+@pytest.fixture(scope="module")
+def served(odd_site):
+    """The odd page's folder served over HTTP on the loopback (a variant's details are read from beside it)."""
+    import functools
+    import http.server
+    import threading
+
+    class Quiet(http.server.SimpleHTTPRequestHandler):
+        def log_message(self, *args) -> None:  # noqa: ANN002
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(Quiet, directory=str(odd_site.parent)))
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{server.server_port}/index.html"
+    server.shutdown()
+    server.server_close()
+
+
+def open_page(browser, site: Path | str, **context):
     ctx = browser.new_context(viewport={"width": 1300, "height": 900}, **context)
     page = ctx.new_page()
     errors, requests = [], []
     page.on("console", lambda msg: errors.append(msg.text) if msg.type == "error" else None)
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     page.on("request", lambda req: requests.append(req.url))
-    page.goto(site.as_uri())
+    page.goto(site if isinstance(site, str) else site.as_uri())
     page.wait_for_load_state("load")
     return page, errors, requests
 
@@ -378,7 +397,8 @@ def test_page_loads_offline_without_errors(browser, site, tmp_path):
     assert page.title() == "grail-bench leaderboard"
     assert page.locator("td.cell").count() == n_records(rows())  # main boards and (folded) variants
     assert page.locator("section.board td.cell").count() == n_records(canonical(rows()))
-    assert page.evaluate("JSON.parse(document.getElementById('records').textContent).length") == n_records(rows())
+    embedded = "JSON.parse(document.getElementById('records').textContent).length"
+    assert page.evaluate(embedded) == n_records(canonical(rows()))  # variants' details are fetched on demand
     assert page.locator("form#filters").is_visible()
     figures = page.locator("section.board figure img")
     assert figures.count() and all(loaded(figures.nth(i)) for i in range(figures.count()))  # beside the page
@@ -534,7 +554,7 @@ def test_first_screen_shows_every_methods_summary_and_the_claims(browser, site):
         summary = page.locator(f".domain-summary[data-domain={domain}]")
         assert set(summary.locator("tbody td:first-child").all_inner_texts()) == methods
         assert summary.bounding_box()["y"] < height
-    claims = page.locator("#claims table")
+    claims = page.locator("#claims table").first  # the canonical configurations; the variants folded after
     assert claims.locator("tbody tr").count() >= 1 and claims.bounding_box()["y"] < height
     assert "verdict" in claims.locator("thead").inner_text()
     assert errors == []
@@ -571,8 +591,8 @@ def test_superseded_and_variant_configurations_on_the_page(browser, odd_site):
     page.context.close()
 
 
-def test_names_like_markup_render_escaped_and_the_page_still_works(browser, odd_site):
-    page, errors, _ = open_page(browser, odd_site)
+def test_names_like_markup_render_escaped_and_the_page_still_works(browser, served):
+    page, errors, _ = open_page(browser, served)
     assert errors == []
     board = page.locator("details.variant-board[data-domain=minigrid]")
     board.locator("summary").click()
@@ -589,6 +609,17 @@ def test_names_like_markup_render_escaped_and_the_page_still_works(browser, odd_
     board.locator("thead th").nth(col).click()
     assert board.locator("thead th").nth(col).get_attribute("aria-sort") == "descending"
     board.locator("td.cell[data-recognizer='<!--<script>'] button.diag").first.click()
-    assert "<!--<script>" in page.locator("#details-title").inner_text()
+    page.wait_for_function("document.getElementById('details-title').textContent.indexOf('script') >= 0")
+    assert "<!--<script>" in page.locator("#details-title").inner_text()  # read from records.json
+    assert page.locator("#details svg.heatmap").count() == 1  # its confusion
     assert errors == []
+    page.context.close()
+
+
+def test_a_variants_details_from_a_local_file_say_how_to_read_them(browser, odd_site):
+    page, errors, _ = open_page(browser, odd_site)
+    page.locator("details.variant-board summary").first.click()
+    page.locator("details.variant-board td.cell button.diag").first.click()
+    page.wait_for_function("!document.getElementById('details').hidden")
+    assert "serve this folder" in page.locator("#details").inner_text()
     page.context.close()

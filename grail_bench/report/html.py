@@ -15,13 +15,18 @@ their runs. Each cell shows the mean F1 over seeds with a 95 % bootstrap
 interval (:mod:`grail_bench.stats.robust`); the method cells whose intervals
 overlap the best one's are all marked, rather than one winner by a hair.
 
-To keep the page small (:data:`MAX_PAGE_BYTES`; the figures alone weigh about
-as much as the rest), figures are files of their own and the page embeds only
-what a cell's details need: its confusion matrix, and its configuration's fit
-diagnostics with training curves thinned to :data:`CURVE_POINTS` points and
-every value to :data:`DIGITS` significant digits. Beside it, ``records.json``
-holds every record in full (archived ones too, with their configuration
-hashes) and ``fits.json`` every fit diagnostic.
+To keep the page small (:data:`MAX_PAGE_BYTES`), what only some readers open
+lives beside it, measured on the published store: figures are files of their
+own (``figures/``, about 0.8 MB inline); the page embeds only what a main-board
+cell's details need (:data:`DETAILS`: its confusion matrix, and its
+configuration's fit diagnostics with training curves thinned to
+:data:`CURVE_POINTS` points and every value to :data:`DIGITS` significant
+digits); variant cells show mean and interval only, their details fetched from
+``records.json`` (every record in full, archived ones too, with their
+configuration hashes) and ``fits.json`` (every fit diagnostic) when asked for,
+which needs the folder served over HTTP (browsers fetch nothing from a local
+file); the timings table lists the canonical configurations (every
+configuration's are in the Markdown leaderboard).
 """
 
 from __future__ import annotations
@@ -37,7 +42,6 @@ from grail_bench.harness.ceiling import normalised
 from grail_bench.harness.diagnostics import FitSummary
 from grail_bench.report import plots
 from grail_bench.report.boards import ArchiveEntry, Board
-from grail_bench.report.configs import config_key
 from grail_bench.report.leaderboard import Leaderboard
 from grail_bench.report.reference import MARKS, Reported
 from grail_bench.report.rows import calibration_rows, timing_rows
@@ -56,6 +60,10 @@ DIGITS = 3
 
 #: Where figures are written, beside the page.
 FIGURES = "figures"
+
+#: What the page embeds of a main-board cell's record for its details (the rest, and every variant's, is in
+#: ``records.json``, fetched when a variant's details are asked for).
+DETAILS = ("id", "task", "column", "protocol", "observability", "recognizer", "config_hash", "confusion")
 
 
 @dataclass
@@ -290,12 +298,15 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0, summaries: S
                          "paper_verdict": c.verdict if c else None,
                          "normalised_f1": c.normalised if c else None,
                          "runs": sorted(cells.runs_of[_record_key(r)])})
-    shown_fits = {(r["task"], r["recognizer"], r["config_hash"]) for i, r in enumerate(exported) if i in cells.shown}
-    details = [{k: exported[i][k] for k in ("id", "task", "column", "protocol", "observability", "recognizer",
-                                            "config_hash", "confusion")} for i in sorted(cells.shown)]
+    main = sorted({c.record for s in sections for row in s.rows for c in row["cells"] if c is not None})
+    shown_fits = {(exported[i]["task"], exported[i]["recognizer"], exported[i]["config_hash"]) for i in main}
+    details = [{k: exported[i][k] for k in DETAILS} for i in main]
+    canonical = {c.label for s in sections for c in s.columns}
     return {"sections": sections, "variants": variants, "archive": _archive(board.archive, cells.runs_of),
-            "summaries": summaries, "claims": list(claims), "runs": cells.runs, "records": exported,
-            "details": details, "timings": timing_rows(records, board.fits),
+            "summaries": summaries, "claims": [c for c in claims if c.configuration in canonical],
+            "variant_claims": [c for c in claims if c.configuration not in canonical],
+            "runs": cells.runs, "records": exported, "details": details,
+            "timings": [t for t in timing_rows(records, board.fits) if t.column in canonical],
             "domains": sorted({s.domain for s in sections + variants}),
             "regimes": sorted({s.regime for s in sections if s.regime}),
             "recognizers": sorted({r.recognizer for r in records}), "reps": reps, "seed": seed,
