@@ -375,3 +375,90 @@ def test_fit_itself_refuses_stay_without_a_noop_before_training(no_noop, monkeyp
     with pytest.raises(UserError, match=r"^bc: off_support='stay' needs the domain's no-op action; the env's domain "
                                         r"declares no noop_action$"):
         make_recognizer("bc", off_support="stay").fit(train, make_task(MINIGRID).env_factory(), seed=0)
+
+
+# --- the packed evidence against its per-goal definitions ------------------------------------------------------------
+
+
+def _continuous_evidence() -> tuple[Any, Any, np.ndarray]:
+    """PandaReach's evidence, and states on, near, at the radius of and far from its goals' training states."""
+    from grail_bench.recognizers.evidence import Evidence, domain_noop
+
+    task, train = _panda()
+    env = task.make_env(task.goals[0])
+    evidence = Evidence(train, env.observation_space, env.action_space, domain_noop(env))
+    env.close()
+    rng = np.random.default_rng(0)
+    own = np.concatenate([np.concatenate(training_states(train[g])) for g in task.goals]).astype(np.float64)
+    direction = rng.normal(size=own.shape)
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    goal = task.goals[1]
+    at_radius = own[:40] + evidence.radius[goal] * direction[:40]  # as far as the radius from a training state
+    states = np.concatenate([own, own + 0.01 * direction, at_radius, own[:20] + 3.0 * direction[:20]])
+    return task, evidence, states
+
+
+def test_continuous_support_is_the_kd_trees_nearest_distance_against_the_radius():
+    task, evidence, states = _continuous_evidence()
+    off = evidence.off_support(task.goals, states)
+    flat = states.reshape(len(states), -1)
+    for k, goal in enumerate(task.goals):
+        expected = evidence._trees[goal].query(flat, k=1)[0] > evidence.radius[goal]  # the definition, per goal
+        np.testing.assert_array_equal(off[k], expected)
+        assert 0 < expected.sum() < len(states)  # both sides are tested
+    unknown = (9.0, 9.0, 9.0)  # a goal without demonstrations has no support; the order asked is kept
+    reordered = evidence.off_support([task.goals[2], unknown, task.goals[0]], states)
+    np.testing.assert_array_equal(reordered, np.stack([off[2], np.ones(len(states), bool), off[0]]))
+
+
+def test_continuous_occupancy_is_each_goals_kernel_density():
+    from grail_bench.recognizers.evidence import _log_kde, _squared_distances
+
+    task, evidence, states = _continuous_evidence()
+    scaled = (states - evidence._centre) / evidence._scale
+    jacobian = np.sum(np.log(evidence._scale))
+    got = evidence.log_occupancy(task.goals, states)
+    for k, goal in enumerate(task.goals):
+        points = evidence._scaled(np.concatenate(evidence.states[goal]))  # every visit, repeated states included
+        expected = _log_kde(_squared_distances(scaled, points), evidence.bandwidth, len(points), points.shape[1])
+        np.testing.assert_allclose(got[k], expected - jacobian, rtol=0, atol=1e-9)
+    assert got.min() < -1000  # far states too, where unshifted kernel terms would all underflow
+    unknown = (9.0, 9.0, 9.0)
+    reordered = evidence.log_occupancy([unknown, task.goals[3]], states)
+    box = evidence.observation_space
+    np.testing.assert_allclose(reordered[0], -np.sum(np.log(box.high.astype(float) - box.low)))  # the prior
+    np.testing.assert_array_equal(reordered[1], got[3])
+
+
+def test_continuous_evidence_takes_many_states_in_blocks(monkeypatch):
+    from grail_bench.recognizers import evidence as module
+
+    task, evidence, states = _continuous_evidence()
+    whole = evidence.off_support(task.goals, states), evidence.log_occupancy(task.goals, states)
+    monkeypatch.setattr(module, "_BLOCK_ENTRIES", 7 * evidence._packed.support.shape[1])  # 7 states a block
+    np.testing.assert_array_equal(evidence.off_support(task.goals, states), whole[0])
+    np.testing.assert_allclose(evidence.log_occupancy(task.goals, states), whole[1], rtol=0, atol=1e-12)
+
+
+def test_discrete_evidence_in_any_goal_order():
+    task, train, _ = _minigrid()
+    evidence = _fitted(task, train).evidence
+    states = np.concatenate([np.concatenate(training_states(train[g])) for g in task.goals])
+    off, occupancy = evidence.off_support(task.goals, states), evidence.log_occupancy(task.goals, states)
+    unknown = (99, 99)
+    asked = [task.goals[3], unknown, task.goals[0]]
+    np.testing.assert_array_equal(evidence.off_support(asked, states), np.stack([off[3], np.ones(len(states), bool),
+                                                                                  off[0]]))
+    prior = np.full(len(states), -np.log(9 * 9 * 4))  # MiniGrid's observation: x, y and direction
+    np.testing.assert_array_equal(evidence.log_occupancy(asked, states), np.stack([occupancy[3], prior, occupancy[0]]))
+    own = np.concatenate(training_states(train[task.goals[0]]))
+    assert not off[0][: len(own)].any() and off[0][len(own):].any()
+
+
+def test_the_other_goals_off_support_states_are_found_once_and_kept_read_only():
+    task, train, _ = _minigrid()
+    evidence = _fitted(task, train).evidence
+    first = evidence.others_off_support(task.goals[0])
+    assert evidence.others_off_support(task.goals[0]) is first and not first.flags.writeable
+    _, off = _on_and_off(train, task.goals[0])
+    np.testing.assert_array_equal(first, off)

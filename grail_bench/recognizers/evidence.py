@@ -153,7 +153,7 @@ class Evidence:
                 if len(distinct):
                     self._distinct[g] = distinct, visits
         self._others: dict[Goal, np.ndarray] = {}
-        self._replacements: dict[tuple[str, np.dtype], tuple[np.ndarray, np.ndarray | None]] = {}
+        self._replacements: dict[tuple[Any, ...], tuple[np.ndarray, np.ndarray | None]] = {}
         self.alpha: float | None = None
         self.bandwidth: float | None = None
         if self.discrete:
@@ -256,12 +256,14 @@ class Evidence:
         packed = self._packed
         terms = features @ packed.occupancy  # (T, M): -|x - y|^2 / (2 h^2) in scaled coordinates
         largest = np.maximum.reduceat(terms, packed.starts, axis=1)  # each goal's nearest state's term
-        terms -= np.repeat(largest, packed.sizes, axis=1)  # so the sums cannot underflow
+        by_goal = terms.reshape(len(terms), len(packed.goals), packed.width)
+        by_goal -= largest[:, :, None]  # so the sums cannot underflow
         np.maximum(terms, _EXPONENT_FLOOR, out=terms)  # a term that small is nothing beside the largest (1)
         np.exp(terms, out=terms)
         out = np.log(terms @ packed.counts)
         out += largest
-        out += packed.constant
+        if packed.constant is not None:
+            out += packed.constant
         return out
 
     def _log_volume(self) -> float:
@@ -343,29 +345,30 @@ class Evidence:
             return output
         mask = off[:, :, None]
         if output.probs is not None:
-            row, _ = self._replacement(rule, output.probs)
-            return dataclasses.replace(output, probs=np.where(mask, row, output.probs))
-        mean, std = self._replacement(rule, output.mean)
-        out = {"mean": np.where(mask, mean, output.mean)}
-        if std is not None and output.std is not None:
-            out["std"] = np.where(mask, std.astype(output.std.dtype), np.broadcast_to(output.std, output.mean.shape))
-        return dataclasses.replace(output, **out)
+            return dataclasses.replace(output, probs=np.where(mask, self._replacement(rule, output)[0], output.probs))
+        mean, std = self._replacement(rule, output)
+        if std is None:
+            return dataclasses.replace(output, mean=np.where(mask, mean, output.mean))
+        # a (K, 1, D) std (one per goal) becomes (K, T, D)
+        return dataclasses.replace(output, mean=np.where(mask, mean, output.mean), std=np.where(mask, std, output.std))
 
-    def _replacement(self, rule: str, like: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """What ``rule`` puts at an off-support state, in ``like``'s dtype: action probabilities (discrete actions)
-        or :meth:`replacement`'s mean and std; made once per rule and dtype."""
-        key = (rule, like.dtype)
+    def _replacement(self, rule: str, output: PolicyOutput) -> tuple[np.ndarray, np.ndarray | None]:
+        """What ``rule`` puts at an off-support state in ``output``'s dtypes: action probabilities (discrete
+        actions), or :meth:`replacement`'s mean and std (None: the policy's own); made once per rule and dtypes."""
+        first = output.probs if output.probs is not None else output.mean
+        key = (rule, first.dtype, None if output.std is None else output.std.dtype)
         if key not in self._replacements:
-            if isinstance(self.action_space, spaces.Discrete):
-                n = int(self.action_space.n)
+            if output.probs is not None:
+                n = first.shape[-1]
                 if rule == "uniform":
                     row = np.full(n, 1.0 / n)
                 else:
                     row = np.eye(n)[self._noop(rule) - int(self.action_space.start)]
-                self._replacements[key] = row.astype(like.dtype), None
+                self._replacements[key] = row.astype(first.dtype), None
             else:
                 mean, std = self.replacement(rule)
-                self._replacements[key] = mean.astype(like.dtype), std
+                kept = std is None or output.std is None
+                self._replacements[key] = mean.astype(first.dtype), None if kept else std.astype(output.std.dtype)
         return self._replacements[key]
 
     def replacement(self, rule: str) -> tuple[np.ndarray, np.ndarray | None]:
@@ -395,39 +398,45 @@ class _Packed:
     the training states' mean (which keeps the expansion's cancellation small).
 
     Attributes:
-        goals: The goals with training states, in the evidence's order; ``G`` of them, ``M`` stacked states.
+        goals: The goals with training states, in the evidence's order; ``G`` of them, ``M = G * width`` stacked
+            states: each goal's distinct ones, padded to ``width`` by repeating its first (with no visits).
         centre: ``(D,)`` the training states' mean.
-        starts, sizes: ``(G,)`` where each goal's states begin among the stacked ones, and how many it has.
+        starts: ``(G,)`` where each goal's states begin among the stacked ones.
+        width: The stacked states of each goal.
         support: ``(2D + 1, M)``: squared Euclidean distances in raw coordinates.
         low, high: ``(G,)`` each goal's squared support radius less and plus the rounding allowance; a squared
             distance between them is settled by the goal's KD-tree.
         occupancy: ``(2D + 1, M)``: ``-|x - y|^2 / (2 h^2)`` in scaled coordinates.
-        counts: ``(M, G)``: each stacked state's visits by its goal (zero for the others).
-        constant: ``(G,)``: each goal's log normaliser (its visits, the kernel's and the scaling's).
+        counts: ``(M, G)``: each stacked state's visits by its goal (zero for the others), times ``exp(constant)``.
+        constant: ``(G,)``: each goal's log normaliser (its visits, the kernel's and the scaling's) where ``counts``
+            does not carry it (zero where it does, when its exponential is a normal float; None: every goal's does).
+        ones: ``(B, 1)`` ones, the last feature of up to ``B`` states.
     """
 
     goals: list[Goal]
     centre: np.ndarray
     starts: np.ndarray
-    sizes: np.ndarray
+    width: int
     support: np.ndarray
     low: np.ndarray
     high: np.ndarray
     occupancy: np.ndarray
     counts: np.ndarray
-    constant: np.ndarray
+    constant: np.ndarray | None
+    ones: np.ndarray
 
     @classmethod
     def of(cls, evidence: Evidence) -> _Packed:
         goals = list(evidence._distinct)
-        stacked = [evidence._distinct[g][0] - evidence._centre for g in goals]
-        y = np.concatenate(stacked)
+        width = max(len(evidence._distinct[g][0]) for g in goals)
+        # each goal's states padded to the same number by repeating its first one, with no visits
+        y = np.concatenate([np.concatenate([d, np.repeat(d[:1], width - len(d), axis=0)])
+                            for d, _ in (evidence._distinct[g] for g in goals)]) - evidence._centre
         m, dim = y.shape
-        sizes = np.array([len(s) for s in stacked])
-        starts = np.cumsum(sizes) - sizes
         counts = np.zeros((m, len(goals)))
         for k, g in enumerate(goals):
-            counts[starts[k]: starts[k] + sizes[k], k] = evidence._distinct[g][1]
+            visits = evidence._distinct[g][1]
+            counts[k * width: k * width + len(visits), k] = visits
         squared = np.einsum("md,md->m", y, y)
         support = np.concatenate([-2.0 * y.T, np.ones((dim, m)), squared[None]])
         radius2 = np.array([evidence.radius[g] ** 2 for g in goals])
@@ -439,17 +448,18 @@ class _Packed:
                                     -kappa * (weight @ (y * y).T)[None]])
         jacobian = float(np.sum(np.log(evidence._scale)))
         constant = -np.log(counts.sum(axis=0)) - dim * math.log(h * math.sqrt(2.0 * math.pi)) - jacobian
-        return cls(goals, evidence._centre, starts, sizes, support, radius2 - allowance, radius2 + allowance,
-                   occupancy, counts, constant)
+        folded = np.abs(constant) < 600.0  # exp(constant) a normal float: the visits carry it
+        counts *= np.where(folded, np.exp(np.where(folded, constant, 0.0)), 1.0)
+        constant = None if folded.all() else np.where(folded, 0.0, constant)
+        return cls(goals, evidence._centre, np.arange(len(goals)) * width, width, support, radius2 - allowance,
+                   radius2 + allowance,
+                   occupancy, counts, constant, np.ones((256, 1)))
 
     def features(self, states: np.ndarray) -> np.ndarray:
         """``(T, 2D + 1)``: ``[x', x' * x', 1]`` for ``(T, ...)`` states."""
-        dim = len(self.centre)
-        out = np.empty((len(states), 2 * dim + 1))
-        np.subtract(states.reshape(len(states), dim), self.centre, out=out[:, :dim])
-        np.multiply(out[:, :dim], out[:, :dim], out=out[:, dim: 2 * dim])
-        out[:, 2 * dim] = 1.0
-        return out
+        centred = states.reshape(len(states), len(self.centre)) - self.centre
+        ones = self.ones[: len(states)] if len(states) <= len(self.ones) else np.ones((len(states), 1))
+        return np.concatenate((centred, centred * centred, ones), axis=1)
 
     def by_blocks(self, states: np.ndarray, block: Any) -> np.ndarray:
         """``(G, T)``: ``block(features, states)``'s ``(T, G)`` over blocks of states small enough that their

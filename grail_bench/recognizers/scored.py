@@ -102,10 +102,19 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         Raises:
             UserError: In one line, when a setting needs the domain's no-op action and the domain declares none.
         """
+        self._refuse_without_noop(getattr(task.spec, "noop_action", None), f"domain {task.domain!r}")
+
+    def _refuse_without_noop(self, noop: Any, domain: str) -> list[str]:
+        """The settings that need the domain's no-op action (:meth:`noop_settings`), refused if ``noop`` is None.
+
+        Raises:
+            UserError: In one line naming those settings and ``domain``.
+        """
         needs = self.noop_settings()
-        if needs and getattr(task.spec, "noop_action", None) is None:
-            raise UserError(f"{self.name}: {' and '.join(needs)} needs the domain's no-op action; domain "
-                            f"{task.domain!r} declares no noop_action")
+        if needs and noop is None:
+            raise UserError(f"{self.name}: {' and '.join(needs)} needs the domain's no-op action; {domain} declares "
+                            "no noop_action")
+        return needs
 
     def learn_evidence(self, demos: Demos, env_factory: EnvFactory) -> Evidence | None:
         """Learn where each goal's training demonstrations went (:class:`Evidence`), keep it and return it.
@@ -122,10 +131,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
             observation_space, action_space, noop = env.observation_space, env.action_space, domain_noop(env)
         finally:
             env.close()
-        needs = self.noop_settings()
-        if needs and noop is None:
-            raise UserError(f"{self.name}: {' and '.join(needs)} needs the domain's no-op action; the env's domain "
-                            "declares no noop_action")
+        needs = self._refuse_without_noop(noop, "the env's domain")
         try:
             self.evidence, self._evidence_error = Evidence(demos, observation_space, action_space, noop), ""
         except UserError as exc:
