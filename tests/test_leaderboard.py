@@ -70,7 +70,7 @@ def test_reported_values_sit_beside_the_canonical_configuration_only():
     text = markdown(board.boards, records, variants=board.variants)
     assert "| MiniGrid-Optimal | 2 | 10% | – | **0.50 ± 0.10 =** | 0.73 ± 0.33 [0.49, 0.90] |\n" in text
     # Another scorer is a named variant, in its own board, with no reported value beside it.
-    assert "## Variants" in text and "### minigrid: variants" in text
+    assert "## Variants" in text and "### minigrid: BC-GRAIL variants" in text
     assert "| task | goals | obs | ceiling | BC-GRAIL · wasserstein |" in text
     assert "| MiniGrid-Optimal | 2 | 10% | – | **0.40 ± 0.10** |" in text
     assert text.count("*(paper)*") == 2  # the header note and one column
@@ -136,7 +136,7 @@ def test_a_method_run_in_several_configurations_keeps_its_canonical_column_and_n
     (main,) = board.boards
     (variants,) = board.variants
     assert main.columns == ["DRACO"] and variants.columns == ["DRACO · ppo_steps 300 000"]
-    assert variants.title == "panda_reach: variants" and not board.archive
+    assert variants.title == "panda_reach: DRACO variants" and not board.archive
     # Same settings on other task parameters: the same column, a row per reading of the parameters.
     other = record(task, "draco", "wasserstein", 0.02, 0.7,
                    task_params={**defaults(task), "noise_std": 0.2} if "noise_std" in defaults(task) else

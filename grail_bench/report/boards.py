@@ -5,8 +5,8 @@ archived. **Main boards** (one per domain, regime and observation protocol, like
 canonical configurations: a row per goal count and observability level (and per reading of the task's
 parameters, where runs used other than its defaults), a column per method named as the paper names it, each
 cell an :class:`~grail_bench.harness.modes.offline.OfflineRecord`. References (the demonstrator) sit after the
-methods and never count as a row's best. **Variant boards** (one per domain) show every named variant, a
-column per label. **Archived** configurations are listed (:func:`archive`), in no board.
+methods and never count as a row's best. **Variant boards** (one per domain and method) show every named
+variant, a column per label. **Archived** configurations are listed (:func:`archive`), in no board.
 
 Values a publication reports are attached beside canonical columns, on the rows of each task's default
 protocol and parameters only; Bayes ceilings come in already computed
@@ -68,7 +68,7 @@ class Board:
     """One table: its rows, columns (labels), cells, reported values and ceilings.
 
     Attributes:
-        title: ``minigrid / optimal (subset)`` (main) or ``minigrid: variants``.
+        title: ``minigrid / optimal (subset)`` (main) or ``minigrid: BC-GRAIL variants``.
         columns: Column labels, methods first (sorted), references after them.
         kind: ``canonical`` (a main board) or ``variant``.
         domain: The domain of its tasks.
@@ -307,7 +307,8 @@ def build_boards(records: Iterable[OfflineRecord], reference: dict[tuple[str, st
 def variant_boards(records: Iterable[OfflineRecord], ceilings: dict[Cell, Ceiling] | None = None,
                    pairs_only: dict[Cell, Ceiling] | None = None,
                    configs: dict[ConfigKey, Configuration] | None = None) -> list[Board]:
-    """One board per domain of its named variants, a column per label (no reported values beside them)."""
+    """One board per domain and method of its named variants, a column per label (no reported values beside
+    them): a method's variants share their rows, so the boards stay dense."""
     records = list(records)
     configs = configs if configs is not None else configurations(records)
     rows, boards = _Rows(records), _Boards(ceilings, pairs_only)
@@ -315,7 +316,7 @@ def variant_boards(records: Iterable[OfflineRecord], ceilings: dict[Cell, Ceilin
         config = configs[config_key(r)]
         if config.kind == "variant":
             domain = rows.domain(r.task)
-            boards.add(f"{domain}: variants", "variant", domain, "", r, rows.row(r), config)
+            boards.add(f"{domain}: {config.method} variants", "variant", domain, "", r, rows.row(r), config)
     return boards.done()
 
 

@@ -46,7 +46,7 @@ class Leaderboard:
         studies: Per mode beyond the offline one that has rows, its :class:`Study`.
         fits: The offline fits' diagnostics by ``(task, recognizer, config hash)``, where stored.
         configs: Every record's configuration by :func:`~grail_bench.report.configs.config_key`.
-        variants: One board per domain of the named variants.
+        variants: One board per domain and method of the named variants.
         archive: The archived configurations.
     """
 
