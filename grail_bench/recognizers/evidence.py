@@ -345,12 +345,12 @@ class Evidence:
             return output
         mask = off[:, :, None]
         if output.probs is not None:
-            return dataclasses.replace(output, probs=np.where(mask, self._replacement(rule, output)[0], output.probs))
+            return dataclasses.replace(output, probs=_put(output.probs, mask, self._replacement(rule, output)[0]))
         mean, std = self._replacement(rule, output)
         if std is None:
-            return dataclasses.replace(output, mean=np.where(mask, mean, output.mean))
+            return dataclasses.replace(output, mean=_put(output.mean, mask, mean))
         # a (K, 1, D) std (one per goal) becomes (K, T, D)
-        return dataclasses.replace(output, mean=np.where(mask, mean, output.mean), std=np.where(mask, std, output.std))
+        return dataclasses.replace(output, mean=_put(output.mean, mask, mean), std=np.where(mask, std, output.std))
 
     def _replacement(self, rule: str, output: PolicyOutput) -> tuple[np.ndarray, np.ndarray | None]:
         """What ``rule`` puts at an off-support state in ``output``'s dtypes: action probabilities (discrete
@@ -470,6 +470,14 @@ class _Packed:
             return block(self.features(states), states).T
         return np.concatenate([block(self.features(states[i: i + step]), states[i: i + step])
                                for i in range(0, len(states), step)]).T
+
+
+def _put(array: np.ndarray, mask: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """A copy of ``array`` holding ``value`` where ``mask`` is set (``np.where(mask, value, array)``, for an
+    ``array`` of the result's shape and dtype)."""
+    out = array.copy()
+    np.copyto(out, value, where=mask)
+    return out
 
 
 def _rows(goals: Sequence[Goal], known: list[Goal]) -> np.ndarray | None:

@@ -20,8 +20,9 @@ from grail_bench.task.observation import observe
 
 MINIGRID = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
 TRAIN, TEST = MINIGRID.split(MINIGRID.generate_demos(seed=0))
-#: (off_support, scorer) pairs, plain MSE first.
-VARIANTS = [("trust", "mse"), ("stay", "mse"), ("uniform", "mse"), ("trust", "occupancy")]
+#: (off_support, scorer) pairs, plain MSE first; ``loglik`` is the ``occupancy`` scorer less the occupancy (what the
+#: scorer's own arithmetic costs beside MSE's, with no evidence read).
+VARIANTS = [("trust", "mse"), ("stay", "mse"), ("uniform", "mse"), ("trust", "occupancy"), ("trust", "loglik")]
 
 
 def _variant(rec: Any, off_support: str) -> Any:
