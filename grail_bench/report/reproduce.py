@@ -41,7 +41,7 @@ from grail_bench.harness.planning import Planned, RecognizerSpec
 from grail_bench.harness.store import ResultsStore
 from grail_bench.harness.sweep import Request, SweepSummary, plan_request
 from grail_bench.report import leaderboard, plots
-from grail_bench.report.boards import build_boards, own_scorer_records, short_name
+from grail_bench.report.boards import own_scorer_records, short_name
 from grail_bench.report.html import write_site
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.report.rows import calibration_rows
@@ -315,7 +315,9 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
                   executor: Executor | None = None, plans: Plans = ()) -> list[Path]:
     """Tables, figures, the web page (``site/``, unless ``site`` is False) and the manifest into ``out``.
 
-    The paper's tables and figures come from the offline rows of the grid's sections; every other mode with
+    The paper's tables and figures come from the offline rows of the grid's sections (``TABLES.md``: the main
+    boards of canonical configurations, then the named variants, such as a profile's reduced budgets, and the
+    archived configurations, every cell with its 95 % bootstrap interval); every other mode with
     rows adds its table (``ONLINE.md``, ``OPEN_SET.md``) and the online runs their figure (``online.png``);
     budget studies write ``BUDGETS.md`` and ``budgets.png``. Only the rows the profile's requests own count
     (other configurations in a shared store do not); ``fits`` are the stored fit diagnostics. Ceilings missing
@@ -334,10 +336,9 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     title = f"grail-bench reproduce: {profile.name}"
     written: list[Path] = []
     if offline:
-        own = own_scorer_records(board.records)
-        paper_boards = build_boards(own, reference, board.ceilings)
         written.append(out / "TABLES.md")
-        written[-1].write_text(markdown(paper_boards, own, ci=True, title=title, fits=board.fits), encoding="utf-8")
+        written[-1].write_text(markdown(board.boards, board.records, ci=True, title=title, fits=board.fits,
+                                        variants=board.variants, archive=board.archive), encoding="utf-8")
         written += plots.write_all(board.records, out, models=model_sizes(board.records))
         written += write_robust(board, out)
     written += write_studies(board, out)
