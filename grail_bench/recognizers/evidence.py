@@ -14,7 +14,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import field
-from typing import TYPE_CHECKING, Any, Literal, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Literal, Sequence
 
 import numpy as np
 from gymnasium import spaces
@@ -106,8 +106,15 @@ class Evidence:
     summed over every demonstration of every goal with at least two (at most :data:`HELD_OUT_STATES` evenly
     spaced states per goal for ``h``). Identical demonstrations drive both to the grid's smallest value, which
     is then the floor (no jitter needed: the kernel has no covariance to estimate). Where no goal has two
-    demonstrations, :data:`ALPHA_DEFAULT` and :data:`BANDWIDTH_DEFAULT`. A goal without demonstrations has the
-    prior alone: uniform over the observation space (refused on an unbounded box).
+    demonstrations, :data:`ALPHA_DEFAULT` and :data:`BANDWIDTH_DEFAULT`. A goal without demonstrations (or whose
+    demonstrations take no action) has the prior alone: uniform over the observation space (refused on an
+    unbounded box).
+
+    On continuous observations every goal's distinct training states are stacked at first use (:class:`_Packed`),
+    so that scoring meets all of them in one matrix product: the support compares squared distances with the
+    squared radius (a state within rounding of it is measured by the goal's KD-tree, as the radius was) and the
+    density sums each goal's kernel terms shifted by its nearest one; both agree with the per-goal definitions
+    above to 1e-9 (``tests/test_support.py``).
 
     Args:
         demos: The training demonstrations of every fitted goal.
@@ -452,8 +459,7 @@ class _Packed:
         counts *= np.where(folded, np.exp(np.where(folded, constant, 0.0)), 1.0)
         constant = None if folded.all() else np.where(folded, 0.0, constant)
         return cls(goals, evidence._centre, np.arange(len(goals)) * width, width, support, radius2 - allowance,
-                   radius2 + allowance,
-                   occupancy, counts, constant, np.ones((256, 1)))
+                   radius2 + allowance, occupancy, counts, constant, np.ones((256, 1)))
 
     def features(self, states: np.ndarray) -> np.ndarray:
         """``(T, 2D + 1)``: ``[x', x' * x', 1]`` for ``(T, ...)`` states."""
@@ -461,7 +467,7 @@ class _Packed:
         ones = self.ones[: len(states)] if len(states) <= len(self.ones) else np.ones((len(states), 1))
         return np.concatenate((centred, centred * centred, ones), axis=1)
 
-    def by_blocks(self, states: np.ndarray, block: Any) -> np.ndarray:
+    def by_blocks(self, states: np.ndarray, block: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> np.ndarray:
         """``(G, T)``: ``block(features, states)``'s ``(T, G)`` over blocks of states small enough that their
         ``(T, M)`` products stay within :data:`_BLOCK_ENTRIES` entries, transposed."""
         states = np.asarray(states)
