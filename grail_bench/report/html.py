@@ -32,6 +32,7 @@ configuration's are in the Markdown leaderboard).
 from __future__ import annotations
 
 import json
+import re
 from collections import defaultdict
 from dataclasses import dataclass, field
 from importlib.metadata import version
@@ -337,9 +338,10 @@ def render(page: dict[str, Any], title: str = "grail-bench leaderboard") -> str:
                              autoescape=jinja2.select_autoescape(["html"]), undefined=jinja2.StrictUndefined,
                              trim_blocks=True, lstrip_blocks=True)
     env.filters["f2"] = lambda v: "–" if v is None or v != v else f"{v:.2f}"
-    return env.get_template("leaderboard.html").render(
+    html = env.get_template("leaderboard.html").render(
         **page, title=title, version=version("grail-bench"), records_json=json_for_script(page["details"]),
         fits_json=json_for_script(page["shown_fits"]))
+    return re.sub(r"\n[ \t]+", "\n", html)  # the template's indentation: a tenth of the page, shown nowhere
 
 
 def write_site(board: Leaderboard, out: str | Path, title: str = "grail-bench leaderboard",
