@@ -54,7 +54,7 @@ from grail_bench.stats.robust import Interval, pooled_mean, stratified_bootstrap
 MAX_PAGE_BYTES = 1_500_000
 
 #: Training curves embedded for a cell's details are thinned to at most this many points each.
-CURVE_POINTS = 60
+CURVE_POINTS = 40
 
 #: Significant digits of the diagnostics embedded for a cell's details.
 DIGITS = 3
