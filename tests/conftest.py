@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from typing import Any, Sequence
+
 import numpy as np
 import pytest
 
 import grail_bench
+from grail_bench.stats.metrics import Summary, summarize
 
 
 def chmod_stops_writes() -> bool:
@@ -90,3 +93,59 @@ def run_mode(mode, task, planned, seed, levels, protocol, demos=None, rounding="
     job = SeedRun(task=task, planned=planned, seed=seed, observation=ObservationSpec.resolve(protocol, rounding, levels),
                   versions="{}", demos=demos if demos is not None else task.generate_demos(seed))
     return MODES[mode].run(job)
+
+
+def stored_config(task_id: str, name: str, settings: dict | None = None, drop: str | None = None,
+                  task_params: dict | None = None) -> tuple[str, str]:
+    """``(config JSON, config hash)`` as planning stores them for recognizer ``name`` built with ``settings``.
+
+    Args:
+        task_id: The task, at its defaults unless ``task_params`` gives the parameters the run used.
+        drop: A setting the stored configuration lacks (as stored before the setting existed); the hash is then
+            that of the configuration without it, as the earlier version computed it.
+    """
+    import json
+
+    from grail_bench.harness.planning import config_hash, fitted_config
+    from grail_bench.recognizers.registry import build
+    from grail_bench.task import find_task
+
+    config = fitted_config(find_task(task_id, task_params), name, build(name, settings).config)
+    if drop is not None:
+        del config["config"][drop]
+    return json.dumps(config, sort_keys=True, default=str), config_hash(config)
+
+
+def offline_record(task_id: str = "GRAIL/MiniGrid-Optimal-v0", name: str = "bc", level: float = 0.1,
+                   f1: float | Sequence[float] | Summary = 0.5, *, scorer: str | None = None,
+                   settings: dict | None = None, drop: str | None = None, task_params: dict | None = None,
+                   **fields: Any) -> Any:
+    """An :class:`~grail_bench.harness.modes.offline.OfflineRecord` as aggregating stored rows makes it.
+
+    Its configuration, hash, task parameters and recognizer settings are those of :func:`stored_config`; its
+    scorer the recognizer's default and its protocol the task's unless given.
+
+    Args:
+        f1: Per-seed values (summarised as the harness does, :func:`grail_bench.stats.metrics.summarize`), a
+            ready :class:`~grail_bench.stats.metrics.Summary`, or a mean alone: then two seeds 0.1 either side of
+            it, reported with std 0.1 and that interval.
+        **fields: Any other record field (``seeds``, ``protocol``, ``config_hash``, ``accuracy_mean``, ...).
+    """
+    from grail_bench.harness.modes.offline import OfflineRecord
+    from grail_bench.harness.planning import recognizer_config
+    from grail_bench.harness.planning import task_params as stored_params
+    from grail_bench.recognizers.registry import recognizer_info
+
+    if isinstance(f1, (int, float)):
+        f1 = Summary(f1, 0.1, (f1 - 0.1, f1 + 0.1), f1, (f1 - 0.1, f1 + 0.1))
+    elif not isinstance(f1, Summary):
+        f1 = summarize(f1)
+    config_json, hashed = stored_config(task_id, name, settings, drop, task_params)
+    n = len(f1.values)
+    mean = f1.mean
+    base = dict(task=task_id, recognizer=name, scorer=scorer or recognizer_info(name).default_scorer,
+                protocol=grail_bench.make_task(task_id).protocol_label, config_hash=hashed, n_seeds=n,
+                seeds=list(range(n)), fit_seconds_per_goal=1.0, task_params=stored_params(config_json),
+                recognizer_config=recognizer_config(config_json), observability=level, f1=f1, accuracy_mean=mean,
+                precision_mean=mean, recall_mean=mean, score_us_per_observation=10.0, tie_rate=0.0)
+    return OfflineRecord(**(base | fields))

@@ -5,16 +5,14 @@ from __future__ import annotations
 import dataclasses
 
 import pytest
+from conftest import offline_record
 from rich.console import Console
 
 from grail_bench.harness.modes.offline import OfflineRecord
-from grail_bench.harness.planning import config_hash, fitted_config
-from grail_bench.recognizers.registry import build
 from grail_bench.report import leaderboard
 from grail_bench.report.boards import BoardRow
 from grail_bench.report.reference import Reported
 from grail_bench.report.text import LEGEND, rich_tables
-from grail_bench.task import make_task
 
 TASK = "GRAIL/MiniGrid-Optimal-4Goals-v0"
 METHODS = {"bc": ("mse", 0.9), "gail": ("mse", 0.7), "airl": ("mse", 0.65), "graql": ("kl", 0.8),
@@ -23,17 +21,8 @@ METHODS = {"bc": ("mse", 0.9), "gail": ("mse", 0.7), "airl": ("mse", 0.65), "gra
 
 def record(rec: str, level: float, settings: dict | None = None) -> OfflineRecord:
     """A record of ``rec`` with ``settings`` on :data:`TASK`, its configuration and hash as planning stores them."""
-    task = make_task(TASK)
-    config = fitted_config(task, rec, build(rec, settings).config)
     scorer, f1 = METHODS[rec]
-    return OfflineRecord(task=TASK, recognizer=rec, scorer=scorer, protocol=task.protocol_label,
-                         config_hash=config_hash(config), recognizer_config=config["config"], n_seeds=2, seeds=[0, 1],
-                         fit_seconds_per_goal=1.0, observability=level,
-                         task_params={**task.params, **task.env_params, "n_demos": task.n_demos,
-                                      "n_train": task.n_train},
-                         f1_mean=f1, f1_std=0.05, f1_ci95_low=f1 - 0.1, f1_ci95_high=f1 + 0.1, f1_iqm=f1,
-                         f1_values=(f1 - 0.05, f1 + 0.05), accuracy_mean=f1, precision_mean=f1, recall_mean=f1,
-                         score_us_per_observation=1.0, tie_rate=0.0)
+    return offline_record(TASK, rec, level, f1, scorer=scorer, settings=settings)
 
 
 @pytest.fixture(scope="module")

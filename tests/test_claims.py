@@ -5,13 +5,11 @@ from __future__ import annotations
 import math
 
 import pytest
+from conftest import offline_record
 
 from grail_bench.core.errors import UserError
 from grail_bench.harness.modes.offline import OfflineRecord
-from grail_bench.harness.planning import config_hash, fitted_config
-from grail_bench.recognizers.registry import build
 from grail_bench.report.claims import CLAIMS, claims_markdown, headline_claims, verdict
-from grail_bench.task import make_task
 
 BIASED = "GRAIL/MiniGrid-Biased-v0"
 LEVELS = (0.2, 0.3, 0.4)
@@ -19,29 +17,10 @@ NEAR_PERFECT, GRAQL_CHANCE, BIASED_GAIN = (c.claim for c in CLAIMS[:3])
 PANDA_OPTIMAL = "GRAIL/PandaReach-Optimal-v0"
 
 
-def record(task_id: str, name: str, level: float, f1: tuple[float, ...], *, seeds: tuple[int, ...] | None = None,
-           scorer: str | None = None, settings: dict | None = None, protocol: str | None = None,
-           stored_hash: str | None = None) -> OfflineRecord:
-    """A record as the harness stores it: the configuration hash planning computes for the task and settings
-    (``stored_hash`` overrides it, as for a run of an earlier version), the task's default protocol."""
-    task = make_task(task_id)
-    caps = build(name, settings)
-    seeds = seeds if seeds is not None else tuple(range(len(f1)))
-    mean = sum(f1) / len(f1)
-    return OfflineRecord(
-        task=task_id, recognizer=name, scorer=scorer or caps.default_scorer,
-        protocol=protocol or task.protocol_label,
-        config_hash=stored_hash or config_hash(fitted_config(task, name, caps.config)),
-        n_seeds=len(f1), seeds=list(seeds), fit_seconds_per_goal=1.0,
-        task_params={**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train},
-        recognizer_config=caps.config, observability=level, f1_mean=mean, f1_std=0.0, f1_ci95_low=mean,
-        f1_ci95_high=mean, f1_iqm=mean, f1_values=tuple(f1), accuracy_mean=mean, precision_mean=mean,
-        recall_mean=mean, score_us_per_observation=1.0, tie_rate=0.0)
-
-
 def biased(name: str, f1: tuple[float, ...], **kwargs) -> list[OfflineRecord]:
-    """``name``'s records at every level of the paper's biased task, each with the same per-seed F1."""
-    return [record(BIASED, name, level, f1, **kwargs) for level in LEVELS]
+    """``name``'s records at every level of the paper's biased task, each with the same per-seed F1 (``kwargs``: as
+    :func:`conftest.offline_record` takes them)."""
+    return [offline_record(BIASED, name, level, f1, **kwargs) for level in LEVELS]
 
 
 def row(results, claim: str, configuration: str):
@@ -89,7 +68,7 @@ def test_named_variants_get_their_own_rows_and_gains_are_over_the_canonical_base
 
 
 def test_gains_pair_the_seeds_both_configurations_ran():
-    runs = biased("bc", (1.0, 0.5, 0.5), seeds=(0, 1, 2)) + biased("graql", (0.0, 0.5, 0.0), seeds=(1, 2, 3))
+    runs = biased("bc", (1.0, 0.5, 0.5), seeds=[0, 1, 2]) + biased("graql", (0.0, 0.5, 0.0), seeds=[1, 2, 3])
     gain = row(headline_claims(runs, reps=200), BIASED_GAIN, "BC-GRAIL")
     assert gain.estimate == pytest.approx(0.25)  # seeds 1 and 2: 0.5 - 0.0 and 0.5 - 0.5
 
@@ -104,7 +83,7 @@ def test_claims_without_their_strata_are_not_measured_but_still_listed(results):
 
 
 def test_a_missing_level_or_baseline_leaves_the_claim_not_measured():
-    runs = [record(BIASED, "bc", level, (1.0, 1.0)) for level in LEVELS[:2]] + biased("graql", (0.5, 0.5))
+    runs = [offline_record(BIASED, "bc", level, (1.0, 1.0)) for level in LEVELS[:2]] + biased("graql", (0.5, 0.5))
     results = headline_claims(runs, reps=200)
     near_perfect = row(results, NEAR_PERFECT, "BC-GRAIL")
     assert near_perfect.verdict == "not measured" and "2 of 3" in near_perfect.measured
@@ -114,7 +93,7 @@ def test_a_missing_level_or_baseline_leaves_the_claim_not_measured():
 
 
 def test_archived_configurations_and_other_protocols_are_left_out():
-    runs = (biased("bc", (0.0, 0.0), stored_hash="0123456789abcdef")  # an earlier version's run
+    runs = (biased("bc", (0.0, 0.0), config_hash="0123456789abcdef")  # an earlier version's run
             + biased("bc", (0.0, 0.0), protocol="prefix+floor"))
     results = headline_claims(runs, reps=200)
     assert not [r for r in results if "archived" in r.configuration]
@@ -140,8 +119,9 @@ def test_the_largest_gain_over_draco_is_read_from_the_best_noisy_condition():
     tasks = ("GRAIL/PandaReach-Gaussian-0.1-v0", "GRAIL/PandaReach-Gaussian-0.3-v0",
              "GRAIL/PandaReach-Uniform-0.1-v0", "GRAIL/PandaReach-Uniform-0.3-v0")
     gains = (0.1, 0.4, 0.0, 0.2)
-    runs = [r for task, gain in zip(tasks, gains) for r in (record(task, "bc", 0.02, (0.5 + gain,) * 4),
-                                                            record(task, "draco", 0.02, (0.5,) * 4))]
+    runs = [r for task, gain in zip(tasks, gains)
+            for r in (offline_record(task, "bc", 0.02, (0.5 + gain,) * 4),
+                      offline_record(task, "draco", 0.02, (0.5,) * 4))]
     (noisy,) = [r for r in headline_claims(runs, reps=200) if r.configuration == "BC-GRAIL" and "noisy" in r.claim]
     assert noisy.estimate == pytest.approx(0.4) and noisy.verdict == "holds"
 

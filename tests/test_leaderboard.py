@@ -5,14 +5,12 @@ from __future__ import annotations
 
 import dataclasses
 
-from grail_bench.harness.modes.offline import OfflineRecord
-from grail_bench.harness.planning import config_hash, fitted_config
-from grail_bench.recognizers.registry import build
+from conftest import offline_record
+
 from grail_bench.report import leaderboard
 from grail_bench.report.boards import placement_counts
 from grail_bench.report.reference import Reported
 from grail_bench.report.text import markdown
-from grail_bench.task import find_task
 
 
 def defaults(task_id):
@@ -21,23 +19,6 @@ def defaults(task_id):
 
     task = grail_bench.make_task(task_id)
     return {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
-
-
-def record(task, rec, scorer, obs, f1, protocol=None, settings=None, **fields):
-    """A stored record of ``rec`` with ``settings`` on ``task`` (its configuration and hash as planning stores
-    them, for the record's task parameters), under the task's default protocol unless ``protocol`` says."""
-    import grail_bench
-
-    protocol = protocol or grail_bench.make_task(task).protocol_label
-    base = dict(task_params=defaults(task), task=task, recognizer=rec, scorer=scorer, observability=obs, f1_mean=f1, f1_std=0.1,
-                f1_ci95_low=f1 - 0.1, f1_ci95_high=f1 + 0.1, f1_iqm=f1, f1_values=(f1 - 0.1, f1 + 0.1),
-                protocol=protocol, n_seeds=2, seeds=[0, 1], fit_seconds_per_goal=1.0,
-                score_us_per_observation=10.0, tie_rate=0.0, accuracy_mean=f1, precision_mean=f1, recall_mean=f1)
-    base |= fields
-    config = fitted_config(find_task(task, base["task_params"]), rec, build(rec, settings).config)
-    base.setdefault("config_hash", config_hash(config))
-    base.setdefault("recognizer_config", config["config"])
-    return OfflineRecord(**base)
 
 
 def built(records, reference=None, ceiling_samples=None):
@@ -51,9 +32,9 @@ def build_boards(records, reference=None, ceiling_samples=2000):
 
 
 def test_tasks_with_equal_goal_counts_get_their_own_rows():
-    records = [record("GRAIL/PandaReach-Gaussian-0.1-v0", "bc", "mse", 0.02, 0.9),
-               record("GRAIL/PandaReach-Gaussian-0.3-v0", "bc", "mse", 0.02, 0.6),
-               record("GRAIL/PandaReach-Gaussian-0.3-v0", "draco", "wasserstein", 0.02, 0.7)]
+    records = [offline_record("GRAIL/PandaReach-Gaussian-0.1-v0", "bc", 0.02, 0.9, scorer="mse"),
+               offline_record("GRAIL/PandaReach-Gaussian-0.3-v0", "bc", 0.02, 0.6, scorer="mse"),
+               offline_record("GRAIL/PandaReach-Gaussian-0.3-v0", "draco", 0.02, 0.7, scorer="wasserstein")]
     (board,) = build_boards(records)
     assert board.title == "panda_reach / gaussian (subset)" and len(board.rows) == 2
     assert board.columns == ["BC-GRAIL", "DRACO"]  # named as the paper names the methods
@@ -63,8 +44,8 @@ def test_tasks_with_equal_goal_counts_get_their_own_rows():
 
 
 def test_reported_values_sit_beside_the_canonical_configuration_only():
-    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.5),
-               record("GRAIL/MiniGrid-Optimal-v0", "bc", "wasserstein", 0.1, 0.4)]
+    records = [offline_record("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1, 0.5, scorer="mse"),
+               offline_record("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1, 0.4, scorer="wasserstein")]
     reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
     board = built(records, reference)
     text = markdown(board.boards, records, variants=board.variants)
@@ -79,9 +60,9 @@ def test_reported_values_sit_beside_the_canonical_configuration_only():
 
 def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise():
     fixed = {**defaults("GRAIL/MiniGrid-Optimal-v0"), "route_choice": "fixed"}
-    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.3, protocol="prefix"),
-               record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.95),
-               record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", 0.1, 0.9, task_params=fixed)]
+    records = [offline_record("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1, 0.3, scorer="mse", protocol="prefix"),
+               offline_record("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1, 0.95, scorer="mse"),
+               offline_record("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1, 0.9, scorer="mse", task_params=fixed)]
     reference = {("GRAIL/MiniGrid-Optimal-v0", "bc", 0.1): Reported("0.73 ± 0.33", (0.49, 0.90))}
     boards = build_boards(records, reference, ceiling_samples=50)
     assert [b.title for b in boards] == ["minigrid / optimal (prefix)", "minigrid / optimal (subset)"]
@@ -101,7 +82,7 @@ def test_paper_values_only_on_the_tasks_default_protocol_and_ceilings_normalise(
 
 def test_boards_show_the_pairs_only_ceiling_beside_the_bayes_one():
     fixed = {**defaults("GRAIL/MiniGrid-Optimal-4Goals-v0"), "route_choice": "fixed"}
-    records = [record("GRAIL/MiniGrid-Optimal-4Goals-v0", "bc", "mse", 0.1, 0.3, protocol="prefix",
+    records = [offline_record("GRAIL/MiniGrid-Optimal-4Goals-v0", "bc", 0.1, 0.3, scorer="mse", protocol="prefix",
                       task_params=fixed)]
     (board,) = build_boards(records, ceiling_samples=50)
     # The first 2 pairs of the 11-action paths or the first 1 of the 9-action ones, all "forward": the count
@@ -114,12 +95,12 @@ def test_boards_show_the_pairs_only_ceiling_beside_the_bayes_one():
 
 def test_ceilings_use_the_task_parameters_of_the_run():
     task = "GRAIL/MiniGrid-Suboptimal-v0"
-    no_turns = record(task, "bc", "mse", 0.2, 0.9, protocol="prefix",
+    no_turns = offline_record(task, "bc", 0.2, 0.9, scorer="mse", protocol="prefix",
                       task_params={**defaults(task), "route_choice": "uniform", "turn_prob": 0.0})
     (board,) = build_boards([no_turns], ceiling_samples=50)
     (ceiling,) = board.ceilings.values()
     assert ceiling.method == "exact" and round(ceiling.accuracy, 2) == 0.75  # as the optimal task
-    mixed = [no_turns, record(task, "graql", "kl", 0.2, 0.9, protocol="prefix",
+    mixed = [no_turns, offline_record(task, "graql", 0.2, 0.9, scorer="kl", protocol="prefix",
                               task_params={**defaults(task), "route_choice": "uniform", "turn_prob": 0.5})]
     (board,) = build_boards(mixed, ceiling_samples=50)
     # Runs with other parameters (readings) get rows of their own, each with its own ceiling.
@@ -130,15 +111,15 @@ def test_ceilings_use_the_task_parameters_of_the_run():
 
 def test_a_method_run_in_several_configurations_keeps_its_canonical_column_and_names_the_others():
     task = "GRAIL/PandaReach-Gaussian-0.1-v0"
-    default = record(task, "draco", "wasserstein", 0.02, 0.5)
-    longer = record(task, "draco", "wasserstein", 0.02, 0.8, settings={"ppo_steps": 300000})
+    default = offline_record(task, "draco", 0.02, 0.5, scorer="wasserstein")
+    longer = offline_record(task, "draco", 0.02, 0.8, scorer="wasserstein", settings={"ppo_steps": 300000})
     board = built([default, longer])
     (main,) = board.boards
     (variants,) = board.variants
     assert main.columns == ["DRACO"] and variants.columns == ["DRACO · ppo_steps 300 000"]
     assert variants.title == "panda_reach: DRACO variants" and not board.archive
     # Same settings on other task parameters: the same column, a row per reading of the parameters.
-    other = record(task, "draco", "wasserstein", 0.02, 0.7,
+    other = offline_record(task, "draco", 0.02, 0.7, scorer="wasserstein",
                    task_params={**defaults(task), "noise_std": 0.2} if "noise_std" in defaults(task) else
                    {**defaults(task), "n_demos": defaults(task)["n_demos"] + 1})
     (main,) = built([default, other]).boards
@@ -149,8 +130,8 @@ def test_paper_values_sit_beside_the_canonical_configuration_so_no_cell_counts_t
     from grail_bench.report.boards import verdict_counts
 
     task = "GRAIL/MiniGrid-Optimal-v0"
-    default = record(task, "gail", "mse", 0.1, 0.5)
-    longer = record(task, "gail", "mse", 0.1, 0.9, settings={"total_timesteps": 160000})
+    default = offline_record(task, "gail", 0.1, 0.5, scorer="mse")
+    longer = offline_record(task, "gail", 0.1, 0.9, scorer="mse", settings={"total_timesteps": 160000})
     reference = {(task, "gail", 0.1): Reported("0.64 ± 0.28", (0.44, 0.84))}
     board = built([default, longer], reference)
     (main,) = board.boards
@@ -160,10 +141,11 @@ def test_paper_values_sit_beside_the_canonical_configuration_so_no_cell_counts_t
     assert not any(b.reported for b in board.variants)
     # A run stored under a configuration today's code would hash otherwise (here: before the task had
     # parameters) is archived: out of the boards, listed with what differs.
-    legacy = dataclasses.replace(default, task_params={}, config_hash="fedcba987654", f1_mean=0.1)
+    legacy = dataclasses.replace(default, task_params={}, config_hash="fedcba987654",
+                                 f1=dataclasses.replace(default.f1, mean=0.1))
     board = built([default, legacy], reference)
     (main,) = board.boards
-    assert len(main.rows) == 1 and main.cell(main.rows[0], "GAIL-GRAIL").f1_mean == 0.5
+    assert len(main.rows) == 1 and main.cell(main.rows[0], "GAIL-GRAIL").f1.mean == 0.5
     (entry,) = board.archive
     assert entry.config.label == "GAIL-GRAIL · archived fedcba" and entry.rows == 2 and entry.tasks == (task,)
     text = markdown(board.boards, board.records, archive=board.archive)
@@ -173,8 +155,9 @@ def test_paper_values_sit_beside_the_canonical_configuration_so_no_cell_counts_t
 
 def test_demonstrator_is_a_reference_after_the_methods_never_the_best():
     task = "GRAIL/MiniGrid-Optimal-v0"
-    records = [record(task, "bc", "mse", 0.1, 0.6), record(task, "demonstrator", "mse", 0.1, 0.99),
-               record(task, "graql", "kl", 0.1, 0.5)]
+    records = [offline_record(task, "bc", 0.1, 0.6, scorer="mse"),
+               offline_record(task, "demonstrator", 0.1, 0.99, scorer="mse"),
+               offline_record(task, "graql", 0.1, 0.5, scorer="kl")]
     (main,) = built(records).boards
     assert main.columns == ["BC-GRAIL", "GRAQL", "Demonstrator (perfect imitation)"]
     assert main.methods == ["BC-GRAIL", "GRAQL"] and main.best(main.rows[0]) == 0.6
@@ -185,7 +168,7 @@ def test_demonstrator_is_a_reference_after_the_methods_never_the_best():
 
 def test_markdown_escapes_markup_in_names():
     task = "GRAIL/MiniGrid-Optimal-v0"
-    odd = [dataclasses.replace(record(task, "bc", "mse", 0.1, 0.5), recognizer=name, scorer="default")
+    odd = [dataclasses.replace(offline_record(task, "bc", 0.1, 0.5, scorer="mse"), recognizer=name, scorer="default")
            for name in ("<!--<script>", "</script>", "a|b & <b>")]
     board = built(odd)
     text = markdown(board.boards, board.records, variants=board.variants).split("## Runs")[0]
@@ -194,9 +177,10 @@ def test_markdown_escapes_markup_in_names():
 
 
 def test_runs_table_shows_ranking_metrics_averaged_over_levels():
-    records = [record("GRAIL/MiniGrid-Optimal-v0", "bc", "mse", lv, 0.5, top2_mean=t, mean_rank_mean=m)
+    records = [offline_record("GRAIL/MiniGrid-Optimal-v0", "bc", lv, 0.5, scorer="mse", top2_mean=t, mean_rank_mean=m)
                for lv, t, m in ((0.1, 0.8, 1.6), (0.3, 1.0, 1.2))]
-    records.append(record("GRAIL/MiniGrid-Optimal-v0", "graql", "kl", 0.1, 0.5))  # stored before: no ranking
+    records.append(offline_record("GRAIL/MiniGrid-Optimal-v0", "graql", 0.1, 0.5, scorer="kl"))  # stored before:
+    # no ranking
     boards = build_boards(records, ceiling_samples=None)
     text = markdown(boards, records)
     assert "| GRAIL/MiniGrid-Optimal-v0 | BC-GRAIL | 2 | 1.00 | 10 | 0.0% | 0.90 | 1.40 | – |" in text
@@ -209,9 +193,10 @@ def test_profiles_gaps_and_calibration_are_written_from_the_ceilings(tmp_path):
     from grail_bench.stats.metrics import reliability_bins
 
     task = "GRAIL/MiniGrid-Optimal-v0"
-    good = [record(task, "bc", "mse", lv, 0.95, f1_values=(0.9, 1.0)) for lv in (0.1, 0.2, 0.3)]
-    weak = [record(task, "graql", "kl", lv, 0.6, f1_values=(0.5, 0.7)) for lv in (0.1, 0.2, 0.3)]
-    posterior = [record(task, "bc", "loglik", 0.1, 0.9, reliability=reliability_bins([0.9, 0.9], [True, False]))]
+    good = [offline_record(task, "bc", lv, (0.9, 1.0), scorer="mse") for lv in (0.1, 0.2, 0.3)]
+    weak = [offline_record(task, "graql", lv, (0.5, 0.7), scorer="kl") for lv in (0.1, 0.2, 0.3)]
+    posterior = [offline_record(task, "bc", 0.1, 0.9, scorer="loglik",
+                                reliability=reliability_bins([0.9, 0.9], [True, False]))]
     board = leaderboard.build([], None, 50, records=good + weak + posterior)
     (summary,) = domain_summaries(board.boards, reps=200)
     assert summary.profile_strata == 3 and set(summary.gaps) == {"BC-GRAIL", "GRAQL"}  # canonical only

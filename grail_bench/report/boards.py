@@ -106,7 +106,7 @@ class Board:
 
     def best(self, row: BoardRow) -> float | None:
         """The best mean F1 of a row among the methods (references excluded)."""
-        means = [self.cells[(row, c)].f1_mean for c in self.methods if (row, c) in self.cells]
+        means = [self.cells[(row, c)].f1.mean for c in self.methods if (row, c) in self.cells]
         return max(means) if means else None
 
     def has_reported(self, column: str) -> bool:
@@ -344,7 +344,7 @@ def placement_counts(boards: Iterable[Board]) -> dict[str, int]:
     counts = {"inside": 0, "above": 0, "below": 0}
     for board in boards:
         for key, reported in board.reported.items():
-            place = reported.place(board.cells[key].f1_mean)
+            place = reported.place(board.cells[key].f1.mean)
             if place:
                 counts[place] += 1
     return counts
@@ -355,7 +355,7 @@ def verdict_counts(boards: Iterable[Board]) -> dict[str, int]:
     counts = {"consistent": 0, "higher": 0, "lower": 0}
     for board in boards:
         for key, reported in board.reported.items():
-            verdict = reported.verdict(list(board.cells[key].f1_values))
+            verdict = reported.verdict(list(board.cells[key].f1.values))
             if verdict is not None:
                 counts[verdict.verdict] += 1
     return counts

@@ -243,10 +243,10 @@ def _stratum_scores(claim: Claim, cells: Cells, baseline: Cells | None) -> dict[
         mine = cells.get(key)
         if mine is None:
             continue
-        values = dict(zip(mine.seeds, mine.f1_values))
+        values = dict(zip(mine.seeds, mine.f1.values))
         if baseline is not None:
             theirs = baseline.get(key)
-            base = dict(zip(theirs.seeds, theirs.f1_values)) if theirs is not None else {}
+            base = dict(zip(theirs.seeds, theirs.f1.values)) if theirs is not None else {}
             values = {s: values[s] - base[s] for s in set(values) & set(base)}
         if values:
             scores[(task, level)] = np.array([values[s] for s in sorted(values)], dtype=float)

@@ -218,14 +218,14 @@ class _Cells:
         return section
 
     def cell(self, b: Board, row: Any, column: Column, record: Any, ceiling: Any) -> Cell:
-        interval = stratified_bootstrap({0: list(record.f1_values)}, pooled_mean, reps=self.reps, seed=self.seed)
+        interval = stratified_bootstrap({0: list(record.f1.values)}, pooled_mean, reps=self.reps, seed=self.seed)
         reported = b.reported.get((row, column.label))
-        verdict = reported.verdict(list(record.f1_values)) if reported else None
-        cell = Cell(self.position[id(record)], record.recognizer, record.f1_mean, interval, record.f1_iqm,
-                    record.f1_std, record.n_seeds, sorted(self.runs_of[_record_key(record)]), record.top2_mean,
-                    record.mean_rank_mean, reported, reported.place(record.f1_mean) if reported else None,
+        verdict = reported.verdict(list(record.f1.values)) if reported else None
+        cell = Cell(self.position[id(record)], record.recognizer, record.f1.mean, interval, record.f1.iqm,
+                    record.f1.std, record.n_seeds, sorted(self.runs_of[_record_key(record)]), record.top2_mean,
+                    record.mean_rank_mean, reported, reported.place(record.f1.mean) if reported else None,
                     verdict.verdict if verdict else None,
-                    normalised(record.f1_mean, ceiling.accuracy, ceiling.chance) if ceiling else None,
+                    normalised(record.f1.mean, ceiling.accuracy, ceiling.chance) if ceiling else None,
                     reference=column.reference)
         self.shown[cell.record] = cell
         return cell

@@ -97,8 +97,8 @@ def f1_vs_observability(records: Records, out: Path) -> list[Path]:
             if not line:
                 continue
             x = [r.observability * 100 for r in line]
-            ax.plot(x, [r.f1_mean for r in line], marker="o", color=colours[name], label=name)
-            ax.fill_between(x, [r.f1_ci95_low for r in line], [r.f1_ci95_high for r in line],
+            ax.plot(x, [r.f1.mean for r in line], marker="o", color=colours[name], label=name)
+            ax.fill_between(x, [r.f1.ci95[0] for r in line], [r.f1.ci95[1] for r in line],
                             color=colours[name], alpha=0.2)
         ax.set_title(short_name(task), fontsize=9)
         ax.set_xlabel("observed (%)")
@@ -138,8 +138,8 @@ def panda_regimes(records: Records, out: Path) -> list[Path]:
     f1, std = defaultdict(dict), defaultdict(dict)
     for r in mine:
         group = short_name(r.task).removeprefix("PandaReach-")
-        f1[r.recognizer][group] = r.f1_mean
-        std[r.recognizer][group] = r.f1_std
+        f1[r.recognizer][group] = r.f1.mean
+        std[r.recognizer][group] = r.f1.std
     fig, ax = plt.subplots(figsize=(max(6.0, 0.9 * len(groups) + 2), 3.8))
     _bars(ax, groups, f1, std, "F1")
     ax.set_ylim(0, 1.1)

@@ -416,7 +416,7 @@ def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Req
                 points = sorted(((section.value_of(r), r) for r in group if r.observability == level),
                                 key=lambda vr: vr[0])
                 curve = BudgetCurve(section.name, section.vary.param, task, recognizer, protocol, level,
-                                    tuple(BudgetPoint(v, r.n_seeds, r.f1_mean, r.f1_ci95_low, r.f1_ci95_high,
+                                    tuple(BudgetPoint(v, r.n_seeds, r.f1.mean, *r.f1.ci95,
                                                       r.fit_seconds_per_goal) for v, r in points))
                 if section.vary.of == "tasks":
                     sizes = [v for v, _ in points]
@@ -424,7 +424,7 @@ def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Req
                     curve = dataclasses.replace(curve, scaling=True, exponent=scaling_exponent(sizes, costs)
                                                 if len(set(sizes)) > 1 else None)
                 else:
-                    curve = dataclasses.replace(curve, plateau=plateau([(v, r.f1_mean, r.f1_ci95_low)
+                    curve = dataclasses.replace(curve, plateau=plateau([(v, r.f1.mean, r.f1.ci95[0])
                                                                         for v, r in points]))
                 out.append(curve)
     return out

@@ -127,7 +127,7 @@ def ablation_rows(records: Sequence[OfflineRecord]) -> list[AblationRow]:
             groups[(f"{r.task} ({r.protocol})", r.recognizer, r.scorer)].append(r)
     out = []
     for (task, recognizer, scorer), group in sorted(groups.items()):
-        f1 = {r.observability: (r.f1_mean, r.f1_std) for r in group}
+        f1 = {r.observability: (r.f1.mean, r.f1.std) for r in group}
         posterior = [r for r in group if r.brier_mean is not None]
         bins = [r.reliability for r in group if r.reliability is not None]
         out.append(AblationRow(

@@ -136,12 +136,12 @@ def domain_summaries(boards: Sequence[Board], reps: int = 2000, seed: int = 0) -
         for (row, label), record in board.cells.items():
             if label not in methods:
                 continue
-            strata[board.domain][label][row.stratum] = list(record.f1_values)
+            strata[board.domain][label][row.stratum] = list(record.f1.values)
             recognizer[board.domain][label] = record.recognizer
             ceiling = board.ceilings.get(row)
             if ceiling is not None and normalised(0.0, ceiling.accuracy, ceiling.chance) is not None:
                 normal[board.domain][label][row.stratum] = [normalised(v, ceiling.accuracy, ceiling.chance)
-                                                            for v in record.f1_values]
+                                                            for v in record.f1.values]
     return [_summary(d, strata[d], normal[d], recognizer[d], reps, seed) for d in sorted(strata)]
 
 

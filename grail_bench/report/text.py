@@ -46,20 +46,20 @@ def _cell(board: Board, row: BoardRow, column: str, ci: bool = False) -> tuple[s
     record = board.cell(row, column)
     if record is None:
         return "–", False
-    text = f"{record.f1_mean:.2f} ± {record.f1_std:.2f}"
+    text = f"{record.f1.mean:.2f} ± {record.f1.std:.2f}"
     if ci:
-        text += f" ({record.f1_ci95_low:.2f}–{record.f1_ci95_high:.2f})"
+        text += f" ({record.f1.ci95[0]:.2f}–{record.f1.ci95[1]:.2f})"
     reported = board.reported.get((row, column))
     if reported is not None:
-        place = reported.place(record.f1_mean)
-        verdict = reported.verdict(list(record.f1_values))
+        place = reported.place(record.f1.mean)
+        verdict = reported.verdict(list(record.f1.values))
         text += f" {MARKS[place]}" if place else ""
         text += VERDICT_MARKS[verdict.verdict] if verdict else ""
     ceiling = board.ceilings.get(row)
     if ceiling is not None:
-        norm = normalised(record.f1_mean, ceiling.accuracy, ceiling.chance)
+        norm = normalised(record.f1.mean, ceiling.accuracy, ceiling.chance)
         text += f" [{norm:.2f}]" if norm is not None else ""
-    return text, not board.is_reference(column) and record.f1_mean == board.best(row)
+    return text, not board.is_reference(column) and record.f1.mean == board.best(row)
 
 
 def _ceiling_text(ceiling: Ceiling | None) -> str:

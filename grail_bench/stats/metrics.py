@@ -212,6 +212,12 @@ class Summary:
     iqm: float
     values: tuple[float, ...]
 
+    def flat(self, name: str) -> dict[str, Any]:
+        """The summary as flat JSON fields: ``{name}_mean``, ``_std``, ``_ci95_low``, ``_ci95_high``, ``_iqm``,
+        ``_values``, in that order."""
+        return {f"{name}_mean": self.mean, f"{name}_std": self.std, f"{name}_ci95_low": self.ci95[0],
+                f"{name}_ci95_high": self.ci95[1], f"{name}_iqm": self.iqm, f"{name}_values": self.values}
+
 
 #: Resamples and seed of every across-seed interval (:func:`summarize`): same values, same interval.
 BOOTSTRAP_REPS = 2000

@@ -9,7 +9,7 @@ is one module defining these and one line in :data:`grail_bench.harness.modes.MO
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
@@ -57,8 +57,18 @@ class Record:
     recognizer_config: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        """The record as JSON-able plain data (the ``--json`` format)."""
-        return asdict(self)
+        """The record as JSON-able plain data (the ``--json`` format).
+
+        Flat: a :class:`~grail_bench.stats.metrics.Summary` field ``f1`` is written in its place as ``f1_mean``,
+        ``f1_std``, ``f1_ci95_low``, ``f1_ci95_high``, ``f1_iqm`` and ``f1_values``
+        (:meth:`~grail_bench.stats.metrics.Summary.flat`).
+        """
+        plain = asdict(self)
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            out |= value.flat(f.name) if isinstance(value, metrics.Summary) else {f.name: plain[f.name]}
+        return out
 
 
 def cells(rows: Iterable[Any], by_level: bool = True) -> list[list[Any]]:

@@ -68,12 +68,7 @@ class OfflineRecord(Record):
     """One configuration at one level across seeds (the ``--json`` format of offline runs)."""
 
     observability: float
-    f1_mean: float
-    f1_std: float
-    f1_ci95_low: float
-    f1_ci95_high: float
-    f1_iqm: float
-    f1_values: tuple[float, ...]
+    f1: metrics.Summary  # macro F1 across seeds; written flat as f1_mean, f1_std, f1_ci95_low, ... (Record.to_dict)
     accuracy_mean: float
     precision_mean: float
     recall_mean: float
@@ -181,12 +176,10 @@ def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
     """Across-seed records, one per configuration and level, sorted by task, recognizer, scorer, protocol, level."""
     records = []
     for group in cells(rows):
-        f1 = metrics.summarize([r.f1 for r in group])
         n_obs = sum(r.n_observations for r in group)
         records.append(OfflineRecord(
             **record_fields(group, (), ("accuracy", "precision", "recall")),
-            f1_mean=f1.mean, f1_ci95_low=f1.ci95[0], f1_ci95_high=f1.ci95[1], f1_std=f1.std, f1_iqm=f1.iqm,
-            f1_values=f1.values,
+            f1=metrics.summarize([r.f1 for r in group]),
             score_us_per_observation=float(np.mean([r.score_us_per_observation for r in group])),
             tie_rate=sum(r.n_ties for r in group) / n_obs if n_obs else 0.0,
             brier_mean=_mean_or_none([r.brier for r in group]), nll_mean=_mean_or_none([r.nll for r in group]),
@@ -202,7 +195,7 @@ def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
 
 
 COLUMNS = LEAD + (Column("obs", lambda r: level_text(r.observability), lambda r: r.observability),) + WHO + (
-    Column("F1", lambda r: f"{r.f1_mean:.2f} ± {r.f1_std:.2f}", lambda r: r.f1_mean),
+    Column("F1", lambda r: f"{r.f1.mean:.2f} ± {r.f1.std:.2f}", lambda r: r.f1.mean),
     Column("accuracy", lambda r: f"{r.accuracy_mean:.2f}", lambda r: r.accuracy_mean),
     Column("fit s/goal", lambda r: f"{r.fit_seconds_per_goal:.2f}", lambda r: r.fit_seconds_per_goal),
     Column("µs / observation", lambda r: f"{r.score_us_per_observation:.0f}", lambda r: r.score_us_per_observation),

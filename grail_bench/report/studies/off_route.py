@@ -133,7 +133,7 @@ def run(tasks: Sequence[str], params: Mapping[str, Any] | None = None, seeds: in
         for task in tasks:
             for name, config in VARIANTS.items():
                 records = evaluate(task, [(NAME, config)], seeds=seeds, task_params=dict(params or {}))
-                levels = " / ".join(f"{level_text(r.observability)}: {r.f1_mean:.2f}" for r in records)
+                levels = " / ".join(f"{level_text(r.observability)}: {r.f1.mean:.2f}" for r in records)
                 lines.append(f"| {task.removeprefix('GRAIL/')} | {name} | {levels} |")
     finally:
         unregister_recognizer(NAME)
