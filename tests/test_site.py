@@ -10,14 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import offline_record, stored_config
 from typer.testing import CliRunner
 
 from grail_bench.cli import app
 from grail_bench.harness.diagnostics import FitRow, to_json
-from grail_bench.harness.planning import config_hash, fitted_config
 from grail_bench.harness.store import OnlineRow, OpenSetRow, ResultRow, ResultsStore
 from grail_bench.recognizers.contract import FitDiagnostics
-from grail_bench.recognizers.registry import build
 from grail_bench.report import leaderboard
 from grail_bench.report.html import MAX_PAGE_BYTES, build_page, json_for_script, render, write_site
 from grail_bench.report.summary import common_strata
@@ -36,18 +35,9 @@ STAMP = json.dumps({"command": ["grail-bench", "run", "-r", "bc</script>"], "git
                     "platform": "Linux", "cpu": "test CPU", "cores": 2, "date": "2026-11-22T00:00:00+00:00"})
 
 
-def stored(task_id: str, name: str, settings: dict | None = None, drop: str | None = None) -> tuple[str, str]:
-    """``(config JSON, config hash)`` as planning stores them for ``name`` with ``settings`` on the task at its
-    defaults; ``drop``: a setting the stored configuration lacks (stored before the setting existed)."""
-    config = fitted_config(make_task(task_id), name, build(name, settings).config)
-    if drop is not None:
-        del config["config"][drop]
-    return json.dumps(config, sort_keys=True, default=str), config_hash(config)
-
-
 def config(task_id: str) -> str:
     """The configuration JSON of a bc run at the task's defaults."""
-    return stored(task_id, "bc")[0]
+    return stored_config(task_id, "bc")[0]
 
 
 def rows(seeds: int = 5) -> list[ResultRow]:
@@ -61,7 +51,7 @@ def rows(seeds: int = 5) -> list[ResultRow]:
                 for seed in range(seeds):
                     f1 = float(np.clip(level_f1 + rng.normal(0, 0.1), 0, 1))
                     k = 4 if "4Goals" in task or "Panda" in task else 2
-                    config_json, hashed = stored(task, rec)
+                    config_json, hashed = stored_config(task, rec)
                     out.append(ResultRow(task, rec, scorer, hashed, seed, lv, make_task(task).protocol_label,
                                          f1, f1, f1, f1, 6, 0, 1.5, 40.0, config_json, '{"torch": "2.13.0"}',
                                          provenance=STAMP if seed < 3 else None,
@@ -89,8 +79,8 @@ def fit_rows(loss: list[float] | None = None) -> list[FitRow]:
         d = FitDiagnostics(goals=((7, 1), (7, 7)), agreement_train=(0.9, 0.8), agreement_held_out=(0.85, 0.7),
                            imitation=((0.8, 0.3), (0.25, 0.75)), reached=(True, seed == 0), rollout_length=(11, 60),
                            demo_length=(11.0, 11.0), curves={0: {"loss": loss or [1.2, 0.8, 0.5]}, 1: {"loss": [1.3, 0.9]}})
-        out.append(FitRow("GRAIL/MiniGrid-Optimal-v0", "bc", stored("GRAIL/MiniGrid-Optimal-v0", "bc")[1], seed,
-                          "offline", to_json(d)))
+        out.append(FitRow("GRAIL/MiniGrid-Optimal-v0", "bc", stored_config("GRAIL/MiniGrid-Optimal-v0", "bc")[1],
+                          seed, "offline", to_json(d)))
     return out
 
 
@@ -101,11 +91,12 @@ def board(offline, reference=None, online=(), open_set=(), fits=()):
 
 def bc_rows(rows_: list[ResultRow], settings: dict | None = None, drop: str | None = None,
             f1: float | None = None) -> list[ResultRow]:
-    """Copies of bc's own-scorer rows stored under another configuration of bc (see :func:`stored`)."""
+    """Copies of bc's own-scorer rows stored under another configuration of bc (see
+    :func:`conftest.stored_config`)."""
     out = []
     for r in rows_:
         if (r.recognizer, r.scorer) == ("bc", "mse"):
-            config_json, hashed = stored(r.task, "bc", settings, drop)
+            config_json, hashed = stored_config(r.task, "bc", settings, drop)
             out.append(dataclasses.replace(r, config=config_json, config_hash=hashed, f1=r.f1 if f1 is None else f1))
     return out
 
@@ -199,7 +190,7 @@ def test_summaries_compare_methods_on_the_strata_they_share_and_name_the_gaps():
     assert names == ["a", "b"] and shared == {2, 3} and left_out == ["c"]
     # A method run on more strata is aggregated over the shared ones only, and the others' gap is named.
     task = "GRAIL/MiniGrid-Optimal-6Goals-v0"
-    config_json, hashed = stored(task, "bc")
+    config_json, hashed = stored_config(task, "bc")
     extra = [ResultRow(task, "bc", "mse", hashed, seed, 0.1, "subset", 0.0, 0.0, 0.0, 0.0, 6, 0, 1.5, 40.0,
                        config_json, "{}") for seed in range(3)]
     minigrid = next(s for s in page_of(rows() + extra)["summaries"] if s.domain == "minigrid")
@@ -521,22 +512,13 @@ def test_page_reads_without_scripts(browser, site):
 
 
 def test_profiles_and_calibration_show_offline(browser, tmp_path):
-    from grail_bench.harness.modes.offline import OfflineRecord
     from grail_bench.stats.metrics import reliability_bins
 
-    task = make_task("GRAIL/MiniGrid-Optimal-v0")
-    params = {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
-
-    def record(rec, scorer, level, values, **extra):
-        return OfflineRecord(task=task.id, recognizer=rec, scorer=scorer, protocol="subset",
-                             config_hash=stored(task.id, rec)[1], recognizer_config=build(rec).config, n_seeds=2, seeds=[0, 1], fit_seconds_per_goal=1.0, task_params=params,
-                             observability=level, f1_mean=float(np.mean(values)), f1_std=0.1, f1_ci95_low=0.0,
-                             f1_ci95_high=1.0, f1_iqm=float(np.mean(values)), f1_values=values, accuracy_mean=0.5,
-                             precision_mean=0.5, recall_mean=0.5, score_us_per_observation=1.0, tie_rate=0.0, **extra)
-
-    records = [record("bc", "mse", lv, (0.9, 1.0)) for lv in (0.1, 0.2, 0.3)]
-    records += [record("graql", "kl", lv, (0.5, 0.7)) for lv in (0.1, 0.2, 0.3)]
-    records.append(record("bc", "loglik", 0.1, (0.8, 0.9), reliability=reliability_bins([0.9, 0.6], [True, False])))
+    task = "GRAIL/MiniGrid-Optimal-v0"
+    records = [offline_record(task, "bc", lv, (0.9, 1.0), scorer="mse") for lv in (0.1, 0.2, 0.3)]
+    records += [offline_record(task, "graql", lv, (0.5, 0.7), scorer="kl") for lv in (0.1, 0.2, 0.3)]
+    records.append(offline_record(task, "bc", 0.1, (0.8, 0.9), scorer="loglik",
+                                  reliability=reliability_bins([0.9, 0.6], [True, False])))
     write_site(leaderboard.build([], None, 50, records=records), tmp_path)
     page, errors, requests = open_page(browser, tmp_path / "index.html")
     page.locator("#profiles-box summary").click()

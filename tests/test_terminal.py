@@ -8,15 +8,13 @@ from types import SimpleNamespace
 
 import pytest
 import typer.main
+from conftest import offline_record
 from rich.console import Console
 from typer.testing import CliRunner
 
 import grail_bench
 from grail_bench.cli import app
 from grail_bench.harness.modes import MODES
-from grail_bench.harness.modes.offline import OfflineRecord
-from grail_bench.harness.planning import config_hash, fitted_config
-from grail_bench.recognizers.registry import build, recognizer_info
 from grail_bench.report.reproduce import BudgetCurve, BudgetPoint
 from grail_bench.report.rows import TimingRow, timing_rows
 from grail_bench.report.tables import budgets_markdown, diagnostics_table, mode_table, tasks_table, timing_table
@@ -111,24 +109,13 @@ def test_timing_and_diagnostics_tables_fit_80_columns():
 TASK = "GRAIL/MiniGrid-Optimal-v0"
 
 
-def offline_record(level: float, **fields) -> OfflineRecord:
-    """A canonical BC record of TASK (its configuration hashed as today's code plans it)."""
-    task = make_task(TASK)
-    settings = json.loads(json.dumps(build("bc", None).config, default=str))
-    params = {**task.params, **task.env_params, "n_demos": task.n_demos, "n_train": task.n_train}
-    base = dict(task=TASK, recognizer="bc", scorer=recognizer_info("bc").default_scorer, protocol=task.protocol_label,
-                config_hash=config_hash(fitted_config(task, "bc", settings)), n_seeds=3, seeds=[0, 1, 2],
-                fit_seconds_per_goal=2.0, task_params=params, recognizer_config=settings, observability=level,
-                f1_mean=0.5, f1_std=0.1, f1_ci95_low=0.4, f1_ci95_high=0.6, f1_iqm=0.5, f1_values=(0.4, 0.5, 0.6),
-                accuracy_mean=0.5, precision_mean=0.5, recall_mean=0.5, score_us_per_observation=100.0,
-                tie_rate=0.0)
-    return OfflineRecord(**(base | fields))
-
-
 def test_a_timing_row_holds_its_configurations_label_and_means_over_levels():
-    records = [offline_record(0.1, score_us_per_observation=100.0, tie_rate=0.1, top2_mean=0.8, mean_rank_mean=1.5,
-                              set_precision_mean=0.5, set_recall_mean=1.0, set_spread_mean=2.0),
-               offline_record(0.3, score_us_per_observation=300.0, tie_rate=0.3, top2_mean=1.0, mean_rank_mean=1.0)]
+    seeds = (0.4, 0.5, 0.6)
+    records = [offline_record(TASK, "bc", 0.1, seeds, fit_seconds_per_goal=2.0, score_us_per_observation=100.0,
+                              tie_rate=0.1, top2_mean=0.8, mean_rank_mean=1.5, set_precision_mean=0.5,
+                              set_recall_mean=1.0, set_spread_mean=2.0),
+               offline_record(TASK, "bc", 0.3, seeds, fit_seconds_per_goal=2.0, score_us_per_observation=300.0,
+                              tie_rate=0.3, top2_mean=1.0, mean_rank_mean=1.0)]
     fits = {(TASK, "bc", records[0].config_hash): SimpleNamespace(reached=[1, 0], rolled_out=[1, 1])}
     (row,) = timing_rows(records, fits)
     assert row == TimingRow(task=TASK, column="BC-GRAIL", recognizer="bc", seeds=3, fit_seconds_per_goal=2.0,
@@ -153,7 +140,8 @@ def test_budget_curves_are_typed_and_stay_flat_json():
 def test_the_leaderboard_says_how_its_intervals_are_made_only_where_it_shows_them():
     from grail_bench.report.tables import runs_markdown
 
-    records = [offline_record(0.1)]
+    records = [offline_record(TASK, "bc", 0.1, (0.4, 0.5, 0.6), fit_seconds_per_goal=2.0,
+                              score_us_per_observation=100.0)]
     with_intervals = " ".join(runs_markdown(records, intervals=True))
     assert "percentile bootstrap" in with_intervals and "within [0, 1]" in with_intervals
     assert "percentile bootstrap" not in " ".join(runs_markdown(records))
