@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import chmod_stops_writes, install_plugin
+from conftest import chmod_stops_writes, install_plugin, stored_config
 from typer.testing import CliRunner
 
 import grail_bench
@@ -52,11 +52,11 @@ def snapshot(folder: Path) -> dict[str, tuple[bytes, int] | None]:
 
 
 def results(path: Path) -> Path:
-    """A store of offline rows on the default task (2 seeds at its levels), as a run would leave it."""
+    """A store of offline rows of bc at its defaults on the default task (2 seeds at its levels), as a run would
+    leave it."""
     task = grail_bench.make_task(TASK)
-    config = json.dumps({"task": {"params": dict(task.params), "env": dict(task.env_params),
-                                  "n_demos": task.n_demos, "n_train": task.n_train}})
-    rows = [ResultRow(TASK, "bc", "mse", "hbc", seed, level, task.protocol_label, 0.7, 0.7, 0.7, 0.7, 6, 0, 1.0,
+    config, hashed = stored_config(TASK, "bc")
+    rows = [ResultRow(TASK, "bc", "mse", hashed, seed, level, task.protocol_label, 0.7, 0.7, 0.7, 0.7, 6, 0, 1.0,
                       10.0, config, "{}", confusion=json.dumps([[3, 0], [0, 3]]))
             for seed in range(2) for level in task.observability]
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -149,7 +149,7 @@ def test_leaderboard_reads_a_read_only_store_and_changes_nothing(tmp_path):
         before = snapshot(path.parent)
         code, output = invoke(["leaderboard", "--store", str(path), "--no-ceiling"], tmp_path / "unused.sqlite")
         assert code == 0, output
-        assert "bc" in output and "0.70" in output
+        assert "BC-GRAIL" in output and "0.70 ± 0.00" in output  # bc's default configuration on the main board
         assert snapshot(path.parent) == before  # same files (no -journal, -wal, -shm), bytes and mtimes
     finally:
         os.chmod(path.parent, 0o755)
