@@ -119,7 +119,7 @@ def test_a_run_from_the_datasets_gives_the_generators_f1(exported, monkeypatch):
                                                                                    "demos": str(out)})
     monkeypatch.setattr(pickle, "loads", real_loads)
     generated = evaluate(TASK.id, [("bc", {"n_epochs": 2})], seeds=2, task_params={"turn_prob": 0.5})
-    assert [r.f1_values for r in from_data] == [r.f1_values for r in generated]
+    assert [r.f1.values for r in from_data] == [r.f1.values for r in generated]
     assert from_data[0].config_hash != generated[0].config_hash  # the dataset's content keys its results
 
 

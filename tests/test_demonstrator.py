@@ -125,7 +125,7 @@ def test_evaluates_end_to_end_without_training(support):
     records = grail_bench.evaluate("GRAIL/MiniGrid-Optimal-4Goals-v0", [("demonstrator", {"support": support})],
                                    seeds=2)
     assert records and {r.scorer for r in records} == {"mse"}
-    assert all(0.0 <= r.f1_mean <= 1.0 for r in records)
+    assert all(0.0 <= r.f1.mean <= 1.0 for r in records)
 
 
 def test_point_maze_biased_is_its_route_on_the_rollout_and_no_preference_elsewhere():

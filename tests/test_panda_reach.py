@@ -147,9 +147,9 @@ def test_end_to_end_bc_beats_chance_with_scripted_expert():
     records = evaluate("GRAIL/PandaReach-Gaussian-0.1-v0", [("bc", {"n_epochs": 5}), *draco],
                        seeds=1, task_params={"expert": "scripted", "n_demos": 12, "n_train": 8})
     bc = next(r for r in records if r.recognizer == "bc")
-    assert bc.f1_mean > 0.5  # chance is 0.25
+    assert bc.f1.mean > 0.5  # chance is 0.25
     dracos = [r for r in records if r.recognizer == "draco"]
-    assert len(dracos) == 2 and all(r.scorer == "wasserstein" and 0 <= r.f1_mean <= 1 for r in dracos)
+    assert len(dracos) == 2 and all(r.scorer == "wasserstein" and 0 <= r.f1.mean <= 1 for r in dracos)
 
 
 @pytest.mark.slow

@@ -152,4 +152,4 @@ def test_bc_beats_chance_end_to_end():
 def test_every_policy_recognizer_runs(name, config):
     (record,) = evaluate("GRAIL/PointMaze-Biased-v0", [(name, config)], seeds=1, observability=[0.5],
                          task_params={"n_demos": 3, "n_train": 2})
-    assert record.n_seeds == 1 and 0.0 <= record.f1_mean <= 1.0
+    assert record.n_seeds == 1 and 0.0 <= record.f1.mean <= 1.0

@@ -96,6 +96,8 @@ def test_summarize_is_mean_std_iqm_and_a_percentile_bootstrap_of_the_mean():
     assert s.iqm == pytest.approx(0.65) and s.values == tuple(values)
     assert metrics.summary_fields("f1", values) == {"f1_mean": s.mean, "f1_ci95_low": s.ci95[0],
                                                    "f1_ci95_high": s.ci95[1]}
+    assert list(s.flat("f1").items()) == [("f1_mean", s.mean), ("f1_std", s.std), ("f1_ci95_low", s.ci95[0]),
+                                          ("f1_ci95_high", s.ci95[1]), ("f1_iqm", s.iqm), ("f1_values", s.values)]
 
 
 @pytest.mark.parametrize("values", [[0.0, 1.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0, 0.98], [0.02, 0.0, 0.0],

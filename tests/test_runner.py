@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -53,7 +55,7 @@ def spy():
 
 RECORD_KEYS = (
     "task", "recognizer", "scorer", "protocol", "observability", "n_seeds", "f1_mean", "f1_std",
-    "f1_ci95_low", "f1_ci95_high", "accuracy_mean", "precision_mean", "recall_mean",
+    "f1_ci95_low", "f1_ci95_high", "f1_iqm", "f1_values", "accuracy_mean", "precision_mean", "recall_mean",
     "fit_seconds_per_goal", "score_us_per_observation", "tie_rate", "brier_mean", "nll_mean", "top2_mean",
     "mean_rank_mean", "config_hash", "task_params",
 )
@@ -65,9 +67,13 @@ def test_records_have_the_documented_keys(spy):
     for r in records:
         assert isinstance(r, OfflineRecord) and set(RECORD_KEYS) <= set(r.to_dict())
         assert r.n_seeds == 2
+        flat = json.loads(json.dumps(r.to_dict()))  # the --json format: F1's summary flat, beside the other fields
+        assert "f1" not in flat and (flat["f1_mean"], flat["f1_std"], flat["f1_iqm"]) == (r.f1.mean, r.f1.std, r.f1.iqm)
+        assert (flat["f1_ci95_low"], flat["f1_ci95_high"]) == r.f1.ci95 and tuple(flat["f1_values"]) == r.f1.values
+        assert len(r.f1.values) == 2 and r.f1.ci95[0] <= r.f1.mean <= r.f1.ci95[1]
     # The spy always picks the last goal: accuracy 1/2, F1 = (0 + 2/3) / 2.
     assert records[0].accuracy_mean == 0.5
-    assert records[0].f1_mean == pytest.approx(1 / 3)
+    assert records[0].f1.mean == pytest.approx(1 / 3)
     # The first goal's observations rank it second of two, the last goal's first.
     assert records[0].mean_rank_mean == 1.5 and records[0].top2_mean == 1.0
 
@@ -147,8 +153,8 @@ def test_end_to_end_bc_beats_chance_on_biased_task():
     records = evaluate(TASK_ID, [("bc", {"n_epochs": 10}), ("graql", {"episodes": 1000})], seeds=2)
     bc = [r for r in records if r.recognizer == "bc"]
     assert len(bc) == 3
-    assert all(r.f1_mean > 0.8 for r in bc), bc  # chance is 0.5
-    assert all(0 <= r.f1_mean <= 1 for r in records)
+    assert all(r.f1.mean > 0.8 for r in bc), bc  # chance is 0.5
+    assert all(0 <= r.f1.mean <= 1 for r in records)
     assert all(r.fit_seconds_per_goal > 0 and r.score_us_per_observation > 0 for r in records)
 
 
@@ -181,5 +187,5 @@ def test_end_to_end_adversarial_beats_chance_on_biased_task(name, tmp_path, monk
     monkeypatch.setattr(tempfile, "tempdir", None)
     budget = {"total_timesteps": 8192, "n_envs": 8, "n_steps": 64}
     records = evaluate(TASK_ID, [(name, budget)], seeds=2)
-    assert np.mean([r.f1_mean for r in records]) > 0.6, records  # chance is 0.5
+    assert np.mean([r.f1.mean for r in records]) > 0.6, records  # chance is 0.5
     assert list(tmp_path.iterdir()) == [], "imitation and SB3 must not leave logs behind"
