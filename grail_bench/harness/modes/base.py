@@ -59,9 +59,9 @@ class Record:
     def to_dict(self) -> dict[str, Any]:
         """The record as JSON-able plain data (the ``--json`` format).
 
-        Flat: a :class:`~grail_bench.stats.metrics.Summary` field ``f1`` is written in its place as ``f1_mean``,
-        ``f1_std``, ``f1_ci95_low``, ``f1_ci95_high``, ``f1_iqm`` and ``f1_values``
-        (:meth:`~grail_bench.stats.metrics.Summary.flat`).
+        Flat: each :class:`~grail_bench.stats.metrics.Summary` field is written in its place as fields of its
+        own (:meth:`~grail_bench.stats.metrics.Summary.flat`): ``f1`` as ``f1_mean``, ``f1_std``, ``f1_ci95_low``,
+        ``f1_ci95_high``, ``f1_iqm`` and ``f1_values``.
         """
         plain = asdict(self)
         out: dict[str, Any] = {}
