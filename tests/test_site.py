@@ -602,8 +602,9 @@ def test_names_like_markup_render_escaped_and_the_page_still_works(browser, serv
 
 def test_a_variants_details_from_a_local_file_say_how_to_read_them(browser, odd_site):
     page, errors, _ = open_page(browser, odd_site)
-    page.locator("details.variant-board summary").first.click()
-    page.locator("details.variant-board td.cell button.diag").first.click()
+    button = page.locator("details.variant-board td.cell button.diag").first
+    button.evaluate("b => { b.closest('details').open = true; }")  # unfold the board that holds it
+    button.click()
     page.wait_for_function("!document.getElementById('details').hidden")
     assert "serve this folder" in page.locator("#details").inner_text()
     page.context.close()

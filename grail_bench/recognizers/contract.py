@@ -14,6 +14,8 @@ capability             what it is                                               
 =====================  ============================================================  =============================
 ``name``               the name it is registered under                               the registered name
 ``paper_name``         the method's published name, shown by the leaderboard         ``name``
+``reference``          True for a reference (what a method could reach, such as      ``False``
+                       perfect imitation): shown beside methods, never ranked
 ``config``             settings (a frozen dataclass, or a mapping); they key         the constructor's keywords
                        stored results and cached models
 ``default_scorer``     what ``score`` computes unless told otherwise                 ``"default"`` (its own)
@@ -116,6 +118,7 @@ class RecognizerBase:
 
     name: str = ""
     paper_name: str = ""
+    reference: bool = False
     default_scorer: str = OWN_SCORING
 
     def exposes(self, action_space: Any) -> frozenset[str]:
@@ -178,11 +181,13 @@ class Info:
         name: The registered name.
         paper_name: The method's published name (``name`` when it declares none).
         default_scorer: What it scores with unless told otherwise.
+        reference: Whether it is a reference rather than a method (shown beside methods, never ranked).
     """
 
     name: str
     paper_name: str
     default_scorer: str
+    reference: bool = False
 
 
 def info(obj: Any, name: str) -> Info:
@@ -190,7 +195,8 @@ def info(obj: Any, name: str) -> Info:
     paper = getattr(obj, "paper_name", "")
     scorer = getattr(obj, "default_scorer", OWN_SCORING)
     return Info(name=name, paper_name=paper if isinstance(paper, str) and paper else name,
-                default_scorer=scorer if isinstance(scorer, str) and scorer else OWN_SCORING)
+                default_scorer=scorer if isinstance(scorer, str) and scorer else OWN_SCORING,
+                reference=getattr(obj, "reference", False) is True)
 
 
 @dataclass(frozen=True)

@@ -64,6 +64,7 @@ class DemonstratorRecognizer(ScoredRecognizer):
 
     name = "demonstrator"
     paper_name = "Demonstrator (perfect imitation)"
+    reference = True  # what perfect imitation reaches, not a method to rank
     default_scorer = "mse"
     Config = DemonstratorConfig
     config: DemonstratorConfig

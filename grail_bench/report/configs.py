@@ -30,9 +30,6 @@ Kind = Literal["canonical", "variant", "archived"]
 #: How a name and its differences are joined in a label.
 SEPARATOR = " · "
 
-#: Recognizers that are references (what a method could reach), not methods: shown apart, never ranked.
-REFERENCES = frozenset({"demonstrator"})
-
 
 @dataclass(frozen=True)
 class Configuration:
@@ -71,8 +68,9 @@ class Configuration:
 
     @property
     def reference(self) -> bool:
-        """A reference (the demonstrator), shown beside the methods but never ranked or summarised."""
-        return self.recognizer in REFERENCES
+        """A reference (its recognizer says so, as the demonstrator does), shown beside the methods but never
+        ranked or summarised."""
+        return _is_reference(self.recognizer)
 
     @property
     def changes_text(self) -> str:
@@ -101,6 +99,14 @@ def method_of(recognizer: str) -> tuple[str, str | None]:
     except UnknownRecognizerError:
         return recognizer, None
     return info.paper_name, info.default_scorer
+
+
+@lru_cache(maxsize=None)
+def _is_reference(recognizer: str) -> bool:
+    try:
+        return recognizer_info(recognizer).reference
+    except UnknownRecognizerError:
+        return False
 
 
 @lru_cache(maxsize=None)
