@@ -1,7 +1,7 @@
 """The paper-style table model: offline records grouped into boards, computed once and drawn by every renderer.
 
 Every record's configuration is named first (:mod:`grail_bench.report.configs`): canonical, a named variant or
-archived. **Main boards** (one per domain, regime and observation protocol, like the paper's Table 2) show the
+archived. **Main boards** (one per domain, regime and observation protocol, like the paper's Tables 3 and 4) show the
 canonical configurations: a row per goal count and observability level (and per reading of the task's
 parameters, where runs used other than its defaults), a column per method named as the paper names it, each
 cell an :class:`~grail_bench.harness.modes.offline.OfflineRecord`. References (the demonstrator) sit after the

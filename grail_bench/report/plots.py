@@ -2,10 +2,10 @@
 
 * ``f1_vs_observability``: F1 against the observed fraction, one panel per
   task with several levels, one line per recognizer (its own scorer) and the
-  95 % interval over seeds as a band (the paper's Figure 3 family).
-* ``panda_regimes``: PandaReach F1 per regime and method (Figure 4).
+  95 % interval over seeds as a band (the paper's Figure 4 family).
+* ``panda_regimes``: PandaReach F1 per regime and method (Figure 5).
 * ``scoring_time``: scoring microseconds per observation, per method and
-  scorer (Figure 5).
+  scorer (Figure 6).
 * ``training_time``: training seconds per goal, per method (the efficiency section).
 * ``model_size``: kilobytes of one goal's stored model, per method (the storage table).
 * ``ablation``: F1 and scoring time per scorer; ``online``: accuracy against the observed fraction.
@@ -77,7 +77,7 @@ def svg(draw: Callable[[], Any]) -> str:
 
 
 def f1_vs_observability(records: Records, out: Path) -> list[Path]:
-    """Figure 3 family (see module docstring); nothing when no task has several levels."""
+    """Figure 4 family (see module docstring); nothing when no task has several levels."""
     mine = own_scorer_records(records)
     levels = defaultdict(set)
     for r in mine:
@@ -128,7 +128,7 @@ def _bars(ax: Any, groups: list[str], series: dict[str, dict[str, float]], error
 
 
 def panda_regimes(records: Records, out: Path) -> list[Path]:
-    """Figure 4: PandaReach F1 per regime (task) and method; nothing without PandaReach rows."""
+    """Figure 5: PandaReach F1 per regime (task) and method; nothing without PandaReach rows."""
     mine = [r for r in own_scorer_records(records) if domain_of(r.task) == "PandaReach"]
     if not mine:
         return []
@@ -173,7 +173,7 @@ def _per_domain(records: Records, value: Callable[[Any], float | None], label: C
 
 
 def scoring_time(records: Records, out: Path) -> list[Path]:
-    """Figure 5: scoring µs per observation per method and scorer (mean over tasks and levels)."""
+    """Figure 6: scoring µs per observation per method and scorer (mean over tasks and levels)."""
     return _per_domain(records, lambda r: r.score_us_per_observation, lambda r: f"{r.recognizer}/{r.scorer}",
                        "scoring µs / observation", "scoring_time", out)
 
