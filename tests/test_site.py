@@ -561,6 +561,31 @@ def test_published_page_stays_small(site):
     assert site.stat().st_size < 200_000 < MAX_PAGE_BYTES  # records.json, fits.json and figures/ hold the rest
 
 
+PUBLISHED = Path(__file__).resolve().parents[1] / "leaderboard" / "site" / "index.html"
+
+
+@pytest.mark.skipif(not PUBLISHED.exists(), reason="no published page in this checkout")
+def test_the_published_page_reads_as_a_ranking(browser):
+    """leaderboard/site as published: under its size limit; its first screen, every domain's summary of canonical
+    methods and the claims; no main-board header names a configuration by hash."""
+    import re
+
+    assert PUBLISHED.stat().st_size < MAX_PAGE_BYTES
+    page, errors, _ = open_page(browser, PUBLISHED)
+    height = page.viewport_size["height"]
+    summaries = page.locator(".domain-summary")
+    assert summaries.count() >= 3 and summaries.first.bounding_box()["y"] < height
+    methods = set(summaries.locator("tbody td:first-child").all_inner_texts())
+    assert {"BC-GRAIL", "GAIL-GRAIL", "AIRL-GRAIL", "GRAQL", "DRACO"} <= methods
+    assert not any("·" in m or "archived" in m for m in methods)  # canonical configurations only
+    claims = page.locator("#claims table").first
+    assert claims.bounding_box()["y"] < 2 * height and "verdict" in claims.locator("thead").inner_text()
+    headers = page.locator("section.board thead th").all_inner_texts()
+    assert headers and not [h for h in headers if re.search(r"\b[0-9a-f]{6,}\b", h)]
+    assert errors == []
+    page.context.close()
+
+
 def test_superseded_and_variant_configurations_on_the_page(browser, odd_site):
     page, errors, _ = open_page(browser, odd_site)
     archive = page.locator("#archive table").inner_text()
