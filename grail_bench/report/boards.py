@@ -59,7 +59,6 @@ class BoardRow:
         return self.name, self.protocol, self.observability
 
 
-Row = BoardRow
 CellKey = tuple[BoardRow, str]  # a row and a column label
 
 
