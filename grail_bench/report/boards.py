@@ -15,10 +15,9 @@ protocol and parameters only; Bayes ceilings come in already computed
 
 from __future__ import annotations
 
-import json
 from collections import defaultdict
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Literal, Sequence
+from typing import Iterable, Literal, Sequence
 
 from grail_bench.harness.ceiling import Ceiling, Cell
 from grail_bench.harness.modes.offline import OfflineRecord
@@ -141,11 +140,6 @@ def own_scorer_records(records: Sequence[OfflineRecord]) -> list[OfflineRecord]:
     return [r for r in records if own[r.recognizer] in (None, r.scorer)]
 
 
-def row_name(row: BoardRow) -> str:
-    """A board row's task as tables show it (:attr:`BoardRow.name`)."""
-    return row.name
-
-
 def short_name(task_id: str) -> str:
     """``GRAIL/MiniGrid-Optimal-4Goals-v0`` -> ``MiniGrid-Optimal-4Goals``."""
     name = task_id.removeprefix("GRAIL/")
@@ -155,48 +149,6 @@ def short_name(task_id: str) -> str:
 def domain_of(task_id: str) -> str:
     """``GRAIL/PandaReach-Gaussian-0.1-v0`` -> ``PandaReach``."""
     return task_id.removeprefix("GRAIL/").split("-", 1)[0]
-
-
-def column_label(record: Any, variants: dict[tuple[str, str], list[str] | None]) -> str:
-    """``recognizer/scorer`` (just the recognizer for plugins with their own scoring), for the per-configuration
-    tables beside the boards.
-
-    A recognizer run with several configurations gets one label per configuration, named by the settings that
-    tell them apart (``sac_steps=60000``) or, when only the task's parameters differ, by the configuration hash.
-    """
-    label = record.recognizer
-    if record.scorer != "default":
-        label += f"/{record.scorer}"
-    key = (record.recognizer, record.scorer)
-    if key in variants:
-        keys = variants[key]
-        if keys:
-            label += " " + " ".join(f"{k}={json.dumps(record.recognizer_config.get(k))}" for k in keys)
-        else:
-            label += f" [{record.config_hash[:6]}]"
-    return label
-
-
-def config_variants(records: Iterable[Any]) -> dict[tuple[str, str], list[str] | None]:
-    """The recognizer settings that tell apart the configurations of each ``(recognizer, scorer)``.
-
-    Only pairs run with more than one configuration on some task appear; their
-    value is the sorted list of differing settings, or None when those settings
-    do not separate the runs (they differ in task parameters) and only the hash can.
-    """
-    groups: dict[tuple[str, str, str], dict[str, dict[str, str]]] = defaultdict(dict)
-    for r in records:
-        config = {k: json.dumps(v, sort_keys=True) for k, v in r.recognizer_config.items()}
-        groups[(r.task, r.recognizer, r.scorer)][r.config_hash] = config
-    keys: dict[tuple[str, str], set[str] | None] = {}
-    for (_, rec, scorer), by_hash in groups.items():
-        if len(by_hash) < 2 or keys.get((rec, scorer), set()) is None:
-            continue
-        names = {k for c in by_hash.values() for k in c}
-        differing = {k for k in names if len({c.get(k) for c in by_hash.values()}) > 1}
-        separated = len({tuple(c.get(k) for k in sorted(differing)) for c in by_hash.values()}) == len(by_hash)
-        keys[(rec, scorer)] = (keys.get((rec, scorer)) or set()) | differing if separated else None
-    return {pair: sorted(k) if k else None for pair, k in keys.items()}
 
 
 def cell_of_record(r: OfflineRecord) -> Cell:

@@ -162,11 +162,8 @@ def configuration(record: Any) -> Configuration:
     if own is None:  # a plugin no longer installed: nothing to compare with, its runs shown as they are
         return Configuration("variant", method, tuple(sorted(record.recognizer_config.items())), scorer,
                              record.config_hash, record.recognizer)
-    if not current:
-        return Configuration("archived", method, _changes(record.recognizer_config, default), scorer,
-                             record.config_hash, record.recognizer)
     changes = _changes(record.recognizer_config, default)
-    kind: Kind = "canonical" if not changes and scorer is None else "variant"
+    kind: Kind = "archived" if not current else "canonical" if not changes and scorer is None else "variant"
     return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer)
 
 
