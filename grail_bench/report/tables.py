@@ -10,6 +10,7 @@ table says what bracketed or marked values are.
 
 from __future__ import annotations
 
+import html
 import textwrap
 from typing import TYPE_CHECKING, Any, Sequence
 
@@ -25,6 +26,11 @@ if TYPE_CHECKING:
     from grail_bench.report.reproduce import BudgetCurve
 
 TASK_PREFIX = "GRAIL/"
+
+
+def md(text: str) -> str:
+    """Text safe in a Markdown table cell: HTML escaped (``<`` -> ``&lt;``), ``|`` escaped."""
+    return html.escape(str(text), quote=False).replace("|", "\\|")
 
 
 def timing_table(records: Sequence[Any]) -> Fitted:
@@ -77,7 +83,7 @@ def ablation_markdown(rows: Sequence[AblationRow]) -> str:
              "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for r in rows:
         brier, nll, ece = _calibration(r)
-        lines.append(f"| {r.task} | {r.recognizer} | {r.scorer} | " + " | ".join(_ablation_cells(r, levels))
+        lines.append(f"| {r.task} | {md(r.recognizer)} | {md(r.scorer)} | " + " | ".join(_ablation_cells(r, levels))
                      + f" | {r.score_us:.0f} | {brier} | {nll} | {ece} |")
     return "\n".join(lines) + "\n"
 
@@ -230,7 +236,7 @@ def calibration_markdown(rows: Sequence[CalibrationRow]) -> str:
              "bins; `reliability.png` draws the bins.", "",
              "| domain | recognizer/scorer | records | Brier | NLL | ECE |", "|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r.domain} | {r.column} | {r.records} | {_num(r.brier)} | {_num(r.nll)} | {_num(r.ece)} |")
+        lines.append(f"| {r.domain} | {md(r.column)} | {r.records} | {_num(r.brier)} | {_num(r.nll)} | {_num(r.ece)} |")
     return "\n".join(lines) + "\n"
 
 
@@ -257,6 +263,6 @@ def runs_markdown(records: Sequence[Any], fits: dict | None = None, intervals: b
               "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for t in timing_rows(records, fits):
         ranking = " | ".join(_num(v) for v in (t.top2, t.mean_rank, t.set_precision, t.set_recall, t.set_spread))
-        lines.append(f"| {t.task} | {t.column} | {t.seeds} | {t.fit_seconds_per_goal:.2f} | "
+        lines.append(f"| {t.task} | {md(t.column)} | {t.seeds} | {t.fit_seconds_per_goal:.2f} | "
                      f"{t.score_us_per_observation:.0f} | {t.tie_rate:.1%} | {ranking} | {t.reached or '–'} |")
     return lines

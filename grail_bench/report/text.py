@@ -8,7 +8,6 @@ becomes markup.
 
 from __future__ import annotations
 
-import html
 from typing import Any, Callable, Sequence
 
 from rich.text import Text
@@ -24,7 +23,7 @@ from grail_bench.report.boards import (
 from grail_bench.report.layout import Fitted, grid_table, stacked
 from grail_bench.report.reference import MARKS
 from grail_bench.report.summary import DomainSummary
-from grail_bench.report.tables import runs_markdown
+from grail_bench.report.tables import md, runs_markdown
 from grail_bench.task.observation import level_text
 
 Grid = tuple[list[str], list[list[tuple[str, bool]]]]  # header; per row, (text, bold) cells
@@ -35,11 +34,6 @@ VERDICT_MARKS = {"consistent": "", "higher": "↑", "lower": "↓"}
 LEGEND = ("[0.83] = normalised F1, (F1 - chance) / (ceiling - chance); = ▲ ▼: inside, above, below the "
           "paper's 95 % interval; ↑ ↓: a Welch test finds ours higher, lower; bold: best of its row (methods "
           "only); (reference): shown for comparison, never ranked")
-
-
-def md(text: str) -> str:
-    """Text safe in a Markdown table cell: HTML escaped (``<`` -> ``&lt;``), ``|`` escaped."""
-    return html.escape(str(text), quote=False).replace("|", "\\|")
 
 
 def _cell(board: Board, row: BoardRow, column: str, ci: bool = False) -> tuple[str, bool]:
