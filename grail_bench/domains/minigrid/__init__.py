@@ -1,4 +1,5 @@
-"""The paper's MiniGrid domain: a 9x9 room with one obstacle, three behaviour regimes.
+"""The paper's MiniGrid domain: a 9x9 room with one obstacle, three behaviour regimes; other rooms (size,
+start, walls and lava) through the env parameters, e.g. gr_libs' crossing layouts (``tasks/minigrid_gr_libs.toml``).
 
 * :mod:`.grid`: actions, headings, pure-Python dynamics, regime parameters (no minigrid import).
 * :mod:`.env`: the goal-pinned minigrid env.
@@ -12,7 +13,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from grail_bench.core.errors import UserError
-from grail_bench.domains.minigrid.grid import check_params
+from grail_bench.domains.minigrid.grid import check_params, split_obstacles
 
 if TYPE_CHECKING:
     import numpy as np
@@ -58,7 +59,7 @@ class MiniGrid:
         free = _free_cells(env_params)
         for goal in goals:
             if tuple(int(c) for c in goal) not in free:
-                raise UserError(f"goal {list(goal)} is not a free cell of the room (walls and obstacles excluded)")
+                raise UserError(f"goal {list(goal)} is not a free cell of the room (walls, obstacles and lava excluded)")
 
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.minigrid.env import GRMiniGridEnv
@@ -97,7 +98,8 @@ def _cell(name: str, value: Any) -> tuple[int, int]:
 
 
 def _free_cells(env_params: Mapping[str, Any]) -> set[tuple[int, int]]:
-    """The room's free cells, after checking its env parameters (a wall runs round the ``size`` x ``size`` grid).
+    """The room's safe cells (neither wall nor lava), after checking its env parameters (a wall runs round the
+    ``size`` x ``size`` grid).
 
     Raises:
         UserError: For a size below 3, obstacles or a start outside the room, the start on an obstacle, or a
@@ -107,20 +109,17 @@ def _free_cells(env_params: Mapping[str, Any]) -> set[tuple[int, int]]:
     if isinstance(size, bool) or not isinstance(size, int) or size < 3:
         raise UserError(f"size must be an integer >= 3 (the room and its walls), got {size!r}")
     inside = {(x, y) for x in range(1, size - 1) for y in range(1, size - 1)}
-    obstacles = env_params["obstacles"]
-    if not isinstance(obstacles, (list, tuple)):
-        raise UserError(f"obstacles must be a list of cells, got {obstacles!r}")
-    blocked = {_cell("each obstacle", o) for o in obstacles}
-    outside = sorted(blocked - inside)
+    walls, lava = split_obstacles(env_params["obstacles"])
+    outside = sorted((walls | lava) - inside)
     if outside:
         raise UserError(f"obstacle {list(outside[0])} lies outside the room's free cells 1..{size - 2}")
     start = _cell("start", env_params["start"])
-    if start not in inside - blocked:
+    if start not in inside - walls - lava:
         raise UserError(f"start {list(start)} must be a free cell of the room (1..{size - 2}, not an obstacle)")
     start_dir = env_params["start_dir"]
     if isinstance(start_dir, bool) or start_dir not in (0, 1, 2, 3):
         raise UserError(f"start_dir must be 0 (east), 1 (south), 2 (west) or 3 (north), got {start_dir!r}")
-    return inside - blocked
+    return inside - walls - lava
 
 
 DOMAIN = MiniGrid()

@@ -54,9 +54,10 @@ if TYPE_CHECKING:
 
 @lru_cache(maxsize=64)
 def shortest_path_graph(model: GridModel, goal: tuple[int, int]) -> tuple[dict[State, int], dict[State, int]]:
-    """Distance to ``goal`` and number of shortest action sequences, per state.
+    """Distance to ``goal`` and number of shortest action sequences, per state that reaches it.
 
-    Stay is excluded, so every shortest sequence makes progress each step.
+    Stay is excluded, so every shortest sequence makes progress each step. Lava states are left out: the
+    episode ends there, so no path through lava reaches the goal and the demonstrators never enter it.
     """
     states = model.states()
     dist = {s: (0 if s[:2] == goal else np.inf) for s in states}
@@ -69,10 +70,11 @@ def shortest_path_graph(model: GridModel, goal: tuple[int, int]) -> tuple[dict[S
             best = 1 + min(dist[model.step(s, a)] for a in (LEFT, RIGHT, FORWARD))
             if best < dist[s]:
                 dist[s], changed = best, True
+    reach = {s: int(d) for s, d in dist.items() if d < np.inf}  # lava and cut-off states never reach the goal
     count: dict[State, int] = {}
-    for s in sorted(states, key=lambda s: dist[s]):
-        count[s] = 1 if dist[s] == 0 else sum(count[t] for t in optimal_successors(model, dist, s).values())
-    return {s: int(d) for s, d in dist.items() if d < np.inf}, count
+    for s in sorted(reach, key=reach.__getitem__):
+        count[s] = 1 if reach[s] == 0 else sum(count[t] for t in optimal_successors(model, reach, s).values())
+    return reach, count
 
 
 def optimal_successors(model: GridModel, dist: dict[State, float], state: State) -> dict[int, State]:

@@ -1,4 +1,5 @@
-"""The paper's MiniGrid domain: a 9x9 room, one obstacle, goal-pinned envs.
+"""The paper's MiniGrid domain: a 9x9 room, one obstacle, goal-pinned envs (other rooms, walls and lava through
+the parameters).
 
 Observations are the compact state ``(x, y, direction)`` as a ``MultiDiscrete``
 space (SB3 and imitation one-hot encode it); actions are ``Discrete(4)``:
@@ -9,6 +10,11 @@ With ``fixed_horizon=True`` (the default, needed by GAIL and AIRL) reaching the
 goal does not end the episode: the agent is absorbed there, every further
 action is a no-op with zero reward, and the episode is truncated after
 ``max_steps``. ``info["is_success"]`` tells whether the goal has been reached.
+
+Lava (``[x, y, "lava"]`` obstacles) ends the episode when entered, as in
+minigrid, with no reward: the episode terminates, or with ``fixed_horizon``
+the agent is absorbed in the lava, as at the goal, until the horizon (and
+``is_success`` stays false).
 """
 
 from __future__ import annotations
@@ -20,7 +26,7 @@ from gymnasium import spaces  # imported first: gymnasium hides pygame's banner 
 from minigrid.core.actions import Actions
 from minigrid.core.grid import Grid
 from minigrid.core.mission import MissionSpace
-from minigrid.core.world_object import Goal, Wall
+from minigrid.core.world_object import Goal, Lava, Wall
 from minigrid.minigrid_env import MiniGridEnv
 
 from grail_bench.core.errors import UserError
@@ -43,7 +49,7 @@ class GRMiniGridEnv(MiniGridEnv):
         size: Side of the square grid, outer walls included.
         start: Start cell of the agent.
         start_dir: Start direction (0 = east).
-        obstacles: Interior wall cells.
+        obstacles: Interior obstacle cells: ``[x, y]`` a wall, ``[x, y, "lava"]`` lava.
         max_steps: Episode horizon.
         fixed_horizon: Absorb at the goal instead of terminating.
         render_mode: ``"rgb_array"``, ``"human"`` or ``None``.
@@ -56,25 +62,25 @@ class GRMiniGridEnv(MiniGridEnv):
         size: int = 9,
         start: Sequence[int] = (1, 4),
         start_dir: int = 0,
-        obstacles: Sequence[Sequence[int]] = ((7, 4),),
+        obstacles: Sequence[Sequence[Any]] = ((7, 4),),
         max_steps: int = 60,
         fixed_horizon: bool = True,
         render_mode: str | None = None,
     ) -> None:
-        self.model = GridModel(int(size), frozenset(tuple(map(int, o)) for o in obstacles))
+        self.model = GridModel.of(size, obstacles)
         self.goal = (int(goal[0]), int(goal[1]))
         self.start = (int(start[0]), int(start[1]))
         self.start_dir = int(start_dir)
         for name, cell in (("goal", self.goal), ("start", self.start)):
-            if not self.model.free(*cell):
-                raise UserError(f"{name} {cell} is not a free cell of the {size}x{size} room")
+            if not self.model.safe(*cell):
+                raise UserError(f"{name} {cell} is not a free cell of the {size}x{size} room (nor lava)")
         if self.goal == self.start:
             raise UserError("goal and start must differ")
         if not 0 <= self.start_dir < 4:
             raise UserError(f"start_dir must be in 0..3, got {start_dir}")
         self.fixed_horizon = bool(fixed_horizon)
         self.task = None  # set by GRTask.make_env
-        self._absorbed = False
+        self._absorbed = self._success = False
         super().__init__(
             mission_space=MissionSpace(mission_func=_mission),
             width=self.model.size, height=self.model.size, max_steps=int(max_steps),
@@ -88,6 +94,8 @@ class GRMiniGridEnv(MiniGridEnv):
         self.grid.wall_rect(0, 0, width, height)
         for x, y in self.model.obstacles:
             self.grid.set(x, y, Wall())
+        for x, y in self.model.lava:
+            self.grid.set(x, y, Lava())
         self.put_obj(Goal(), *self.goal)
         self.agent_pos = self.start
         self.agent_dir = self.start_dir
@@ -111,7 +119,8 @@ class GRMiniGridEnv(MiniGridEnv):
     def tabular_dynamics(self) -> TabularDynamics:
         """The room as tables over state indices (tabular learners step these instead of the env).
 
-        Cells outside the free area are never entered; their rows stay in place.
+        Cells outside the free area are never entered; their rows stay in place, as do those of lava, where the
+        episode has ended without reward (absorbed, as the env with ``fixed_horizon`` keeps it).
         """
         states = all_states(self.observation_space)
         n_actions = int(self.action_space.n)
@@ -135,7 +144,7 @@ class GRMiniGridEnv(MiniGridEnv):
         return int(self.agent_pos[0]), int(self.agent_pos[1]), int(self.agent_dir)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        self._absorbed = False
+        self._absorbed = self._success = False
         obs, info = super().reset(seed=seed, options=options)
         return obs, {**info, "is_success": False}
 
@@ -145,9 +154,10 @@ class GRMiniGridEnv(MiniGridEnv):
         if self._absorbed:
             self.step_count += 1
             truncated = self.step_count >= self.max_steps
-            return self.gen_obs(), 0.0, False, truncated, {"is_success": True}
+            return self.gen_obs(), 0.0, False, truncated, {"is_success": self._success}
         obs, reward, terminated, truncated, info = super().step(_TO_MINIGRID[int(action)])
-        if terminated:  # only the goal terminates in this room
+        if terminated:  # the goal or lava
             self._absorbed = self.fixed_horizon
-        info["is_success"] = bool(terminated)
+            self._success = tuple(self.agent_pos) == self.goal
+        info["is_success"] = self._success
         return obs, float(reward), terminated and not self.fixed_horizon, truncated, info

@@ -3,12 +3,18 @@
 Nothing here imports minigrid, so task cards are validated without it.
 Directions follow minigrid: 0 = east, 1 = south, 2 = west, 3 = north; ``y``
 grows southwards.
+
+Obstacles are minigrid's two kinds: a wall ``[x, y]`` blocks the cell, lava
+``[x, y, "lava"]`` can be entered and ends the episode there (the agent is
+absorbed in it, never reaching the goal). The demonstrators never enter lava:
+its states cannot reach the goal, so no shortest path passes through them.
 """
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 from grail_bench.core.errors import UserError
 from grail_bench.domains.routes import check_routes
@@ -19,6 +25,8 @@ DIR_VEC = ((1, 0), (0, 1), (-1, 0), (0, -1))
 HEADINGS = "ESWN"  # compass letter of each minigrid direction
 
 State = tuple[int, int, int]
+Cell = tuple[int, int]
+LAVA = "lava"  # the obstacle kind of a lava cell, ``[x, y, "lava"]``
 
 
 @dataclass(frozen=True)
@@ -30,11 +38,22 @@ class GridModel:
     """
 
     size: int
-    obstacles: frozenset[tuple[int, int]]
+    obstacles: frozenset[Cell]
+    lava: frozenset[Cell] = frozenset()
+
+    @classmethod
+    def of(cls, size: int, obstacles: Sequence[Sequence[Any]]) -> GridModel:
+        """The model of a ``size`` x ``size`` room with obstacles as the env takes them (see module docstring)."""
+        walls, lava = split_obstacles(obstacles)
+        return cls(int(size), walls, lava)
 
     def free(self, x: int, y: int) -> bool:
-        """Whether a cell is inside the outer wall and not an obstacle."""
+        """Whether the agent can enter a cell: inside the outer wall and not a wall (lava can be entered)."""
         return 0 < x < self.size - 1 and 0 < y < self.size - 1 and (x, y) not in self.obstacles
+
+    def safe(self, x: int, y: int) -> bool:
+        """Whether a cell can be entered and left: free and not lava (starts and goals lie on safe cells)."""
+        return self.free(x, y) and (x, y) not in self.lava
 
     def states(self) -> list[State]:
         """Every state the agent can be in."""
@@ -43,6 +62,8 @@ class GridModel:
     def step(self, state: State, action: int) -> State:
         """Successor of ``state`` under ``action`` (ignoring goal absorption)."""
         x, y, d = state
+        if (x, y) in self.lava:
+            return state  # the episode ended in the lava
         if action == LEFT:
             return x, y, (d - 1) % 4
         if action == RIGHT:
@@ -51,6 +72,25 @@ class GridModel:
             dx, dy = DIR_VEC[d]
             return (x + dx, y + dy, d) if self.free(x + dx, y + dy) else state
         return state
+
+
+def split_obstacles(obstacles: Sequence[Sequence[Any]]) -> tuple[frozenset[Cell], frozenset[Cell]]:
+    """Wall cells and lava cells of an ``obstacles`` list (``[x, y]`` a wall, ``[x, y, "lava"]`` lava).
+
+    Raises:
+        UserError: For an entry of another shape or kind.
+    """
+    if not isinstance(obstacles, (list, tuple)):
+        raise UserError(f"obstacles must be a list of cells, got {obstacles!r}")
+    walls, lava = set(), set()
+    for o in obstacles:
+        ok = isinstance(o, (list, tuple)) and len(o) in (2, 3) and (len(o) == 2 or o[2] == LAVA)
+        if not ok or not all(isinstance(c, numbers.Integral) and not isinstance(c, bool) for c in o[:2]):
+            raise UserError(f"each obstacle must be a wall [x, y] or lava [x, y, \"lava\"] of integers, got {o!r}")
+        (lava if len(o) == 3 else walls).add((int(o[0]), int(o[1])))
+    if walls & lava:
+        raise UserError(f"cell {list(min(walls & lava))} is both a wall and lava")
+    return frozenset(walls), frozenset(lava)
 
 
 TURNS = (LEFT, RIGHT)

@@ -37,6 +37,7 @@ class MiniGridVecEnv(VecEnv):
         super().__init__(n_envs, env.observation_space, env.action_space)
         size = env.model.size
         self._free = np.array([[env.model.free(x, y) for y in range(size)] for x in range(size)])
+        self._lava = np.array([[(x, y) in env.model.lava for y in range(size)] for x in range(size)])
         self._dir_vec = np.array(DIR_VEC, dtype=np.int64)
         self._goal = np.array(env.goal, dtype=np.int64)
         self._start = np.array([*env.start, env.start_dir], dtype=np.int64)
@@ -45,12 +46,14 @@ class MiniGridVecEnv(VecEnv):
         self._state = np.tile(self._start, (n_envs, 1))
         self._steps = np.zeros(n_envs, dtype=np.int64)
         self._absorbed = np.zeros(n_envs, dtype=bool)
+        self._success = np.zeros(n_envs, dtype=bool)
         self._actions = np.zeros(n_envs, dtype=np.int64)
 
     def reset(self) -> np.ndarray:
         self._state[:] = self._start
         self._steps[:] = 0
         self._absorbed[:] = False
+        self._success[:] = False
         self.reset_infos = [{"is_success": False} for _ in range(self.num_envs)]
         self._reset_seeds()  # the room has no randomness; seeds are accepted and spent as SB3 expects
         self._reset_options()
@@ -71,19 +74,21 @@ class MiniGridVecEnv(VecEnv):
         moves = active & (actions == FORWARD) & self._free[ahead[:, 0], ahead[:, 1]]
         state[moves, :2] = ahead[moves]
         reached = moves & (state[:, 0] == self._goal[0]) & (state[:, 1] == self._goal[1])
+        burnt = moves & self._lava[state[:, 0], state[:, 1]]  # lava ends the episode, without reward
         # minigrid's reward for reaching the goal, 1 - 0.9 * steps / max_steps (float64, stored as float32 as SB3 does)
         rewards = np.where(reached, 1 - 0.9 * (self._steps / self._max_steps), 0.0).astype(np.float32)
-        terminated = reached & (not self._fixed_horizon)
+        terminated = (reached | burnt) & (not self._fixed_horizon)
         if self._fixed_horizon:
-            self._absorbed |= reached
+            self._absorbed |= reached | burnt
+        self._success |= reached
         truncated = self._steps >= self._max_steps
         dones = terminated | truncated
         infos = [{"is_success": s, "TimeLimit.truncated": t}
-                 for s, t in zip((reached | was_absorbed).tolist(), (truncated & ~terminated).tolist())]
+                 for s, t in zip(self._success.tolist(), (truncated & ~terminated).tolist())]
         obs = state.copy()
         for i in np.flatnonzero(dones):
             infos[i]["terminal_observation"] = obs[i].copy()
-            state[i], self._steps[i], self._absorbed[i] = self._start, 0, False
+            state[i], self._steps[i], self._absorbed[i], self._success[i] = self._start, 0, False, False
             obs[i] = self._start
             self.reset_infos[i] = {"is_success": False}
         return obs, rewards, dones, infos
