@@ -198,7 +198,7 @@ def one_seed_stored(tmp_path_factory) -> Path:
 
 @pytest.mark.parametrize("args, message", [
     (["--set", "bc.n_epochs=abc"], "n_epochs expects an integer, got 'abc'"),
-    (["--set", "bc.learning_rate=[1]"], "learning_rate expects a number, got [1]"),
+    (["--set", "bc.learning_rate=[1]"], "learning_rate expects a finite number, got [1]"),
     (["--json", "/proc/nope/r.json"], "cannot write the file /proc/nope/r.json"),
     (["--json", "."], "it is a folder"),
 ])

@@ -4,7 +4,9 @@ A value typed on the command line (``--set bc.n_epochs=abc``) reaches a
 constructor as whatever JSON made of it; :func:`check_kwargs` converts it to
 the parameter's declared type (``int``, ``float``, ``bool``, ``str``, a
 sequence of those, or ``X | None``) or says, in one line, which parameter
-expects what. Parameters without an annotation it understands pass unchanged.
+expects what. A ``float`` setting is a finite number: NaN and infinities,
+which JSON lets through as ``NaN`` and ``Infinity``, are refused for every
+setting alike. Parameters without an annotation it understands pass unchanged.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from typing import Any, Callable, Mapping
 
 from grail_bench.core.errors import UserError
 
-_NAMES = {int: "an integer", float: "a number", bool: "true or false", str: "a string"}
+_NAMES = {int: "an integer", float: "a finite number", bool: "true or false", str: "a string"}
 
 
 class _Mismatch(Exception):
@@ -59,9 +61,11 @@ def _convert(value: Any, annotation: Any) -> Any:
     if annotation is float:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             try:
-                return float(value)
+                converted = float(value)
             except OverflowError:  # an integer beyond any float
                 raise _Mismatch from None
+            if math.isfinite(converted):
+                return converted
         raise _Mismatch
     if annotation is str:
         if isinstance(value, str):

@@ -16,7 +16,6 @@ rounding) and a rollout's learned rewards computed in one call at its end
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass
 from typing import Any, Callable, Literal, Sequence
@@ -142,9 +141,8 @@ class AdversarialConfig:
         if self.n_steps * self.n_envs < 2:
             raise UserError(f"n_steps * n_envs must be at least 2 (the steps of one PPO rollout), got "
                             f"{self.n_steps} * {self.n_envs}")
-        if not 0 < self.gamma <= 1 or not 0 < self.learning_rate < math.inf:
-            raise UserError(f"gamma must be in (0, 1] and learning_rate a finite number > 0, got {self.gamma} and "
-                            f"{self.learning_rate}")
+        if not 0 < self.gamma <= 1 or not self.learning_rate > 0:
+            raise UserError(f"gamma must be in (0, 1] and learning_rate > 0, got {self.gamma} and {self.learning_rate}")
         if self.update not in UPDATES:
             raise UserError(f"update must be one of {', '.join(UPDATES)}, got {self.update!r}")
 

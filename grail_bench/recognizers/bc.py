@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import hashlib
-import math
 import warnings
 from dataclasses import dataclass, field
 from typing import Any, Literal, Sequence
@@ -56,9 +55,6 @@ class BCConfig:
     def __post_init__(self) -> None:
         if self.n_epochs < 1 or self.batch_size < 1 or self.learning_rate <= 0:
             raise UserError("n_epochs and batch_size must be positive, learning_rate > 0")
-        if not math.isfinite(self.learning_rate) or not math.isfinite(self.ent_weight):
-            raise UserError(f"learning_rate and ent_weight must be finite, got {self.learning_rate} and "
-                            f"{self.ent_weight}")
 
 
 class BCRecognizer(PolicyRecognizer):

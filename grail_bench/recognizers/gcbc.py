@@ -20,7 +20,6 @@ towards a goal it never saw ("the goal is north: go north").
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 from importlib.metadata import version
@@ -172,9 +171,6 @@ class GCBCConfig:
     def __post_init__(self) -> None:
         if self.n_batches < 1 or self.batch_size < 1 or self.hidden < 1 or self.learning_rate <= 0:
             raise UserError("n_batches, batch_size and hidden must be positive, learning_rate > 0")
-        if not math.isfinite(self.learning_rate) or not math.isfinite(self.ent_weight):
-            raise UserError(f"learning_rate and ent_weight must be finite, got {self.learning_rate} and "
-                            f"{self.ent_weight}")
 
 
 class GCBCRecognizer(ScoredRecognizer):
