@@ -37,6 +37,9 @@ EXECUTOR_HELP = "serial, local (a process pool) or ray (default: local with --wo
 ADDRESS_HELP = "A Ray cluster to run on: auto or HOST:PORT (implies --executor ray)."
 MODE_HELP = ("offline (the paper's protocol), online, open-set or zero-shot (a third of the goals never fitted; "
              "goal-conditioned recognizers only). --online and --open-set are shortcuts.")
+NOISE_HELP = ("Share of the observed steps made spurious: the state kept, another action shown (a uniform draw "
+              "in a box); rows are stored as e.g. subset+noise0.2.")
+CHANNEL_HELP = "What a recognizer observes: pairs, states or actions (the recognizer must declare it)."
 STORE_HELP = ("Results database (default: results.sqlite in the grail-bench folder of the user data directory, "
               "~/.local/share).")
 
@@ -94,6 +97,11 @@ def run(
         None, help="Observed pairs k = ceil(p*T) (ceil) or gr_libs' int(p*T) (floor); default: the task's."),
     sampling: Optional[str] = typer.Option(None, "--sampling", hidden=True,
                                            help="Deprecated alias of --protocol (random = subset)."),
+    noise: float = typer.Option(0.0, "--noise", help=NOISE_HELP),
+    channel: str = typer.Option("pairs", "--channel", help=CHANNEL_HELP),
+    observation: Optional[str] = typer.Option(
+        None, "--observation", help="An observation profile setting levels, rounding and protocols: gr_libs "
+                                    "(30/50/70/90/100 %, int(p*T) pairs, prefix and subset)."),
     scorer: Optional[List[str]] = typer.Option(None, "--scorer",
                                                help="Scorer; repeat for several (default: each recognizer's own)."),
     settings: Optional[List[str]] = typer.Option(None, "--set", help="Recognizer hyperparameter, e.g. bc.n_epochs=50."),
@@ -133,17 +141,37 @@ def run(
         check_store(store_path)
         config = parse_settings(settings or [], names)
         scorers = tuple(dict.fromkeys(scorer or []))
-        req = request(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
-                      observability=observability, protocol=canonical_name(sampling) if sampling else protocol,
-                      rounding=rounding, task_params=parse_params(params or []) | ({"demos": demos} if demos else {}),
-                      mode=mode)
+        setups = _observations(observation, observability, canonical_name(sampling) if sampling else protocol,
+                               rounding)
+        reqs = [request(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
+                        observability=levels, protocol=chosen_protocol, rounding=chosen_rounding,
+                        task_params=parse_params(params or []) | ({"demos": demos} if demos else {}), mode=mode,
+                        noise=noise, channel=channel)
+                for levels, chosen_protocol, chosen_rounding in setups]
         with open_store(store_path) as store, make_executor(executor, workers, address) as chosen:
-            summary = run_sweep([req], store, chosen, progress=progress, description=f"{req.task_id} ({mode})")
-            records, where = collect(req, store, summary.planned[0][1]), store.path
+            summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{reqs[0].task_id} ({mode})")
+            records = [r for req, planned in summary.planned for r in collect(req, store, planned)]
+            where = store.path
             _show(records, MODES[mode], chosen)
         say(f"results stored in {where}")
         if json_path is not None:
             write_text(json_path, json.dumps([r.to_dict() for r in records], indent=2) + "\n", "records")
+
+
+def _observations(profile: Optional[str], observability: Optional[str], protocol: Optional[str],
+                  rounding: Optional[str]) -> list[tuple[Optional[str], Optional[str], Optional[str]]]:
+    """The (levels, protocol, rounding) of each request of a run: the options as given, or one per protocol of an
+    observation profile (which refuses the options it sets)."""
+    if profile is None:
+        return [(observability, protocol, rounding)]
+    from grail_bench.task.observation import get_profile
+
+    chosen = get_profile(profile)
+    given = [name for name, value in (("--observability", observability), ("--protocol", protocol),
+                                      ("--rounding", rounding)) if value is not None]
+    if given:
+        raise fail(f"--observation {chosen.name} sets the levels, protocols and rounding; drop {', '.join(given)}")
+    return [(",".join(map(str, chosen.levels)), name, chosen.rounding) for name in chosen.protocols]
 
 
 def _show(records: list, mode, executor) -> None:  # noqa: ANN001 - a Mode and an Executor
@@ -431,6 +459,8 @@ def ceiling(
     pairs_only: bool = typer.Option(False, "--pairs-only",
                                     help="The best accuracy of scoring the observed pairs with per-goal policies "
                                          "(the demonstrators' own), as GRAIL, GRAQL and DRACO score."),
+    noise: float = typer.Option(0.0, "--noise", help=NOISE_HELP),
+    channel: str = typer.Option("pairs", "--channel", help="What is observed: pairs, states or actions."),
 ) -> None:
     """The Bayes ceiling: the best accuracy any recognizer can reach under a protocol and level."""
     from grail_bench.harness.ceiling import bayes_ceiling
@@ -445,7 +475,8 @@ def ceiling(
                                        observability or gr_task.observability)
         with console.status("computing the Bayes ceiling"):
             results = [bayes_ceiling(gr_task, spec.protocol, level, rounding=spec.rounding, method=method,
-                                     samples=samples, seed=seed, pairs_only=pairs_only) for level in spec.levels]
+                                     samples=samples, seed=seed, pairs_only=pairs_only, noise=noise, channel=channel)
+                       for level in spec.levels]
         console.print(ceiling_table(task, results))
         if json_path is not None:
             write_text(json_path, json.dumps([c.as_dict() for c in results], indent=2) + "\n", "ceilings")

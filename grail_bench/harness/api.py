@@ -12,7 +12,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import seed_list
 from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import Record, ResultRow, SeedRun, get_mode
-from grail_bench.harness.planning import Planned, RecognizerSpec
+from grail_bench.harness.planning import Planned, RecognizerSpec, check_channel
 from grail_bench.harness.store import ResultsStore
 from grail_bench.harness.sweep import Request, plan_request, run_sweep
 from grail_bench.recognizers.contract import FitDiagnostics
@@ -47,10 +47,19 @@ def _specs(recognizers: RecognizerLike | Sequence[RecognizerLike]) -> tuple[Reco
     return tuple(RecognizerSpec.of(item) for item in items)
 
 
+def _action_space(task: GRTask) -> Any:
+    """The task's action space (where noisy observations draw spurious actions)."""
+    env = task.make_env()
+    try:
+        return env.action_space
+    finally:
+        env.close()
+
+
 def request(task_id: str, recognizers: RecognizerLike | Sequence[RecognizerLike], *,
             seeds: int | Sequence[int] = 3, observability: Iterable[float] | str | None = None,
             protocol: str | None = None, rounding: str | None = None, task_params: Mapping[str, Any] | None = None,
-            mode: str = "offline") -> Request:
+            mode: str = "offline", noise: float = 0.0, channel: str = "pairs") -> Request:
     """A checked :class:`~grail_bench.harness.sweep.Request` (see :func:`evaluate` for the arguments).
 
     Raises:
@@ -69,7 +78,9 @@ def request(task_id: str, recognizers: RecognizerLike | Sequence[RecognizerLike]
     else:
         levels = task.observability if chosen.takes_levels else ()
     specs = _specs(recognizers)
-    observation = ObservationSpec.resolve(protocol or task.protocol, rounding or task.rounding, levels)
+    observation = ObservationSpec.resolve(protocol or task.protocol, rounding or task.rounding, levels, noise=noise,
+                                          channel=channel, action_space=_action_space(task) if noise else None)
+    check_channel(specs, observation.channel)
     seeds = tuple(seed_list(seeds))
     if task.demos:
         check_seeds(task.demos, seeds)
@@ -89,6 +100,8 @@ def evaluate(
     task_params: Mapping[str, Any] | None = None,
     executor: Executor | None = None,
     mode: str = "offline",
+    noise: float = 0.0,
+    channel: str = "pairs",
 ) -> list[Record]:
     """Benchmark recognizers on one task.
 
@@ -114,6 +127,10 @@ def evaluate(
         mode: ``offline`` (the protocol at each level), ``online`` (every
             prefix; no ``observability``) or ``open-set`` (one goal held out
             per seed; at least 3 goals).
+        noise: Share of the observed steps made spurious, each keeping its state and showing another action
+            (:mod:`grail_bench.task.observation`); it keys the rows (``subset+noise0.2``).
+        channel: What a recognizer observes: ``pairs``, ``states`` or ``actions`` (``subset+states``); a
+            recognizer that does not declare the channel is refused before any training.
 
     Returns:
         The across-seed records of the mode (``record.to_dict()`` is the
@@ -121,11 +138,11 @@ def evaluate(
         and level; online one per recognizer and scorer.
 
     Raises:
-        UserError: For an unknown or malformed task, recognizer, setting, seed, level, protocol, mode, store or
-            executor, before any training.
+        UserError: For an unknown or malformed task, recognizer, setting, seed, level, protocol, noise, channel,
+            mode, store or executor, before any training.
     """
     req = request(task_id, recognizers, seeds=seeds, observability=observability, protocol=protocol,
-                  rounding=rounding, task_params=task_params, mode=mode)
+                  rounding=rounding, task_params=task_params, mode=mode, noise=noise, channel=channel)
     if store is not None and not isinstance(store, ResultsStore):
         raise UserError(f"store is a ResultsStore (e.g. ResultsStore('results.sqlite')), got {store!r}")
     if executor is not None and not callable(getattr(executor, "map_unordered", None)):

@@ -22,6 +22,28 @@ visit their states. Where a demonstrator is deterministic (one route per goal)
 two goals whose demonstrators act alike on every observed state score alike
 under any per-pair score, so no such recognizer does better.
 
+Under an observation model (:mod:`grail_bench.task.observation`) the
+ceilings score what the recognizer sees:
+
+* ``noise``: a noisy observation's likelihood sums, over which ``m`` of its
+  ``k`` steps were spurious and what they showed before, the clean
+  observations' likelihoods, each weighted ``1 / (C(k, m) (n - 1)^m)`` for
+  ``n`` discrete actions. Exact where the demonstrator is enumerated (each
+  observation spread over its noisy versions), else a Monte Carlo estimate
+  whose likelihoods enumerate the ``C(k, m) (n - 1)^m`` clean candidates
+  (refused beyond :data:`NOISY_LIMIT` of them). The pairs-only ceiling scores
+  each observed pair with the mixture ``(1 - w) pi(a | s) + w (1 - pi(a | s)) / (n - 1)``,
+  ``w = m / k`` the share of spurious steps (a step's probability of showing
+  ``a`` when it is spurious with probability ``w`` and shows one of the
+  ``n - 1`` other actions uniformly then); states the policy never visits
+  stay impossible, as noise keeps the states. Noise on a continuous (``Box``)
+  action space is refused: the demonstrators' pairs are not densities.
+* ``states`` or ``actions`` channel: each observation is projected on its
+  channel and equal projections pooled, which marginalises the hidden one
+  exactly; only where the demonstrator is enumerated (the likelihood of a
+  projection is a sum over every hidden sequence otherwise), and not for the
+  pairs-only ceiling, which scores actions in states.
+
 Only regimes whose demonstrator has a known likelihood have a ceiling: a
 domain lists them in ``ceiling_regimes`` and builds the per-goal model
 (:class:`~grail_bench.domains.base.GoalModel`) in ``demonstrator`` (MiniGrid:
@@ -34,6 +56,7 @@ ceiling a set of records needs, once (each level is cached on disk), and
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -41,7 +64,7 @@ from collections import defaultdict
 from dataclasses import asdict, dataclass, replace
 from functools import partial
 from pathlib import Path
-from typing import Any, Callable, Hashable, Iterable, NamedTuple, Sequence
+from typing import Any, Callable, Hashable, Iterable, Iterator, NamedTuple, Sequence
 
 import numpy as np
 
@@ -57,8 +80,10 @@ from grail_bench.task.observation import (
     PREFIX_OF,
     ObservationProtocol,
     Selection,
+    SpuriousActions,
     get_protocol,
     n_observed,
+    n_spurious,
     parse_label,
     protocol_label,
 )
@@ -66,6 +91,7 @@ from grail_bench.task.observation import (
 METHODS = ("auto", "exact", "monte-carlo")
 EXACT_LIMIT = 2_000_000  # observations enumerated at most before "auto" samples instead
 CACHED_SEED = 0  # the Monte Carlo seed of every cached ceiling: its cache key records it
+NOISY_LIMIT = 500  # clean candidates of one noisy observation a Monte Carlo likelihood sums at most
 
 
 @dataclass(frozen=True)
@@ -118,6 +144,108 @@ def _selection(protocol: str, level: float, rounding: str) -> Selection:
                      rounding=rounding)
 
 
+@dataclass(frozen=True)
+class ObservationModel:
+    """What the recognizer sees of a protocol's observation: its noise and channel.
+
+    Attributes:
+        noise: Share of the observed steps that are spurious.
+        channel: ``"pairs"``, ``"states"`` or ``"actions"``.
+        spurious: The action space's spurious actions (needed when ``noise > 0``).
+    """
+
+    noise: float = 0.0
+    channel: str = "pairs"
+    spurious: SpuriousActions | None = None
+
+    @property
+    def plain(self) -> bool:
+        """Whether it shows the protocol's observations as they are."""
+        return not self.noise and self.channel == "pairs"
+
+    def check(self, demonstrators: Sequence[GoalModel], pairs_only: bool, task_id: str) -> None:
+        """Refuse what the ceiling cannot compute generically (see the module docstring).
+
+        Raises:
+            UserError: In one line, saying why.
+        """
+        if self.noise and (self.spurious is None or not self.spurious.discrete
+                           or any(d.action_size != 1 for d in demonstrators)):
+            raise UserError(f"{task_id}: the noisy ceiling needs one discrete action per step; spurious actions "
+                            "drawn from a continuous box have a density the demonstrator's pairs do not")
+        if self.channel != "pairs" and pairs_only:
+            raise UserError(f"{task_id}: the pairs-only ceiling scores actions in states; it has no "
+                            f"{self.channel}-only form")
+        if self.channel != "pairs" and not all(d.enumerable for d in demonstrators):
+            raise UserError(f"{task_id}: the {self.channel}-only ceiling needs a demonstrator whose "
+                            "demonstrations can be enumerated (marginalising the hidden channel of a sampled one "
+                            "sums over every hidden sequence)")
+
+    def views(self, observation: tuple, action_size: int) -> Iterator[tuple[tuple, float]]:
+        """Every observation the recognizer can see of a protocol's ``observation``, with its probability."""
+        for noisy, p in self.noisy(observation):
+            yield self.project(noisy, action_size), p
+
+    def noisy(self, observation: tuple) -> Iterator[tuple[tuple, float]]:
+        """Every noisy version of ``observation`` with its probability; the relation is symmetric, so these are
+        also the clean observations a noisy one can come from, with the same weights."""
+        k = len(observation)
+        m = n_spurious(self.noise, k) if self.noise else 0
+        if m == 0:
+            yield observation, 1.0
+            return
+        weight = 1.0 / (math.comb(k, m) * (self.spurious.n - 1) ** m)
+        for steps in itertools.combinations(range(k), m):
+            for shown in itertools.product(*(self.spurious.others(observation[i][-1]) for i in steps)):
+                out = list(observation)
+                for i, a in zip(steps, shown):
+                    out[i] = (*observation[i][:-1], a)
+                yield tuple(out), weight
+
+    def n_noisy(self, k: int) -> int:
+        """How many noisy versions an observation of ``k`` pairs has."""
+        m = n_spurious(self.noise, k) if self.noise else 0
+        return math.comb(k, m) * (self.spurious.n - 1) ** m if m else 1
+
+    def project(self, observation: tuple, action_size: int) -> tuple:
+        """The channel's part of each pair."""
+        if self.channel == "states":
+            return tuple(pair[:-action_size] for pair in observation)
+        if self.channel == "actions":
+            return tuple(pair[-action_size:] for pair in observation)
+        return observation
+
+    def sample(self, observation: tuple, rng: np.random.Generator) -> tuple:
+        """One noisy version of ``observation``, drawn as the harness draws it (only for the pairs channel)."""
+        k = len(observation)
+        m = n_spurious(self.noise, k) if self.noise else 0
+        if m == 0:
+            return observation
+        out = list(observation)
+        steps = rng.choice(k, size=m, replace=False)
+        shown = self.spurious.draw(np.array([out[i][-1] for i in steps]), rng)
+        for i, a in zip(steps, shown.tolist()):
+            out[i] = (*out[i][:-1], a)
+        return tuple(out)
+
+    def likelihood(self, d: GoalModel, observation: tuple, selection: Selection) -> float:
+        """Probability that ``d`` yields the (noisy) ``observation`` (pairs channel).
+
+        Raises:
+            UserError: Beyond :data:`NOISY_LIMIT` clean candidates.
+        """
+        if not self.noise:
+            return d.likelihood(observation, selection)
+        if self.n_noisy(len(observation)) > NOISY_LIMIT:
+            raise UserError(f"a noisy observation of {len(observation)} pairs has {self.n_noisy(len(observation))} "
+                            f"clean candidates, more than the {NOISY_LIMIT} the Monte Carlo ceiling sums; use a "
+                            "lower level or noise")
+        return math.fsum(w * d.likelihood(clean, selection) for clean, w in self.noisy(observation))
+
+
+PLAIN = ObservationModel()
+
+
 def _demonstrators(task: GRTask) -> list[GoalModel]:
     if not has_ceiling(task):
         known = ", ".join(task.spec.ceiling_regimes) or "none"
@@ -126,7 +254,7 @@ def _demonstrators(task: GRTask) -> list[GoalModel]:
     return [task.spec.demonstrator(task, goal) for goal in task.goals]
 
 
-def _exact_size(demonstrators: list, selection) -> int | None:
+def _exact_size(demonstrators: list, selection, model: ObservationModel = PLAIN) -> int | None:
     """Observations an exact enumeration visits, or None if it cannot enumerate."""
     if not all(d.enumerable for d in demonstrators):
         return None
@@ -134,35 +262,37 @@ def _exact_size(demonstrators: list, selection) -> int | None:
     for d in demonstrators:
         for actions, _ in d.support():
             n = len(d.span(actions, selection))
-            size += math.comb(n, n_observed(selection.level, n, selection.rounding)) if selection.random_subset else 1
+            k = n_observed(selection.level, n, selection.rounding)
+            size += (math.comb(n, k) if selection.random_subset else 1) * model.n_noisy(k)
     return size
 
 
-def _exact(demonstrators: list, selection) -> float:
+def _exact(demonstrators: list, selection, model: ObservationModel = PLAIN) -> float:
     joint: dict[tuple, np.ndarray] = defaultdict(lambda: np.zeros(len(demonstrators)))
     for g, d in enumerate(demonstrators):
         for actions, p_demo in d.support():
             for obs, p_obs in d.observations(actions, selection):
-                joint[obs][g] += p_demo * p_obs
+                for seen, p_seen in model.views(obs, d.action_size):
+                    joint[seen][g] += p_demo * p_obs * p_seen
     total = math.fsum(float(v.max()) for v in joint.values()) / len(demonstrators)
     return min(1.0, total)  # rounding in the many small terms can push a certain answer past 1
 
 
 def _monte_carlo(demonstrators: list, selection, samples: int, rng: np.random.Generator,
-                 hit: Callable[[tuple, int], float]) -> tuple[float, float, int]:
-    """Mean of ``hit(observation, goal index)`` over observations drawn from each goal alike, its standard
-    error and the number drawn."""
+                 hit: Callable[[tuple, int], float], model: ObservationModel = PLAIN) -> tuple[float, float, int]:
+    """Mean of ``hit(observation, goal index)`` over observations drawn from each goal alike (then made noisy
+    by ``model``), its standard error and the number drawn."""
     per_goal = max(1, math.ceil(samples / len(demonstrators)))  # stratified: equal draws per goal
-    values = np.array([hit(d.sample_observation(rng, selection), g)
+    values = np.array([hit(model.sample(d.sample_observation(rng, selection), rng), g)
                        for g, d in enumerate(demonstrators) for _ in range(per_goal)])
     stderr = float(values.std(ddof=1) / math.sqrt(len(values))) if len(values) > 1 else float("nan")
     return float(values.mean()), stderr, len(values)
 
 
-def _bayes_hit(demonstrators: list, selection) -> Callable[[tuple, int], float]:
+def _bayes_hit(demonstrators: list, selection, model: ObservationModel = PLAIN) -> Callable[[tuple, int], float]:
     """The Bayes recognizer's expected accuracy on one observation: its largest posterior."""
     def hit(observation: tuple, goal: int) -> float:
-        like = np.array([d.likelihood(observation, selection) for d in demonstrators])
+        like = np.array([model.likelihood(d, observation, selection) for d in demonstrators])
         return float(like.max() / like.sum())
     return hit
 
@@ -190,29 +320,71 @@ def _policies(demonstrators: list[GoalModel], selection: Selection, samples: int
     return policies
 
 
-def _pairs_only_hit(policies: list[dict[Hashable, float]], observation: tuple, goal: int) -> float:
-    """Expected accuracy of the summed log-probability under each policy on one observation, ties at random."""
-    scores = np.array([math.fsum(math.log(pi[pair]) if pair in pi else -math.inf for pair in observation)
-                       for pi in policies])
+def _pair_log_prob(pi: dict[Hashable, float], states: set, pair: tuple, action_size: int, w: float,
+                   u: float) -> float:
+    """Log-probability of one observed pair under a policy when a share ``w`` of the steps show one of the other
+    actions, each with probability ``u`` (the mixture of the module docstring; ``w = 0``: the policy's own)."""
+    if not w:
+        return math.log(pi[pair]) if pair in pi else -math.inf
+    if pair[:-action_size] not in states:
+        return -math.inf  # noise keeps the states: one the demonstrator never visits stays impossible
+    p = pi.get(pair, 0.0)
+    return math.log((1.0 - w) * p + w * u * (1.0 - p))
+
+
+def _pairs_only_hit(policies: list[dict[Hashable, float]], visited: list[set], observation: tuple, goal: int,
+                    model: ObservationModel = PLAIN, action_size: int = 1) -> float:
+    """Expected accuracy of the summed log-probability under each policy (visiting the states ``visited``; the
+    noise mixture under a noisy ``model``) on one observation, ties at random."""
+    w = n_spurious(model.noise, len(observation)) / len(observation) if model.noise else 0.0
+    u = model.spurious.density() if model.noise else 0.0
+    scores = np.array([math.fsum(_pair_log_prob(pi, states, pair, action_size, w, u) for pair in observation)
+                       for pi, states in zip(policies, visited)])
     best = np.flatnonzero(scores >= scores.max() - 1e-9)  # equal policies can differ in the last bits
     return float(goal in best) / len(best)
 
 
 def _pairs_only(demonstrators: list[GoalModel], selection: Selection, exact: bool, samples: int,
-                seed: int) -> tuple[float, float, int]:
+                seed: int, model: ObservationModel = PLAIN) -> tuple[float, float, int]:
     rng = np.random.default_rng(seed)
     policies = _policies(demonstrators, selection, samples, rng)
+    size = demonstrators[0].action_size
+    visited = [{pair[:-size] for pair in pi} for pi in policies]
+    hit = partial(_pairs_only_hit, policies, visited, model=model, action_size=size)
     if exact:
-        total = math.fsum(p_demo * p_obs * _pairs_only_hit(policies, obs, g)
+        total = math.fsum(p_demo * p_obs * p_seen * hit(seen, g)
                           for g, d in enumerate(demonstrators) for demonstration, p_demo in d.support()
-                          for obs, p_obs in d.observations(demonstration, selection))
+                          for obs, p_obs in d.observations(demonstration, selection)
+                          for seen, p_seen in model.noisy(obs))
         return total / len(demonstrators), 0.0, 0
-    return _monte_carlo(demonstrators, selection, samples, rng, partial(_pairs_only_hit, policies))
+    return _monte_carlo(demonstrators, selection, samples, rng, hit, model)
 
 
-def _applies(task: GRTask | None, label: str) -> bool:
-    """Whether a stored protocol label on ``task`` has a ceiling (known demonstrator, built-in protocol)."""
-    return task is not None and has_ceiling(task) and parse_label(label)[0] in BUILTIN
+def _observation_model(task: GRTask, noise: float, channel: str) -> ObservationModel:
+    """The observation model of a ceiling (the task's action space read only under noise)."""
+    if not noise:
+        return ObservationModel(channel=channel)
+    env = task.make_env()
+    try:
+        return ObservationModel(noise, channel, SpuriousActions.of(env.action_space))
+    finally:
+        env.close()
+
+
+def _applies(task: GRTask | None, label: str, pairs_only: bool = False) -> bool:
+    """Whether a stored protocol label on ``task`` has a ceiling (known demonstrator, built-in protocol, an
+    observation model it can compute)."""
+    if task is None or not has_ceiling(task):
+        return False
+    parts = parse_label(label)
+    if parts.protocol not in BUILTIN:
+        return False
+    if parts.noise or parts.channel != "pairs":
+        try:
+            _observation_model(task, parts.noise, parts.channel).check(_demonstrators(task), pairs_only, task.id)
+        except UserError:
+            return False
+    return True
 
 
 def _cache_path(task: GRTask, label: str, level: float, samples: int,
@@ -244,7 +416,8 @@ def _write(key: dict[str, Any], path: Path, ceiling: Ceiling) -> None:
 
 
 def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | None = None, method: str = "auto",
-                  samples: int = 2000, seed: int = 0, pairs_only: bool = False) -> Ceiling:
+                  samples: int = 2000, seed: int = 0, pairs_only: bool = False, noise: float = 0.0,
+                  channel: str = "pairs") -> Ceiling:
     """Bayes-optimal expected accuracy of ``task`` under a protocol at one observability level.
 
     Args:
@@ -257,10 +430,12 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | 
             demonstrator that cannot be enumerated, also the demonstrations its policy is estimated from.
         seed: Monte Carlo seed.
         pairs_only: The pairs-only ceiling instead (see the module docstring).
+        noise: Share of the observed steps that are spurious (see the module docstring).
+        channel: ``"pairs"``, ``"states"`` or ``"actions"``.
 
     Raises:
-        UserError: For regimes without a known likelihood, plugin protocols, or ``exact`` where it
-            cannot enumerate.
+        UserError: For regimes without a known likelihood, plugin protocols, ``exact`` where it
+            cannot enumerate, or an observation model it cannot compute (see the module docstring).
     """
     if method not in METHODS:
         raise UserError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
@@ -269,22 +444,30 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | 
     rounding = rounding or task.rounding
     selection = _selection(protocol, level, rounding)
     demonstrators = _demonstrators(task)
-    size = _exact_size(demonstrators, selection) if method != "monte-carlo" else None
+    label = protocol_label(protocol, rounding, noise, channel)  # checks the noise and channel
+    model = _observation_model(task, noise, channel)
+    model.check(demonstrators, pairs_only, task.id)
+    size = _exact_size(demonstrators, selection, model) if method != "monte-carlo" else None
+    if model.channel != "pairs" and method == "monte-carlo":
+        raise UserError(f"{task.id}: the {channel}-only ceiling is exact only; drop --method monte-carlo")
     if method == "exact" and (size is None or size > EXACT_LIMIT):
         raise UserError(f"{task.id}: cannot enumerate {protocol} at {level:g} exactly "
                          f"({'the demonstrator is random' if size is None else f'{size} observations'}); "
                          f"use the Monte Carlo estimate")
-    common = dict(task=task.id, protocol=protocol_label(protocol, rounding), observability=level,
-                  chance=1.0 / len(task.goals))
+    common = dict(task=task.id, protocol=label, observability=level, chance=1.0 / len(task.goals))
     if pairs_only:
         exact = size is not None and size <= EXACT_LIMIT
-        accuracy, stderr, n = _pairs_only(demonstrators, selection, exact, samples, seed)
+        accuracy, stderr, n = _pairs_only(demonstrators, selection, exact, samples, seed, model)
         return Ceiling(accuracy=accuracy, stderr=stderr, method="exact" if exact else "monte-carlo", samples=n,
                        pairs_only=True, **common)
     if size is not None and size <= EXACT_LIMIT:
-        return Ceiling(accuracy=_exact(demonstrators, selection), stderr=0.0, method="exact", samples=0, **common)
+        return Ceiling(accuracy=_exact(demonstrators, selection, model), stderr=0.0, method="exact", samples=0,
+                       **common)
+    if model.channel != "pairs":
+        raise UserError(f"{task.id}: the {channel}-only ceiling of {protocol} at {level:g} would enumerate {size} "
+                        f"observations, more than {EXACT_LIMIT}")
     accuracy, stderr, n = _monte_carlo(demonstrators, selection, samples, np.random.default_rng(seed),
-                                       _bayes_hit(demonstrators, selection))
+                                       _bayes_hit(demonstrators, selection, model), model)
     return Ceiling(accuracy=accuracy, stderr=stderr, method="monte-carlo", samples=n, **common)
 
 
@@ -313,9 +496,10 @@ def distinct_cells(cells: Iterable[Sequence[Any]]) -> list[Cell]:
 
 def _cell_ceiling(cell: Cell, samples: int, pairs_only: bool) -> Ceiling:
     """One cell's ceiling, computed (an executor's work item: no cache access, so any worker can run it)."""
-    name, rounding = parse_label(cell.protocol)
-    return bayes_ceiling(find_task(cell.task, cell.params.as_dict()), name, cell.level, rounding=rounding, samples=samples,
-                         seed=CACHED_SEED, pairs_only=pairs_only)
+    parts = parse_label(cell.protocol)
+    return bayes_ceiling(find_task(cell.task, cell.params.as_dict()), parts.protocol, cell.level,
+                         rounding=parts.rounding, samples=samples, seed=CACHED_SEED, pairs_only=pairs_only,
+                         noise=parts.noise, channel=parts.channel)
 
 
 def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: Callable[[], None] | None = None,
@@ -337,7 +521,7 @@ def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: C
 
     for cell in distinct_cells(cells):
         task = find_task(cell.task, cell.params.as_dict())
-        if _applies(task, cell.protocol):
+        if _applies(task, cell.protocol, pairs_only):
             key, path = _cache_path(task, cell.protocol, cell.level, samples, pairs_only)
             ceiling = _read(key, path)
             if ceiling is None:
@@ -360,12 +544,13 @@ def curve_cells(task_id: str, params: TaskOverrides | dict[str, Any], label: str
 
     Online, the first ``n_observed(p, T)`` steps are what the offline prefix
     protocol of the same span observes at level ``p``, so the ceiling at each
-    fraction is that protocol's.
+    fraction is that protocol's, seen through the same channel. Noisy runs have no curve: the first steps of a
+    noisy whole observation are not a noisy prefix (how many of them are spurious varies).
     """
-    name, rounding = parse_label(label)
-    if name not in PREFIX_OF:
+    parts = parse_label(label)
+    if parts.protocol not in PREFIX_OF or parts.noise:
         return []
-    prefix = protocol_label(PREFIX_OF[name], rounding)
+    prefix = protocol_label(PREFIX_OF[parts.protocol], parts.rounding, channel=parts.channel)
     return [Cell(task_id, TaskOverrides.of(params), prefix, float(fraction)) for fraction in fractions]
 
 

@@ -104,7 +104,18 @@ def fitted_config(task: GRTask, name: str, settings: Mapping[str, Any]) -> dict[
     return config
 
 
-def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
+def check_channel(specs: Sequence[RecognizerSpec], channel: str) -> None:
+    """Refuse, before any training, a recognizer that cannot use the observation ``channel`` (its ``channels``
+    capability; only built, never fitted).
+
+    Raises:
+        RecognizerError: In one line (``"bc cannot use the states channel: ..."``).
+    """
+    for spec in specs:
+        build(spec.name, dict(spec.config)).check_channel(channel)
+
+
+def plan(task: GRTask, spec: RecognizerSpec, action_space: Any, channel: str | None = None) -> Planned:
     """Check a recognizer and its scorers against a task, and compute its identity.
 
     The hash covers the fitted configuration (recognizer hyperparameters and
@@ -112,10 +123,13 @@ def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
 
     Raises:
         grail_bench.core.errors.UserError: For unknown names, bad hyperparameters,
-            a scorer the recognizer cannot serve on this task, or a task the
-            recognizer refuses as configured (its optional ``check_task``).
+            a scorer the recognizer cannot serve on this task, a task the
+            recognizer refuses as configured (its optional ``check_task``), or an
+            observation ``channel`` it does not declare (None: not checked here; see :func:`check_channel`).
     """
     caps = build(spec.name, dict(spec.config))
+    if channel is not None:
+        caps.check_channel(channel)
     caps.check_task(task)
     own = caps.default_scorer
     scorers = tuple(spec.scorers) or (own,)

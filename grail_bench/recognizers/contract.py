@@ -32,6 +32,10 @@ capability             what it is                                               
                        cannot run ``task`` as configured (e.g. a setting needs a
                        domain capability the task's domain lacks); called where a
                        run is planned, before any training
+``channels``           the observation channels ``score`` can use: a set of          ``{"pairs"}``
+                       ``"pairs"``, ``"states"`` (actions NaN) and ``"actions"``
+                       (states NaN; :mod:`grail_bench.task.observation`); a run
+                       with another channel is refused before any training
 =====================  ============================================================  =============================
 
 The harness never reads a recognizer directly: :func:`capabilities` reads
@@ -51,12 +55,15 @@ import numpy as np
 from grail_bench.core.errors import UserError
 from grail_bench.core.spaces import check_within
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
+from grail_bench.task.observation import CHANNELS
 
 if TYPE_CHECKING:
     from imitation.data.types import Trajectory
 
 #: The label of a recognizer's own scoring, when it serves no registered scorer.
 OWN_SCORING = "default"
+#: The channels of a recognizer that declares none.
+DEFAULT_CHANNELS = frozenset({"pairs"})
 
 
 class RecognizerError(UserError):
@@ -216,10 +223,22 @@ class Capabilities:
     has_diagnostics: bool
     has_set_goals: bool = False
     has_check_task: bool = False
+    channels: frozenset[str] = DEFAULT_CHANNELS
 
     @property
     def name(self) -> str:
         return self.info.name
+
+    def check_channel(self, channel: str) -> None:
+        """Refuse an observation channel the recognizer does not declare.
+
+        Raises:
+            RecognizerError: In one line, naming the channels it can use.
+        """
+        if channel not in self.channels:
+            raise RecognizerError(f"{self.name} cannot use the {channel} channel: it scores "
+                                  f"{', '.join(c for c in CHANNELS if c in self.channels)} only (its channels "
+                                  "capability)")
 
     @property
     def default_scorer(self) -> str:
@@ -314,6 +333,18 @@ def settings_key(settings: Any, *, models: bool = False) -> dict[str, Any]:
     return dict(settings)
 
 
+def _channels(recognizer: Any, name: str) -> frozenset[str]:
+    """The channels a recognizer declares (``{"pairs"}`` when it declares none)."""
+    declared = getattr(recognizer, "channels", None)
+    if declared is None:
+        return DEFAULT_CHANNELS
+    if isinstance(declared, str) or not isinstance(declared, (set, frozenset, list, tuple)) \
+            or not declared or not set(declared) <= set(CHANNELS):
+        raise RecognizerError(f"recognizer {name!r}: channels must be a non-empty set of {', '.join(CHANNELS)}, "
+                              f"got {declared!r}")
+    return frozenset(declared)
+
+
 def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = None) -> Capabilities:
     """Read a recognizer's capabilities, once (see the module docstring for each default).
 
@@ -323,7 +354,8 @@ def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = 
         kwargs: The keyword arguments it was built with (its config when it declares none).
 
     Raises:
-        RecognizerError: If ``fit`` or ``score`` is missing, or ``config`` is not a mapping.
+        RecognizerError: If ``fit`` or ``score`` is missing, ``config`` is not a mapping, or ``channels`` names
+            an unknown channel.
     """
     missing = [m for m in ("fit", "score") if not callable(getattr(recognizer, m, None))]
     if missing:
@@ -336,7 +368,7 @@ def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = 
         raise RecognizerError(f"recognizer {name!r}: config must be a dataclass or a mapping, got "
                               f"{type(config).__name__}")
     return Capabilities(
-        recognizer=recognizer, info=info(recognizer, name), config=settings_key(config), kwargs=dict(kwargs or {}),
+        recognizer=recognizer, info=info(recognizer, name), channels=_channels(recognizer, name), config=settings_key(config), kwargs=dict(kwargs or {}),
         takes_scorer=_accepts(recognizer.score, "scorer", positional=1),
         takes_cache_key=_accepts(recognizer.fit, "cache_key"),
         has_prefix_scores=callable(getattr(recognizer, "score_prefixes", None)),
