@@ -112,7 +112,8 @@ class Symbolic:
         return GoalDemonstrator(task, goal)
 
     def demonstrator_policy(self, task: GRTask, goal: Goal, support: str = "everywhere") -> np.ndarray:
-        """The demonstrator's action probabilities of ``goal``, ``(2 ** n_fluents, n_operators)`` (see :mod:`.policy`)."""
+        """The demonstrator's action probabilities of ``goal``, ``(2 ** n_fluents, n_operators)`` (see
+        :mod:`.policy`)."""
         from grail_bench.domains.symbolic.policy import demonstrator_policy
 
         return demonstrator_policy(task, goal, support)

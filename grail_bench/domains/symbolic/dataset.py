@@ -71,7 +71,8 @@ def _lines(text: str) -> list[str]:
 
 def parse_files(texts: dict[str, str], name: str) -> GRProblem:
     """A :class:`GRProblem` from the five files' texts."""
-    hyps = tuple(parse_atoms(line, f"{name}: hyps.dat line {i + 1}") for i, line in enumerate(_lines(texts["hyps.dat"])))
+    hyps = tuple(parse_atoms(line, f"{name}: hyps.dat line {i + 1}")
+                 for i, line in enumerate(_lines(texts["hyps.dat"])))
     real = _lines(texts["real_hyp.dat"])
     if len(real) != 1:
         raise UserError(f"{name}: real_hyp.dat must hold one line of atoms, it has {len(real)}")
