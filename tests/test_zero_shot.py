@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import sqlite3
+import time
 
 import numpy as np
 import pytest
@@ -12,9 +15,10 @@ from typer.testing import CliRunner
 import grail_bench
 from grail_bench.cli import app
 from grail_bench.harness.api import evaluate
+from grail_bench.harness.modes import MODES
 from grail_bench.harness.modes.zero_shot import held_out_goals, n_held_out
 from grail_bench.harness.planning import RecognizerSpec, plan
-from grail_bench.harness.store import ResultsStore, ZeroShotRow
+from grail_bench.harness.store import SCHEMA_VERSION, ResultsStore, ZeroShotRow
 from grail_bench.recognizers.gcbc import GCBCRecognizer
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
 from grail_bench.task.observation import observe
@@ -170,3 +174,77 @@ def test_cli_zero_shot_run_and_leaderboard(tmp_path):
     assert (row.recognizer, row.n_goals, len(json.loads(row.held_out))) == ("gc-bc", 6, 2)
     empty = runner.invoke(app, ["leaderboard", "--online", "--store", str(store)])
     assert empty.exit_code == 2 and "--mode online" in empty.output
+
+
+class SlowAdaptingSpy(GoalSpy):
+    """A :class:`GoalSpy` whose adaptation to the candidate goals takes a known time."""
+
+    name = "slow-spy"
+    ADAPT_SECONDS = 0.05
+
+    def set_goals(self, goals):
+        time.sleep(self.ADAPT_SECONDS)
+        super().set_goals(goals)
+
+
+def test_zero_shot_rows_carry_the_three_times_gr_libs_reports(goal_spy):
+    """Learning (fit s/goal), adaptation (set_goals, per new goal) and inference (µs per observation) per row."""
+    register_recognizer("slow-spy", SlowAdaptingSpy)
+    try:
+        task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0")
+        planned = plan(task, RecognizerSpec("slow-spy", {}), task.make_env().action_space)
+        rows, _ = run_mode("zero-shot", task, planned, 4, (0.5, 1.0), "subset")
+    finally:
+        unregister_recognizer("slow-spy")
+    new_goals = n_held_out(len(task.goals))
+    assert len(rows) == 2 and rows[0].adapt_seconds_per_goal == rows[1].adapt_seconds_per_goal  # one set_goals
+    # The call's time shared out over the held-out goals (2 of 6), not over every candidate goal.
+    assert SlowAdaptingSpy.ADAPT_SECONDS / new_goals <= rows[0].adapt_seconds_per_goal < 1.0
+    assert all(r.score_us_per_observation > 0 and r.fit_seconds_per_goal >= 0 for r in rows)
+    (record,) = [r for r in MODES["zero-shot"].aggregate(rows) if r.observability == 1.0]
+    assert record.adapt_seconds_per_goal == pytest.approx(rows[1].adapt_seconds_per_goal)
+    shown = {c.header: c.text(record) for c in MODES["zero-shot"].columns}  # what every report of the mode shows
+    assert float(shown["adapt s/new goal"]) == pytest.approx(record.adapt_seconds_per_goal, rel=0.01)
+    assert float(shown["µs / observation"]) > 0 and "fit s/goal" in shown
+
+
+def _schema_8(path):
+    """Make ``path`` a schema-8 store: its zero-shot table as it was before the times were recorded."""
+    conn = sqlite3.connect(path)
+    for column in ("adapt_seconds_per_goal", "score_us_per_observation"):
+        conn.execute(f"ALTER TABLE zero_shot DROP COLUMN {column}")
+    conn.execute("PRAGMA user_version = 8")
+    conn.commit()
+    conn.close()
+
+
+def test_a_store_from_before_the_times_keeps_its_zero_shot_rows(tmp_path):
+    """Migrating a schema-8 store adds the columns empty: every stored row is kept as it was, and still counts as
+    done; the leaderboard shows its missing times as '-'."""
+    path = tmp_path / "old.sqlite"
+    old = ZeroShotRow(task="GRAIL/T-v0", recognizer="gc-bc", scorer="mse", config_hash="abc", seed=0,
+                      observability=0.5, protocol="subset", held_out="[[7, 3]]", n_goals=3, f1=0.6, accuracy=0.7,
+                      f1_held_out=0.4, f1_trained=0.7, accuracy_held_out=0.5, accuracy_trained=0.8, n_observations=9,
+                      fit_seconds_per_goal=0.25, config="{}", versions="{}", n_ties=0)
+    with ResultsStore(path) as store:
+        store.add([old])
+    _schema_8(path)
+    before = sqlite3.connect(path).execute("SELECT * FROM zero_shot").fetchall()
+    with ResultsStore(path, read_only=True) as store:  # reading upgrades a copy in memory only
+        assert store.select(ZeroShotRow) == [old]
+    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == 8
+    with ResultsStore(path) as store:
+        (kept,) = store.select(ZeroShotRow)
+        assert kept == old and kept.adapt_seconds_per_goal is None and kept.score_us_per_observation is None
+        assert store.completed("GRAIL/T-v0", "gc-bc", "mse", "abc", "subset", ZeroShotRow) == {(0, 0.5)}
+        assert store.add([dataclasses.replace(old, f1=0.1, adapt_seconds_per_goal=1.0)]) == 0  # first write wins
+    conn = sqlite3.connect(path)
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+    new = ("adapt_seconds_per_goal", "score_us_per_observation")
+    columns = [r[1] for r in conn.execute("PRAGMA table_info(zero_shot)")]
+    assert columns[-2:] == list(new)
+    after = conn.execute(f"SELECT {', '.join(columns[:-2])} FROM zero_shot").fetchall()
+    assert after == before  # the stored values, created_at included, untouched
+    (record,) = MODES["zero-shot"].aggregate([kept])
+    assert record.adapt_seconds_per_goal is None
+    assert [c.text(record) for c in MODES["zero-shot"].columns][-3:] == ["0.25", "-", "-"]

@@ -50,7 +50,7 @@ from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
 
-SCHEMA_VERSION = 8
+SCHEMA_VERSION = 9
 __all__ = ["SCHEMA_VERSION", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
            "ZeroShotRow", "check_store_writable", "default_store_path", "stale"]
 _HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite database file
@@ -341,10 +341,11 @@ def _migrate_v1(conn: sqlite3.Connection) -> None:
 
 
 def _add_missing_columns(conn: sqlite3.Connection) -> None:
-    """Schema 2 -> ... -> 8: the columns added since to the tables already there, empty (NULL) for the rows
+    """Schema 2 -> ... -> 9: the columns added since to the tables already there, empty (NULL) for the rows
     already stored: ``provenance``; ``top2``, ``mean_rank``; ``confusion``; the reliability and set metrics;
-    schema 8 ``ties`` in every mode's table and ``n_ties`` in those that had none. (Schema 5 added tables, and
-    schema 6 the ``fits`` table too.)"""
+    schema 8 ``ties`` in every mode's table and ``n_ties`` in those that had none; schema 9 the zero-shot
+    table's ``adapt_seconds_per_goal`` and ``score_us_per_observation``. (Schema 5 added tables, and schema 6
+    the ``fits`` table too.)"""
     for kind, (table, _) in _tables().items():
         columns = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
         if not columns:  # not there yet: created whole

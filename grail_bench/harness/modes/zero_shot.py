@@ -10,7 +10,12 @@ one) can run; per-goal methods are refused before any work.
 
 Stored per level and scorer: macro F1 and accuracy over all ``K`` goals, and
 separately the mean per-class F1 and the accuracy on the held-out goals and on
-the trained ones. Chance is ``1 / K``.
+the trained ones. Chance is ``1 / K``. And the three times gr_libs reports per
+run: learning (``fit_seconds_per_goal``, per goal fitted), adaptation
+(``adapt_seconds_per_goal``: what ``set_goals`` took, per held-out goal, the
+goals it is new to; gr_libs' ``goals_adaptation_phase``) and inference
+(``score_us_per_observation``, as offline). Rows stored before the last two were
+recorded have them NULL.
 
 Goals tied at the best score share the prediction, as offline: accuracies are
 expectations under uniform tie-breaking, F1 that of the expected (fractional)
@@ -20,6 +25,7 @@ confusion matrix (:mod:`grail_bench.stats.metrics`).
 from __future__ import annotations
 
 import json
+import time
 import zlib
 from dataclasses import dataclass
 from typing import Iterable, Sequence
@@ -66,6 +72,8 @@ class ZeroShotRow(Run):
     provenance: str | None = None
     n_ties: int | None = None  # observations whose best score tied (None: stored before it was counted)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
+    adapt_seconds_per_goal: float | None = None  # set_goals' seconds per held-out goal (None: stored before)
+    score_us_per_observation: float | None = None  # (None: stored before it was timed)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -85,6 +93,8 @@ class ZeroShotRecord(Record):
     accuracy_mean: float
     accuracy_held_out_mean: float
     accuracy_trained_mean: float
+    adapt_seconds_per_goal: float | None = None  # mean over the seeds that recorded it (None: none did)
+    score_us_per_observation: float | None = None
 
 
 def n_held_out(n_goals: int) -> int:
@@ -110,7 +120,9 @@ def run(job: SeedRun) -> tuple[list[ZeroShotRow], Fitted]:
     train, test = task.split(job.demos)
     known = [g for g in task.goals if g not in hidden]
     fitted = fit_recognizer(task, planned, seed, {g: train[g] for g in known}, {g: test[g] for g in known})
+    start = time.perf_counter()
     fitted.recognizer.set_goals(task.goals)
+    adapt_seconds = time.perf_counter() - start
     is_hidden = np.array([g in hidden for g in task.goals])
     labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
     rows = []
@@ -120,8 +132,13 @@ def run(job: SeedRun) -> tuple[list[ZeroShotRow], Fitted]:
         observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
         for scorer in planned.scorers:
             y_true = np.array([label for label, _ in observations])
-            predicted = np.array([metrics.prediction(check_scores(planned.name, fitted.recognizer.score(o, scorer.arg),
-                                                                  task.goals)) for _, o in observations])
+            predicted, elapsed_ns = [], 0
+            for _, observed in observations:
+                t0 = time.perf_counter_ns()
+                scores = fitted.recognizer.score(observed, scorer.arg)
+                elapsed_ns += time.perf_counter_ns() - t0
+                predicted.append(metrics.prediction(check_scores(planned.name, scores, task.goals)))
+            predicted = np.array(predicted)
             confusion = metrics.expected_confusion(y_true, predicted, len(task.goals))
             per_class = metrics.per_class_f1_of(confusion)
             hit = predicted[np.arange(len(y_true)), y_true]  # each prediction's chance of being right
@@ -134,6 +151,8 @@ def run(job: SeedRun) -> tuple[list[ZeroShotRow], Fitted]:
                 accuracy_held_out=float(np.mean(hit[on_hidden])), accuracy_trained=float(np.mean(hit[~on_hidden])),
                 n_observations=len(observations), fit_seconds_per_goal=fitted.seconds_per_goal,
                 config=planned.config, versions=job.versions, n_ties=metrics.n_tied(predicted),
+                adapt_seconds_per_goal=adapt_seconds / len(hidden),
+                score_us_per_observation=elapsed_ns / 1e3 / len(observations),
             ))
     return rows, fitted
 
@@ -142,8 +161,20 @@ def aggregate(rows: Iterable[ZeroShotRow]) -> list[ZeroShotRecord]:
     """Across-seed zero-shot records, one per (task, recognizer, scorer, configuration, protocol, level)."""
     means = ("f1_trained", "accuracy", "accuracy_held_out", "accuracy_trained")
     return [ZeroShotRecord(n_goals=group[0].n_goals, held_out=[json.loads(r.held_out) for r in group],
+                           adapt_seconds_per_goal=_recorded_mean(group, "adapt_seconds_per_goal"),
+                           score_us_per_observation=_recorded_mean(group, "score_us_per_observation"),
                            **record_fields(group, ("f1", "f1_held_out"), means))
             for group in cells(rows)]
+
+
+def _recorded_mean(group: Sequence[ZeroShotRow], key: str) -> float | None:
+    """The mean of a row field over the rows that recorded it (None when none did)."""
+    values = [getattr(r, key) for r in group if getattr(r, key) is not None]
+    return float(np.mean(values)) if values else None
+
+
+def _time_text(value: float | None, fmt: str) -> str:
+    return "-" if value is None else fmt.format(value)
 
 
 COLUMNS = LEAD + (Column("obs", lambda r: level_text(r.observability), lambda r: r.observability),) + WHO + (
@@ -152,6 +183,11 @@ COLUMNS = LEAD + (Column("obs", lambda r: level_text(r.observability), lambda r:
     Column("F1 trained goals", lambda r: f"{r.f1_trained_mean:.2f}", lambda r: r.f1_trained_mean),
     Column("accuracy held-out", lambda r: f"{r.accuracy_held_out_mean:.2f}", lambda r: r.accuracy_held_out_mean),
     Column("chance", lambda r: f"{1 / r.n_goals:.2f}", lambda r: 1 / r.n_goals),
+    Column("fit s/goal", lambda r: f"{r.fit_seconds_per_goal:.2f}", lambda r: r.fit_seconds_per_goal),
+    Column("adapt s/new goal", lambda r: _time_text(r.adapt_seconds_per_goal, "{:.2g}"),
+           lambda r: r.adapt_seconds_per_goal),
+    Column("µs / observation", lambda r: _time_text(r.score_us_per_observation, "{:.0f}"),
+           lambda r: r.score_us_per_observation),
 )
 
 MODE = Mode(
@@ -161,6 +197,8 @@ MODE = Mode(
     title="zero-shot goals (a third of the goals never fitted)",
     intro=("Mean over seeds; " + INTERVAL_NOTE + " Per seed, a third of the goals have no training demonstrations; "
            "the recognizer is fitted on the others and then scores all of them. F1 per class, averaged over "
-           "the held-out goals and over the trained ones; chance is 1/K."),
+           "the held-out goals and over the trained ones; chance is 1/K. Times as gr_libs reports them: learning "
+           "(fit s/goal, per goal fitted), adaptation (what making the recognizer score the new goals took, per "
+           "held-out goal; - for runs stored before it was timed) and inference (per observation)."),
     min_goals=3, held_out=n_held_out, scores_unfitted=True,
 )
