@@ -1,0 +1,120 @@
+"""What the planning-based recognizers share: a symbolic task's grounded model, and observed actions as its operators.
+
+:class:`StripsRecognizer` is the base of recognizers that reason on the STRIPS model of a symbolic
+(PDDL/STRIPS) task rather than learn from demonstrations (``prp``, ``landmarks``). It refuses any other task
+in one line where a run is planned (``check_task``), reads the model and each candidate goal's state mask from
+``env_factory(goal).unwrapped`` in ``fit`` (the demonstrations are not read: only their goals are), and turns
+an observed trajectory into the observed operator indices (the actions channel: states may be NaN).
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+
+from grail_bench.core.errors import UserError
+from grail_bench.core.params import check_kwargs
+from grail_bench.core.spaces import check_within
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal
+from grail_bench.domains.symbolic.strips import StripsModel
+from grail_bench.recognizers.contract import RecognizerBase
+from grail_bench.recognizers.scored import NotFittedError
+from grail_bench.task.observation import observed_channel
+
+DOMAIN = "symbolic"
+
+
+class StripsRecognizer(RecognizerBase):
+    """Base of recognizers scoring candidate goals on a symbolic task's grounded STRIPS model.
+
+    A subclass sets :attr:`Config` (a frozen dataclass of its settings) and implements :meth:`score`, reading
+    :attr:`model`, :attr:`goals` and :attr:`goal_masks` (set by :meth:`fit`) and :meth:`observed_operators`.
+
+    Args:
+        **settings: Fields of :attr:`Config`.
+
+    Raises:
+        UserError: For an unknown setting, or a value of the wrong type or out of range.
+    """
+
+    Config: ClassVar[type]
+    channels = frozenset({"pairs", "actions"})
+
+    def __init__(self, **settings: Any) -> None:
+        checked = check_kwargs(self.Config, settings, f"recognizer {self.name!r}")
+        try:
+            self.config = self.Config(**checked)
+        except UserError as exc:
+            raise UserError(f"recognizer {self.name!r}: {exc}") from None
+        self.model: StripsModel | None = None
+        self.goals: list[Goal] = []
+        self.goal_masks: list[int] = []
+
+    def check_task(self, task: Any) -> None:
+        """Refuse, before anything is built, a task of another domain than the symbolic one.
+
+        Raises:
+            UserError: In one line, naming the task and its domain.
+        """
+        domain = getattr(task, "domain", None)
+        if domain != DOMAIN:
+            raise UserError(f"{self.name}: {getattr(task, 'id', task)} is a {domain} task; it recognises goals of "
+                            f"{DOMAIN} (PDDL/STRIPS) tasks only, on their grounded model")
+
+    def fit(self, demos: Demos, env_factory: EnvFactory | None = None, *, seed: int = 0) -> None:
+        """Read the grounded model and every goal's state mask from ``env_factory`` (no demonstration is read).
+
+        Raises:
+            UserError: Without goals or an env factory, or when the envs carry no grounded STRIPS model (a
+                task of another domain).
+        """
+        goals = [tuple(g) for g in demos]
+        if env_factory is None or not goals:
+            raise UserError(f"{self.name}: fit needs the candidate goals and an env_factory building their envs")
+        model, masks = None, []
+        for goal in goals:
+            env = env_factory(goal)
+            try:
+                inner = env.unwrapped
+                found, mask = getattr(inner, "model", None), getattr(inner, "goal_mask", None)
+            finally:
+                env.close()
+            if not isinstance(found, StripsModel) or not isinstance(mask, int):
+                raise UserError(f"{self.name}: the env of goal {list(goal)} carries no grounded STRIPS model; it "
+                                f"recognises goals of {DOMAIN} (PDDL/STRIPS) tasks only")
+            if model is not None and found is not model and found != model:
+                raise UserError(f"{self.name}: the candidate goals' envs ground different problems")
+            model = found
+            masks.append(mask)
+        self.model, self.goals, self.goal_masks = model, goals, masks
+        self.fitted()
+
+    def fitted(self) -> None:
+        """Prepare what scoring needs once the model and goals are read (nothing by default)."""
+
+    def observed_operators(self, observed: Any) -> list[int]:
+        """The observed actions as operator indices of :attr:`model` (the states are not read).
+
+        Raises:
+            NotFittedError: Before :meth:`fit`.
+            UserError: For something that is no trajectory, an empty one, mismatched lengths, or actions that
+                are no operators of the model (NaN included: a states-only observation).
+        """
+        if self.model is None:
+            raise NotFittedError(f"{self.name}: call fit() before score()")
+        try:
+            obs, acts = np.asarray(observed.obs), np.asarray(observed.acts)
+        except AttributeError:
+            raise UserError(f"expected a Trajectory with obs and acts, got {type(observed).__name__}") from None
+        if len(acts) == 0:
+            raise UserError("the observed trajectory is empty: at least one action is needed")
+        if len(obs) != len(acts) + 1:
+            raise UserError(f"malformed trajectory: {len(obs)} states for {len(acts)} actions (need actions + 1)")
+        if acts.ndim != 1:
+            raise UserError(f"observed actions have shape {acts.shape[1:]}, the env's are () (one operator index)")
+        if observed_channel(observed) == "states":
+            raise UserError(f"{self.name} scores observed actions; this observation carries states only")
+        check_within(acts, spaces.Discrete(self.model.n_operators), "observed actions")
+        return [int(a) for a in acts]
