@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import grail_bench
+from grail_bench.core.spaces import state_index
 from grail_bench.domains.minigrid.env import GRMiniGridEnv
 from grail_bench.domains.minigrid.grid import FORWARD, LEFT, RIGHT, STAY
 
@@ -22,16 +23,44 @@ def test_layout_matches_paper():
     assert len(free) == 7 * 7 - 1
 
 
-def test_grid_model_mirrors_env_dynamics():
-    env = GRMiniGridEnv((7, 7), fixed_horizon=False)
+@pytest.mark.parametrize("task_id, goal", [
+    ("GRAIL/MiniGrid-Optimal-v0", (7, 7)),
+    ("GRAIL/MiniGrid-SimpleCrossing-Optimal-v0", (11, 11)),
+    ("GRAIL/MiniGrid-LavaCrossing-Optimal-v0", (6, 5)),
+])
+def test_grid_model_mirrors_env_dynamics(task_id, goal):
+    """Every state and action of the room: the pure-Python model, the env and its tables agree; entering lava ends
+    the episode without reward and, with the fixed horizon, keeps the agent there."""
+    task = grail_bench.make_task(task_id)
+    env = task.make_env(goal, fixed_horizon=False).unwrapped
+    absorbing = task.make_env(goal).unwrapped
+    tables = absorbing.tabular_dynamics()
+    space = absorbing.observation_space
+    entered = 0
     for state in env.model.states():
-        if state[:2] == (7, 7):
+        if state[:2] == goal or state[:2] in env.model.lava:
             continue
         for action in (LEFT, RIGHT, FORWARD, STAY):
             env.reset(seed=0)
             env.agent_pos, env.agent_dir = state[:2], state[2]
-            obs, *_ = env.step(action)
-            assert tuple(obs.tolist()) == env.model.step(state, action), (state, action)
+            obs, reward, terminated, _, info = env.step(action)
+            nxt = env.model.step(state, action)
+            assert tuple(obs.tolist()) == nxt, (state, action)
+            index = state_index(np.array([state, nxt]), space)
+            assert tables.next_state[index[0], action] == index[1]
+            assert terminated == (nxt[:2] == goal or nxt[:2] in env.model.lava)
+            assert info["is_success"] == (nxt[:2] == goal) == (reward > 0)
+            if nxt[:2] in env.model.lava:
+                entered += 1
+                absorbing.reset(seed=0)
+                absorbing.agent_pos, absorbing.agent_dir = state[:2], state[2]
+                absorbing.step(action)
+                for later in (LEFT, RIGHT, FORWARD, STAY):
+                    obs, reward, terminated, _, info = absorbing.step(later)
+                    assert tuple(obs.tolist()) == env.model.step(nxt, later) == nxt
+                    assert (reward, terminated, info["is_success"]) == (0.0, False, False)
+                assert (tables.next_state[index[1]] == index[1]).all() and not tables.success[index[1]].any()
+    assert (entered > 0) == bool(env.model.lava)  # the lava rooms' checks ran
 
 
 def test_reward_and_absorbing_fixed_horizon():
