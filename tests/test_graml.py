@@ -14,7 +14,7 @@ from gymnasium import spaces
 from imitation.data.types import Trajectory
 
 import grail_bench
-from grail_bench.contrib.graml import GCGRAMLRecognizer, GRAMLRecognizer
+from grail_bench.contrib.graml import GRAMLRecognizer
 from grail_bench.recognizers import build, make_recognizer
 from grail_bench.task.observation import observe
 

@@ -30,6 +30,8 @@ where this differs:
   of the larger of the two similarities, and gr_libs returns the most similar goal. Here the score is the log
   of that mean similarity (the same ranking, finite scores), the subsets drawn once per observed length and
   goal from the fit's seed; ``aggregate="min"`` scores minus the smallest distance instead.
+* References of BG-GRAML: gr_libs' ``ExpertBasedGraml`` trains an RL agent per goal and keeps one greedy
+  rollout of it; here every training demonstration of the goal is a reference.
 * GC-GRAML: gr_libs trains a goal-conditioned RL agent and learns the metric from its rollouts (it has no
   demonstrations); its references are 5 rollouts per goal. Here the metric is learnt from the
   demonstrations, as for ``graml`` (the same model, cached once for both), and grail-bench's GC-BC,
@@ -194,7 +196,7 @@ def similarity(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 def observed_steps(length: int, fraction: float) -> int:
     """Steps a protocol observes of a path of ``length`` at ``fraction``: ``max(1, ceil(fraction * length))``."""
-    return max(1, min(length, math.ceil(fraction * length - 1e-9)))
+    return max(1, min(length, math.ceil(round(fraction * length, 9))))  # 0.3 * 10 is 3.0000000000000004
 
 
 def selection(length: int, k: int, consecutive: bool, rng: np.random.Generator) -> np.ndarray:
@@ -217,7 +219,9 @@ def demos_digest(demos: Demos, goals: Sequence[Goal]) -> str:
 
 def train_metric(model: SiameseLSTM, sequences: Sequence[Sequence[np.ndarray]], config: GRAMLConfig,
                  seed: int) -> list[float]:
-    """Train ``model`` (built after ``torch.manual_seed(seed)``) on pairs of sub-sequences of ``sequences[goal][demo]`` (see the module docstring).
+    """Train ``model`` on pairs of sub-sequences of ``sequences[goal][demo]`` (see the module docstring).
+
+    Build ``model`` after ``torch.manual_seed(seed)``: its initial weights are part of what the seed fixes.
 
     Returns:
         The mean loss of every epoch.
@@ -477,7 +481,8 @@ class GCGRAMLRecognizer(GRAMLRecognizer):
 
         env = self._env_factory(goal)
         try:
-            runs = [until_success(rollout(env, act, seed=int(rng.integers(2**31)))) for _ in range(self.config.n_rollouts)]
+            runs = [until_success(rollout(env, act, seed=int(rng.integers(2**31))))
+                    for _ in range(self.config.n_rollouts)]
         finally:
             env.close()
         return [self._encode(t) for t in runs]
