@@ -113,6 +113,10 @@ def test_renders_rgb():
     ({"size": 2}, "size must be an integer >= 3"),
     ({"obstacles": [[9, 9]]}, "obstacle [9, 9] lies outside"),
     ({"obstacles": [[7, 1]]}, "goal [7, 1] is not a free cell"),  # an obstacle on a goal
+    ({"obstacles": [[7, 1, "lava"]]}, "goal [7, 1] is not a free cell"),  # lava on a goal
+    ({"obstacles": [[1, 4, "lava"]]}, "start [1, 4] must be a free cell"),
+    ({"obstacles": [[7, 4, "fire"]]}, 'each obstacle must be a wall [x, y] or lava [x, y, "lava"]'),
+    ({"obstacles": [[7, 4], [7, 4, "lava"]]}, "cell [7, 4] is both a wall and lava"),
     ({"max_steps": -1}, "expected a positive integer"),
     ({"max_steps": 0}, "expected a positive integer"),
     ({"max_steps": 5.5}, "expected an integer"),

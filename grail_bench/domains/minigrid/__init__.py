@@ -59,7 +59,7 @@ class MiniGrid:
         free = _free_cells(env_params)
         for goal in goals:
             if tuple(int(c) for c in goal) not in free:
-                raise UserError(f"goal {list(goal)} is not a free cell of the room (walls, obstacles and lava excluded)")
+                raise UserError(f"goal {list(goal)} is not a free cell of the room (walls and lava excluded)")
 
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.minigrid.env import GRMiniGridEnv

@@ -73,7 +73,7 @@ class GRMiniGridEnv(MiniGridEnv):
         self.start_dir = int(start_dir)
         for name, cell in (("goal", self.goal), ("start", self.start)):
             if not self.model.safe(*cell):
-                raise UserError(f"{name} {cell} is not a free cell of the {size}x{size} room (nor lava)")
+                raise UserError(f"{name} {cell} is not a free cell of the {size}x{size} room (a wall or lava)")
         if self.goal == self.start:
             raise UserError("goal and start must differ")
         if not 0 <= self.start_dir < 4:

@@ -39,7 +39,7 @@ Two supports:
 
   On the goal cell (every heading) the demonstrator stays (action 3, STAY), as
   the env absorbs it there; on walls and on states that cannot reach the goal
-  (cut off by obstacles) the row is uniform.
+  (cut off by obstacles), lava included (the episode ends there), the row is uniform.
 """
 
 from __future__ import annotations
