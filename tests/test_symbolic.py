@@ -7,6 +7,7 @@ import io
 import itertools
 import math
 import tarfile
+import warnings
 from dataclasses import replace
 
 import gymnasium as gym
@@ -51,8 +52,10 @@ def _archive(tmp_path, texts: dict[str, str], name: str = "p.tar.bz2"):
 
 @pytest.mark.parametrize("name", sorted(OPTIMAL))
 def test_env_passes_gymnasium_checker(name):
-    env = SymbolicEnv((0,), problem=name)
-    check_env(env, skip_render_check=True)
+    env = SymbolicEnv((0,), problem=name, render_mode="ansi")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env)
     obs, _ = env.reset(seed=0)
     assert env.observation_space.contains(obs) and env.model.n_fluents <= 16
 

@@ -36,7 +36,7 @@ class SymbolicEnv(gym.Env):
         goal_mask: The state bits the goal requires.
     """
 
-    metadata: dict[str, Any] = {"render_modes": ["ansi"]}
+    metadata: dict[str, Any] = {"render_modes": ["ansi"], "render_fps": 1}
 
     def __init__(self, goal: Sequence[float] = (0,), *, problem: str = "blocks", max_steps: int = 50,
                  render_mode: str | None = None) -> None:
