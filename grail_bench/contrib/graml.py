@@ -80,6 +80,10 @@ class NotFittedError(UserError, RuntimeError):
 class GRAMLConfig:
     """GRAML's settings (they key stored results and the cached metric model).
 
+    The default budget (1000 pairs, 5 epochs) trains the metric of a MiniGrid task in 3-15 s on 2 busy cores
+    (2-goal to 6-goal suboptimal tasks, whose demonstrations are the longest); the loss still falls at its
+    end, so larger budgets may recognise better.
+
     Attributes:
         hidden: LSTM units, the embedding's size (gr_libs: 8).
         n_pairs: Training pairs of sub-sequences drawn from the demonstrations (gr_libs: 10 000-40 000).
