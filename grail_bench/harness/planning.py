@@ -17,7 +17,7 @@ import numpy as np
 
 from grail_bench.core.trajectory import Demos, Goal
 from grail_bench.recognizers.contract import Capabilities, FitDiagnostics, FitReport, RecognizerError
-from grail_bench.recognizers.registry import build
+from grail_bench.recognizers.registry import build, recognizer_info
 from grail_bench.recognizers.scoring import available_scorers, check_scorer, get_scorer
 from grail_bench.task import GRTask
 from grail_bench.task.datasets import source_digest
@@ -105,17 +105,18 @@ def fitted_config(task: GRTask, name: str, settings: Mapping[str, Any]) -> dict[
 
 
 def check_channel(specs: Sequence[RecognizerSpec], channel: str) -> None:
-    """Refuse, before any training, a recognizer that cannot use the observation ``channel`` (its ``channels``
-    capability; only built, never fitted).
+    """Refuse, before anything is built, a recognizer that cannot use the observation ``channel`` (its
+    ``channels`` capability, read from its class).
 
     Raises:
         RecognizerError: In one line (``"bc cannot use the states channel: ..."``).
+        UnknownRecognizerError: For an unregistered name.
     """
     for spec in specs:
-        build(spec.name, dict(spec.config)).check_channel(channel)
+        recognizer_info(spec.name).check_channel(channel)
 
 
-def plan(task: GRTask, spec: RecognizerSpec, action_space: Any, channel: str | None = None) -> Planned:
+def plan(task: GRTask, spec: RecognizerSpec, action_space: Any) -> Planned:
     """Check a recognizer and its scorers against a task, and compute its identity.
 
     The hash covers the fitted configuration (recognizer hyperparameters and
@@ -123,13 +124,10 @@ def plan(task: GRTask, spec: RecognizerSpec, action_space: Any, channel: str | N
 
     Raises:
         grail_bench.core.errors.UserError: For unknown names, bad hyperparameters,
-            a scorer the recognizer cannot serve on this task, a task the
-            recognizer refuses as configured (its optional ``check_task``), or an
-            observation ``channel`` it does not declare (None: not checked here; see :func:`check_channel`).
+            a scorer the recognizer cannot serve on this task, or a task the
+            recognizer refuses as configured (its optional ``check_task``).
     """
     caps = build(spec.name, dict(spec.config))
-    if channel is not None:
-        caps.check_channel(channel)
     caps.check_task(task)
     own = caps.default_scorer
     scorers = tuple(spec.scorers) or (own,)

@@ -34,8 +34,9 @@ capability             what it is                                               
                        run is planned, before any training
 ``channels``           the observation channels ``score`` can use: a set of          ``{"pairs"}``
                        ``"pairs"``, ``"states"`` (actions NaN) and ``"actions"``
-                       (states NaN; :mod:`grail_bench.task.observation`); a run
-                       with another channel is refused before any training
+                       (states NaN; :mod:`grail_bench.task.observation`), a class
+                       attribute (read before anything is built); a run with
+                       another channel is refused before any training
 =====================  ============================================================  =============================
 
 The harness never reads a recognizer directly: :func:`capabilities` reads
@@ -195,15 +196,43 @@ class Info:
     paper_name: str
     default_scorer: str
     reference: bool = False
+    channels: frozenset[str] = DEFAULT_CHANNELS
+
+    def check_channel(self, channel: str) -> None:
+        """Refuse an observation channel the recognizer does not declare.
+
+        Raises:
+            RecognizerError: In one line, naming the channels it can use.
+        """
+        if channel not in self.channels:
+            raise RecognizerError(f"{self.name} cannot use the {channel} channel: it scores "
+                                  f"{', '.join(c for c in CHANNELS if c in self.channels)} only (its channels "
+                                  "capability)")
+
+
+def _channels(obj: Any, name: str) -> frozenset[str]:
+    """The channels a recognizer class or instance declares (``{"pairs"}`` when it declares none)."""
+    declared = getattr(obj, "channels", None)
+    if declared is None:
+        return DEFAULT_CHANNELS
+    if isinstance(declared, str) or not isinstance(declared, (set, frozenset, list, tuple)) \
+            or not declared or not set(declared) <= set(CHANNELS):
+        raise RecognizerError(f"recognizer {name!r}: channels must be a non-empty set of {', '.join(CHANNELS)}, "
+                              f"got {declared!r}")
+    return frozenset(declared)
 
 
 def info(obj: Any, name: str) -> Info:
-    """The :class:`Info` of a recognizer class or instance registered as ``name``."""
+    """The :class:`Info` of a recognizer class or instance registered as ``name``.
+
+    Raises:
+        RecognizerError: For ``channels`` naming an unknown channel.
+    """
     paper = getattr(obj, "paper_name", "")
     scorer = getattr(obj, "default_scorer", OWN_SCORING)
     return Info(name=name, paper_name=paper if isinstance(paper, str) and paper else name,
                 default_scorer=scorer if isinstance(scorer, str) and scorer else OWN_SCORING,
-                reference=getattr(obj, "reference", False) is True)
+                reference=getattr(obj, "reference", False) is True, channels=_channels(obj, name))
 
 
 @dataclass(frozen=True)
@@ -223,22 +252,15 @@ class Capabilities:
     has_diagnostics: bool
     has_set_goals: bool = False
     has_check_task: bool = False
-    channels: frozenset[str] = DEFAULT_CHANNELS
 
     @property
     def name(self) -> str:
         return self.info.name
 
-    def check_channel(self, channel: str) -> None:
-        """Refuse an observation channel the recognizer does not declare.
-
-        Raises:
-            RecognizerError: In one line, naming the channels it can use.
-        """
-        if channel not in self.channels:
-            raise RecognizerError(f"{self.name} cannot use the {channel} channel: it scores "
-                                  f"{', '.join(c for c in CHANNELS if c in self.channels)} only (its channels "
-                                  "capability)")
+    @property
+    def channels(self) -> frozenset[str]:
+        """The observation channels ``score`` can use."""
+        return self.info.channels
 
     @property
     def default_scorer(self) -> str:
@@ -333,18 +355,6 @@ def settings_key(settings: Any, *, models: bool = False) -> dict[str, Any]:
     return dict(settings)
 
 
-def _channels(recognizer: Any, name: str) -> frozenset[str]:
-    """The channels a recognizer declares (``{"pairs"}`` when it declares none)."""
-    declared = getattr(recognizer, "channels", None)
-    if declared is None:
-        return DEFAULT_CHANNELS
-    if isinstance(declared, str) or not isinstance(declared, (set, frozenset, list, tuple)) \
-            or not declared or not set(declared) <= set(CHANNELS):
-        raise RecognizerError(f"recognizer {name!r}: channels must be a non-empty set of {', '.join(CHANNELS)}, "
-                              f"got {declared!r}")
-    return frozenset(declared)
-
-
 def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = None) -> Capabilities:
     """Read a recognizer's capabilities, once (see the module docstring for each default).
 
@@ -368,7 +378,7 @@ def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = 
         raise RecognizerError(f"recognizer {name!r}: config must be a dataclass or a mapping, got "
                               f"{type(config).__name__}")
     return Capabilities(
-        recognizer=recognizer, info=info(recognizer, name), channels=_channels(recognizer, name), config=settings_key(config), kwargs=dict(kwargs or {}),
+        recognizer=recognizer, info=info(recognizer, name), config=settings_key(config), kwargs=dict(kwargs or {}),
         takes_scorer=_accepts(recognizer.score, "scorer", positional=1),
         takes_cache_key=_accepts(recognizer.fit, "cache_key"),
         has_prefix_scores=callable(getattr(recognizer, "score_prefixes", None)),
