@@ -40,6 +40,16 @@ def test_the_layers_contracts_hold():
     assert "0 broken" in out.stdout
 
 
+def test_every_package_ships_in_the_wheel():
+    """pyproject.toml lists its packages one by one: a package folder missing from the list would work in an
+    editable install and be absent from a built wheel."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "grail_bench").rglob("__init__.py")}
+    assert found - listed == set()
+
+
 def test_an_upward_import_breaks_the_contract(tmp_path):
     shutil.copytree(ROOT / "grail_bench", tmp_path / "grail_bench", ignore=shutil.ignore_patterns("__pycache__"))
     errors = tmp_path / "grail_bench" / "core" / "errors.py"
