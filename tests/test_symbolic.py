@@ -293,3 +293,18 @@ def test_bc_graql_and_the_demonstrator_run_on_a_symbolic_task():
     assert all(0.0 <= r.f1.mean <= 1.0 for r in records)
     full = next(r for r in records if r.recognizer == "demonstrator" and r.observability == 1.0)
     assert full.f1.mean == 1.0
+
+
+def test_batched_and_single_hmax_agree_and_are_admissible():
+    from grail_bench.domains.symbolic.planner import hmax, hmax_many
+
+    problem = builtin_problem("logistics")
+    model = problem.model
+    for goal in problem.goal_masks:
+        graph = optimal_plan_graph(model, goal)
+        states = sorted({s for s in graph.edges} | {model.init})
+        batch = hmax_many(model, states, goal)
+        assert [hmax(model, s, goal) for s in states] == batch.tolist()
+        for s, h in zip(states, batch):  # on an optimal plan, the remaining length is the true cost
+            remaining = next(len(p) for p in optimal_plan_graph(model, goal, s).plans())
+            assert h <= remaining

@@ -16,7 +16,7 @@ from __future__ import annotations
 import heapq
 import itertools
 from dataclasses import dataclass
-from typing import Iterator
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -27,8 +27,34 @@ NODE_LIMIT = 200_000
 HEURISTICS = ("hmax", "blind")
 
 
+def hmax_many(model: StripsModel, states: Sequence[int], goal: int) -> np.ndarray:
+    """h_max of each state for the goal mask ``goal`` (unit costs): the first layer of the relaxed planning
+    graph that holds the goal, ``inf`` where none does; all states at once, a layer per two matrix products."""
+    pre, count, add = model.relaxed_arrays
+    reached = model.bits(list(states))
+    need = ~model.bits([goal])[0]
+    h = np.full(len(reached), np.inf)
+    active = np.arange(len(reached))
+    layer = 0
+    while active.size:
+        now = reached[active]
+        done = (now | need).all(axis=1)
+        h[active[done]] = layer
+        active, now = active[~done], now[~done]
+        if not active.size:
+            break
+        applicable = (now.astype(np.float32) @ pre.T) >= count
+        grown = now | ((applicable.astype(np.float32) @ add) > 0)
+        moving = (grown != now).any(axis=1)  # a layer that adds nothing never reaches the goal
+        active = active[moving]
+        reached[active] = grown[moving]
+        layer += 1
+    return h
+
+
 def hmax(model: StripsModel, state: int, goal: int) -> float:
-    """h_max of ``state`` for the goal mask ``goal``: the first relaxed layer holding the goal (inf if none)."""
+    """h_max of one state for the goal mask ``goal``, as :func:`hmax_many` gives it, on bit masks (faster than
+    the matrix products for a single state)."""
     reached, layer, relaxed = state, 0, model.relaxed_masks()
     while reached & goal != goal:
         grown = reached
@@ -41,12 +67,13 @@ def hmax(model: StripsModel, state: int, goal: int) -> float:
     return float(layer)
 
 
-def _h(model: StripsModel, goal: int, heuristic: str):
+def _h(model: StripsModel, goal: int, heuristic: str) -> Callable[[list[int]], np.ndarray]:
+    """The heuristic of a batch of states."""
     if heuristic not in HEURISTICS:
         raise UserError(f"unknown heuristic {heuristic!r}; choose one of {', '.join(HEURISTICS)}")
     if heuristic == "blind":
-        return lambda s: 0.0 if s & goal == goal else 1.0
-    return lambda s: hmax(model, s, goal)
+        return lambda states: np.array([0.0 if s & goal == goal else 1.0 for s in states])
+    return lambda states: hmax_many(model, states, goal)
 
 
 def _limit_error(node_limit: int) -> UserError:
@@ -66,7 +93,7 @@ def astar(model: StripsModel, goal: int, start: int | None = None, *, heuristic:
     tie = itertools.count()
     g: dict[int, int] = {start: 0}
     parent: dict[int, tuple[int, int]] = {}
-    h0 = h(start)
+    h0 = float(h([start])[0])
     if h0 == float("inf"):
         raise UserError("the goal is unreachable from the initial state")
     frontier = [(h0, next(tie), start)]
@@ -84,12 +111,14 @@ def astar(model: StripsModel, goal: int, start: int | None = None, *, heuristic:
         closed.add(s)
         if len(closed) > node_limit:
             raise _limit_error(node_limit)
+        cost, better = g[s] + 1, {}
         for op, nxt in model.successors(s):
-            cost = g[s] + 1
-            if cost < g.get(nxt, cost + 1):
-                hn = h(nxt)
-                if hn == float("inf"):
-                    continue
+            if cost < g.get(nxt, cost + 1) and nxt not in better:
+                better[nxt] = op
+        if not better:
+            continue
+        for (nxt, op), hn in zip(better.items(), h(list(better))):
+            if hn != float("inf"):
                 g[nxt], parent[nxt] = cost, (s, op)
                 heapq.heappush(frontier, (cost + hn, next(tie), nxt))
     raise UserError("the goal is unreachable from the initial state")
@@ -163,27 +192,20 @@ def optimal_plan_graph(model: StripsModel, goal: int, start: int | None = None, 
     start = model.init if start is None else start
     length = len(astar(model, goal, start, node_limit=node_limit))
     depth: dict[int, int] = {start: 0}
-    layer, forward, pruned = [start], {}, set()
-    expanded = 0
+    layer, forward = [start], {}
     for d in range(length):
-        nxt_layer = []
+        if len(forward) + len(layer) > node_limit:
+            raise _limit_error(node_limit)
         for s in layer:
-            expanded += 1
-            if expanded > node_limit:
-                raise _limit_error(node_limit)
-            out = []
-            for op, n in model.successors(s):
-                if depth.get(n, d + 1) != d + 1:
-                    continue  # reached earlier: no optimal plan takes this edge
-                if n not in depth:
-                    if n in pruned or d + 1 + hmax(model, n, goal) > length:
-                        pruned.add(n)
-                        continue
-                    depth[n] = d + 1
-                    nxt_layer.append(n)
-                out.append((op, n))
-            forward[s] = out
-        layer = nxt_layer
+            # an edge to a state reached at an earlier depth lies on no optimal plan
+            forward[s] = [(op, n) for op, n in model.successors(s) if depth.get(n, d + 1) == d + 1]
+        fresh = sorted({n for s in layer for _, n in forward[s] if n not in depth})
+        if fresh:
+            within = hmax_many(model, fresh, goal) <= length - d - 1
+            layer = [n for n, ok in zip(fresh, within) if ok]
+        else:
+            layer = []
+        depth.update((n, d + 1) for n in layer)
     count: dict[int, int] = {s: 1 for s in layer if s & goal == goal}
     edges: dict[int, list[tuple[int, int]]] = {}
     for s in sorted(forward, key=lambda s: -depth[s]):

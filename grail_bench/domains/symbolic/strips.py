@@ -10,6 +10,7 @@ space, and tables over state indices are tables over states.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -134,6 +135,24 @@ class StripsModel:
     def relaxed_masks(self) -> list[tuple[int, int]]:
         """``(pre, add)`` masks of every operator (for delete-relaxation heuristics)."""
         return [(pre, add) for pre, _, add, _ in self._masks]
+
+    @cached_property
+    def relaxed_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(pre, pre_count, add)``: ``(A, F)`` 0/1 precondition and add matrices and each operator's number of
+        preconditions, as ``float32`` (batched delete-relaxation heuristics multiply them)."""
+        pre = np.zeros((len(self.operators), len(self.fluents)), dtype=np.float32)
+        add = np.zeros_like(pre)
+        for a, op in enumerate(self.operators):
+            pre[a, list(op.pre)] = 1.0
+            add[a, list(op.add)] = 1.0
+        return pre, pre.sum(axis=1), add
+
+    def bits(self, states: Sequence[int]) -> np.ndarray:
+        """``(len(states), n_fluents)`` booleans: the fluents true in each state."""
+        n = len(self.fluents)
+        width = max(1, (n + 7) // 8)
+        raw = np.frombuffer(b"".join(s.to_bytes(width, "big") for s in states), dtype=np.uint8)
+        return np.unpackbits(raw.reshape(len(states), width), axis=1)[:, width * 8 - n:].astype(bool)
 
     def vector(self, state: int) -> np.ndarray:
         """The observation of ``state``: a 0/1 ``int64`` vector in fluent order."""
