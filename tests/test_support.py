@@ -462,3 +462,20 @@ def test_the_other_goals_off_support_states_are_found_once_and_kept_read_only():
     assert evidence.others_off_support(task.goals[0]) is first and not first.flags.writeable
     _, off = _on_and_off(train, task.goals[0])
     np.testing.assert_array_equal(first, off)
+
+
+def test_a_space_of_more_states_than_an_integer_holds_is_refused_by_the_evidence_in_one_line():
+    """81 binary fluents (a blocks-world problem of Pereira et al.'s dataset) are 2**81 states: counted exactly,
+    not wrapped round by a fixed-width product, and refused as a table of supports (the policy's own output is
+    then scored, as with ``off_support="trust"``)."""
+    from gymnasium import spaces
+
+    from grail_bench.core.spaces import n_states
+    from grail_bench.recognizers.evidence import Evidence
+
+    space = spaces.MultiDiscrete([2] * 81)
+    assert n_states(space) == 2 ** 81
+    obs = np.zeros((3, 81), dtype=np.int64)
+    demos = {(0.0,): [Trajectory(obs=obs, acts=np.zeros(2, dtype=np.int64), infos=None, terminal=True)]}
+    with pytest.raises(UserError, match=r"^off-support rules need discrete observation spaces of fewer than 2\*\*62"):
+        Evidence(demos, space, spaces.Discrete(2))

@@ -3,6 +3,7 @@ and SB3's observation encoding in numpy."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -44,7 +45,7 @@ def check_within(values: np.ndarray, space: Any, what: str) -> None:
 
 def n_states(space: spaces.Discrete | spaces.MultiDiscrete) -> int:
     """How many states a discrete space has."""
-    return int(np.prod(space.nvec)) if isinstance(space, spaces.MultiDiscrete) else int(space.n)
+    return math.prod(int(n) for n in space.nvec) if isinstance(space, spaces.MultiDiscrete) else int(space.n)
 
 
 def state_index(obs: np.ndarray, space: spaces.Discrete | spaces.MultiDiscrete) -> np.ndarray:
