@@ -13,6 +13,7 @@ from imitation.data.types import Trajectory
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 import grail_bench
+from grail_bench.core.errors import UserError
 from grail_bench.recognizers import Recognizer, UnknownRecognizerError, available_recognizers, make_recognizer
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
 from grail_bench.task.observation import observe
@@ -259,3 +260,15 @@ def test_draco_identity_holds_only_the_chosen_algorithms_budget(monkeypatch):
     before = identity(algorithm="sac"), identity(algorithm="sac", sac_steps=5000)
     monkeypatch.setitem(draco.STEPS, "ppo", draco.STEPS["ppo"] + 1)
     assert (identity(algorithm="sac"), identity(algorithm="sac", sac_steps=5000)) == before
+
+
+def test_graql_refuses_a_space_too_large_for_its_table_before_learning():
+    """A symbolic problem of 30 fluents has 2**30 states: a one-line refusal, not a table that exhausts memory."""
+    import gymnasium as gym
+
+    class Fluents(gym.Env):
+        observation_space = spaces.MultiDiscrete([2] * 30)
+        action_space = spaces.Discrete(4)
+
+    with pytest.raises(UserError, match=r"^graql keeps a Q-table row for every state: .* 1\.07e\+09 states, more than"):
+        make_recognizer("graql")._q_learning(Fluents(), seed=0)

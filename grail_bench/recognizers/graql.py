@@ -25,6 +25,9 @@ from grail_bench.stats.metrics import thin
 _CHUNK = 4096  # exploration draws made at a time
 
 
+#: The most states a Q-table holds (its rows live in Python lists: 2**20 rows of 20 actions take ~0.7 GB).
+MAX_STATES = 1 << 20
+
 @dataclass(frozen=True)
 class GRAQLConfig:
     """GRAQL's settings.
@@ -149,6 +152,9 @@ class GRAQLRecognizer(ScoredRecognizer):
         if not isinstance(obs_space, (spaces.Discrete, spaces.MultiDiscrete)) or not isinstance(act_space, spaces.Discrete):
             raise UserError("graql needs discrete observations and actions (tabular Q-learning); this domain's "
                             f"observations are {type(obs_space).__name__} and actions {type(act_space).__name__}")
+        if n_states(obs_space) > MAX_STATES:
+            raise UserError(f"graql keeps a Q-table row for every state: this domain's observations have "
+                            f"{n_states(obs_space):.3g} states, more than the {MAX_STATES} it holds")
         self.observation_space, self.action_space = obs_space, act_space
         reset, step = _transitions(env)
         cfg = self.config
