@@ -57,11 +57,14 @@ class GCDRACOConfig:
         algorithm: ``"auto"`` (PPO on discrete actions, SAC on continuous ones), ``"ppo"`` or ``"sac"``
             (continuous actions only).
         ppo_steps: PPO env steps in all (over 8 env copies), whatever the number of goals. 100 000 train the
-            MiniGrid agent in about 1-2 minutes on one core.
+            MiniGrid agent in 40 s on an idle core (2-3 minutes on a busy one).
         sac_steps: SAC env steps in all.
         net_arch: Hidden layers of the agent (DRACO's).
-        learning_rate: PPO's Adam step size (SB3's default).
-        ent_coef: PPO's entropy bonus (SB3's default, none).
+        learning_rate: PPO's Adam step size.
+        ent_coef: PPO's entropy bonus. With SB3's defaults (3e-4, none) the agent learnt to head for one goal
+            whatever goal it was given, on MiniGrid-Optimal at 40 000-100 000 steps (3 seeds): once one goal is
+            found from the sparse reward, nothing keeps it exploring for the other. With 1e-3 and 0.05 it
+            reaches both goals on 2 of 3 seeds at 60 000 and at 100 000 steps (the third still heads for one).
         off_support: GC-BC's rule for a goal's outputs at states off its support when scored (``"trust"``: the
             agent's own output, the published method); scoring only.
     """
@@ -70,8 +73,8 @@ class GCDRACOConfig:
     ppo_steps: int = 100_000
     sac_steps: int = 30_000
     net_arch: tuple[int, ...] = (64, 64)
-    learning_rate: float = 3e-4
-    ent_coef: float = 0.0
+    learning_rate: float = 1e-3
+    ent_coef: float = 0.05
     off_support: Literal["trust", "stay", "uniform"] = field(default="trust", metadata={"scoring": True})
 
     def __post_init__(self) -> None:
