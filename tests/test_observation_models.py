@@ -295,3 +295,19 @@ def test_the_gr_libs_profile_reproduces_gr_libs_observation_counts():
                     assert ours[: len(theirs)] == theirs  # the same first steps
                 assert ours == sorted(set(ours)) and set(ours) <= set(steps)
     assert sorted(set(zero)) == [(1, 0.3), (1, 0.5), (1, 0.7), (1, 0.9), (2, 0.3), (3, 0.3)]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--observation", "gr_libs", "-o", "0.3"], "--observation gr_libs sets the levels, protocols and rounding; drop "
+                                                 "--observability"),
+    (["--observation", "gr_libs", "--rounding", "ceil"], "drop --rounding"),
+    (["--observation", "pereira"], "unknown observation profile 'pereira'"),
+    (["--noise", "0.2", "--channel", "states"], "states channel hides"),
+    (["--noise", "2"], "must be a share of the observed steps in [0, 1]"),
+])
+def test_the_cli_refuses_bad_observation_options_in_one_line(tmp_path: Path, args, message):
+    result = CliRunner().invoke(app, ["run", "-t", TASK, "-r", "bc", *args, "--store", str(tmp_path / "r.sqlite")],
+                                env={"COLUMNS": "200"})
+    lines = result.output.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1 and lines[0].startswith("error:") and message in lines[0], \
+        result.output
