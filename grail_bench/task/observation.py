@@ -31,9 +31,11 @@ Two observation models apply on top of any protocol, in every domain, with no do
   its meaning; the hidden channel is NaN (as floats): ``states`` keeps
   ``obs[:k]``, the states the observed steps were taken in, and blanks the
   actions and ``obs[k]`` (the successor would give the last action away);
-  ``actions`` keeps ``acts`` and blanks every state. NaN rather than a wrapper
-  type: code written for pairs fails loudly on it (the spaces' checks refuse
-  NaN, and a NaN score is refused), never silently. Only a recognizer that
+  ``actions`` keeps ``acts`` and blanks every state. A states-channel
+  recognizer reads ``obs[:k]``, ``k = len(acts)``, as every recognizer reads
+  the states of the observed steps. NaN rather than a wrapper type: code
+  written for pairs fails loudly on it (the spaces' checks refuse NaN, and a
+  NaN score is refused), never silently. Only a recognizer that
   declares the channel (its ``channels`` capability) is given it;
   :func:`observed_channel` says which channel an observation carries.
 
@@ -360,7 +362,7 @@ class SpuriousActions:
     def discrete(self) -> bool:
         return self.n > 0
 
-    def others(self, action: int) -> range | list[int]:
+    def others(self, action: int) -> list[int]:
         """The discrete actions a spurious step can show instead of ``action``."""
         return [a for a in range(self.start, self.start + self.n) if a != action]
 
