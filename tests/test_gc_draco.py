@@ -149,3 +149,17 @@ def test_a_zero_shot_run_stores_its_adaptation_time(tmp_path):
     assert row.recognizer == "gc-draco" and row.scorer == "wasserstein"
     assert row.adapt_seconds_per_goal > 0 and row.score_us_per_observation > 0 and row.fit_seconds_per_goal > 0
     assert record.adapt_seconds_per_goal == row.adapt_seconds_per_goal
+
+
+def test_continuous_actions_train_one_sac_agent():
+    """PointMaze's force actions: SAC (as DRACO's continuous choice), scored by the Gaussian Wasserstein distance."""
+    from stable_baselines3.sac.policies import SACPolicy
+
+    task = grail_bench.make_task("GRAIL/PointMaze-Optimal-v0")
+    train, test = task.split(task.generate_demos(0))
+    rec = GCDRACORecognizer(sac_steps=550)
+    rec.fit({g: train[g] for g in task.goals[:3]}, task.env_factory(), seed=0)
+    assert isinstance(rec.agent, SACPolicy) and rec.exposes(rec.action_space) == {"mean", "std", "occupancy"}
+    rec.set_goals(task.goals)
+    scores = rec.score(observe(test[task.goals[4]][0], 0.3, "prefix"))
+    assert list(scores) == list(task.goals) and all(np.isfinite(v) and v < 0 for v in scores.values())
