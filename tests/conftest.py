@@ -76,6 +76,9 @@ FAST = {
     "gail": {"total_timesteps": 512, "n_envs": 4, "n_steps": 64, "n_epochs": 2},
     "airl": {"total_timesteps": 512, "n_envs": 4, "n_steps": 64, "n_epochs": 2},
     "draco": {"ppo_steps": 1024},
+    "gc-draco": {"ppo_steps": 1024},
+    "graml": {"n_pairs": 300, "n_epochs": 3},
+    "gc-graml": {"n_pairs": 300, "n_epochs": 3, "gc_batches": 300, "n_rollouts": 3},
 }
 
 

@@ -262,3 +262,17 @@ def test_leaderboard_computes_online_ceiling_curves_on_its_executor(tmp_path, mo
     assert curve == ceiling_curve(TASK.id, params, "subset", GRID, samples=60, executor=again)
     assert again.items == []  # cached by the first pass
     assert len(curve) == len(GRID) and curve[-1] >= curve[0]
+
+
+def test_a_prefix_of_a_states_only_observation_hides_its_last_state_as_an_offline_one_does():
+    from imitation.data.types import Trajectory
+
+    from grail_bench.harness.modes.online import head
+
+    nan = np.full(3, np.nan)
+    observed = Trajectory(obs=np.arange(8.0).reshape(4, 2), acts=nan, infos=None, terminal=False)
+    prefix = head(observed, 2)
+    assert np.array_equal(prefix.obs[:2], [[0, 1], [2, 3]]) and np.isnan(prefix.obs[2]).all()
+    assert observed.obs[2, 0] == 4.0  # the observation itself is left as it was
+    pairs = Trajectory(obs=observed.obs, acts=np.zeros(3), infos=None, terminal=False)
+    assert np.array_equal(head(pairs, 2).obs, [[0, 1], [2, 3], [4, 5]])

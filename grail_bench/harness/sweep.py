@@ -27,7 +27,7 @@ from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.executors import Executor, SerialExecutor
 from grail_bench.harness.modes import Row, SeedRun, get_mode
-from grail_bench.harness.planning import Planned, RecognizerSpec, plan
+from grail_bench.harness.planning import Planned, RecognizerSpec, check_channel, plan
 from grail_bench.harness.store import ResultsStore
 from grail_bench.task import GRTask, make_task
 from grail_bench.task.observation import ObservationSpec
@@ -183,6 +183,7 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
             observation the mode cannot run.
     """
     task = request.task
+    check_channel(request.specs, request.observation.channel)
     mode = get_mode(request.mode)
     mode.check(task, request.observation)
     env = task.make_env()

@@ -53,6 +53,7 @@ from grail_bench.harness.modes.base import (
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.recognizers.contract import Capabilities, RecognizerError
 from grail_bench.stats import metrics
+from grail_bench.task.observation import observed_channel
 
 if TYPE_CHECKING:
     from imitation.data.types import Trajectory
@@ -112,10 +113,15 @@ class OnlineRecord(Record):
 
 
 def head(observed: Trajectory, k: int) -> Trajectory:
-    """The first ``k`` pairs of an observation (and the state after the ``k``-th)."""
+    """The first ``k`` pairs of an observation and the state after the ``k``-th, which a ``states`` channel hides
+    as it hides an offline observation's last state (it would give the ``k``-th action away)."""
     from imitation.data.types import Trajectory
 
-    return Trajectory(obs=observed.obs[: k + 1], acts=observed.acts[:k], infos=None, terminal=False)
+    obs = observed.obs[: k + 1]
+    if observed_channel(observed) == "states":
+        obs = obs.astype(float)  # a copy
+        obs[k] = np.nan
+    return Trajectory(obs=obs, acts=observed.acts[:k], infos=None, terminal=False)
 
 
 def prefix_scores(recognizer: Capabilities, observed: Trajectory, scorer: str | None,
