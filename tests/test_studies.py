@@ -125,21 +125,26 @@ recognizers = ["bc"]
 
 
 @pytest.mark.parametrize("extra, observation", [
-    ("", ("subset", "ceil")),
-    ('protocol = "prefix"\nrounding = "floor"\n', ("prefix", "floor")),
-    ('rounding = "floor"\n', ("subset", "floor")),
+    ("", ("subset", "ceil", 0.0, "pairs", "subset")),
+    ('protocol = "prefix"\nrounding = "floor"\n', ("prefix", "floor", 0.0, "pairs", "prefix+floor")),
+    ('rounding = "floor"\n', ("subset", "floor", 0.0, "pairs", "subset+floor")),
+    ('noise = 0.2\n', ("subset", "ceil", 0.2, "pairs", "subset+noise0.2")),
+    ('channel = "actions"\n', ("subset", "ceil", 0.0, "actions", "subset+actions")),
 ])
-def test_profile_sections_carry_a_protocol_and_rounding(tmp_path, extra, observation):
+def test_profile_sections_carry_a_protocol_rounding_and_observation_model(tmp_path, extra, observation):
     path = tmp_path / "p.toml"
     path.write_text(PROFILE + extra)
     (request,) = load_profile(str(path)).requests()
-    assert (request.observation.protocol, request.observation.rounding) == observation
+    spec = request.observation
+    assert (spec.protocol, spec.rounding, spec.noise, spec.channel, spec.label) == observation
 
 
 @pytest.mark.parametrize("extra, message", [
     ('rounding = "half"\n', "section 'floor': unknown rounding 'half'"),
     ('protocol = "middle"\n', "section 'floor': unknown observation protocol 'middle'"),
     ("protocol = 3\n", "protocol must be a name"),
+    ("noise = 2\n", "section 'floor': noise 2 must be a share of the observed steps in [0, 1]"),
+    ('channel = "pixels"\n', "section 'floor': "),
 ])
 def test_a_bad_section_protocol_or_rounding_is_one_line(tmp_path, extra, message):
     path = tmp_path / "p.toml"

@@ -13,7 +13,8 @@ each value in turn, optionally at its own ``observability`` levels and
 one per goal count, and fits each method's fit-cost exponent. Those sections
 write ``BUDGETS.md`` and ``budgets.png`` instead of joining the paper's tables. A section's ``config`` sets hyperparameters of all
 its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant); its ``protocol`` and
-``rounding`` (e.g. ``protocol = "prefix"``, ``rounding = "floor"``) replace each task's default. The grid runs
+``rounding`` (e.g. ``protocol = "prefix"``, ``rounding = "floor"``) replace each task's default, and its
+``noise`` and ``channel`` set the observation model (``noise = 0.2``, ``channel = "actions"``). The grid runs
 through :func:`grail_bench.harness.sweep.run_sweep` (resumable through the
 store), then :func:`write_outputs` renders everything (tables, figures, the web
 page) from the store alone, so the outputs never depend on which units ran now.
@@ -35,6 +36,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.paths import cache_dir
 from grail_bench.core.seeding import seed_list
 from grail_bench.harness.diagnostics import FitRow
+from grail_bench.harness.api import task_action_space
 from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import MODES, Row, get_mode
 from grail_bench.harness.planning import Planned, RecognizerSpec
@@ -50,7 +52,7 @@ from grail_bench.report.tables import budgets_markdown, calibration_markdown, mo
 from grail_bench.report.text import markdown
 from grail_bench.stats.verdict import plateau, scaling_exponent
 from grail_bench.task import find_task, make_task
-from grail_bench.task.observation import ObservationSpec, parse_observability
+from grail_bench.task.observation import ObservationSpec, check_noise, parse_observability
 
 PROFILES = ("quick", "paper", "support")
 
@@ -114,6 +116,8 @@ class Section:
     config: Mapping[str, Any] = field(default_factory=dict)  # hyperparameters for every recognizer of the section
     protocol: str | None = None  # None: each task's default
     rounding: str | None = None  # None: each task's default
+    noise: float = 0.0  # the share of observed steps made spurious
+    channel: str = "pairs"  # what is observed: pairs, states or actions
 
     def requests(self, seeds: int, config: Mapping[str, Mapping[str, Any]]) -> list[Request]:
         """This section's requests: its protocol, rounding and levels where it sets them, else each task's."""
@@ -123,8 +127,9 @@ class Section:
                 task = make_task(task_id, **params)
                 levels = (self.observability or task.observability) if get_mode(self.mode).takes_levels else ()
                 specs = tuple(RecognizerSpec(r, c, self.scorers) for r, c in configs)
-                observation = ObservationSpec.resolve(self.protocol or task.protocol, self.rounding or task.rounding,
-                                                      levels)
+                observation = ObservationSpec.resolve(
+                    self.protocol or task.protocol, self.rounding or task.rounding, levels, noise=self.noise,
+                    channel=self.channel, action_space=task_action_space(task) if self.noise else None)
                 out.append(Request(task.id, specs, tuple(seed_list(self.seeds or seeds)), observation, params, self.mode,
                                    task=task))
         return out
@@ -224,7 +229,8 @@ def load_profile(name_or_path: str) -> Profile:
             Vary.parse(s["vary"], f"profile {name_or_path}: section {s['name']!r}") if "vary" in s else None,
             parse_observability(s["observability"]) if "observability" in s else (),
             int(s["seeds"]) if "seeds" in s else None, dict(s.get("config", {})),
-            _optional_name(s, "protocol"), _optional_name(s, "rounding")) for s in data["section"])
+            _optional_name(s, "protocol"), _optional_name(s, "rounding"), float(s.get("noise", 0.0)),
+            str(s.get("channel", "pairs"))) for s in data["section"])
         seeds = int(data["seeds"])
         config = {k: dict(v) for k, v in data.get("config", {}).items()}
     except (KeyError, TypeError, ValueError) as exc:
@@ -239,9 +245,11 @@ def load_profile(name_or_path: str) -> Profile:
     for section in sections:
         if section.vary is not None and section.vary.of == "tasks" and len(section.tasks) < 2:
             raise UserError(f"profile {name_or_path}: section {section.name!r} varies its tasks; list two or more")
-        if section.protocol is not None or section.rounding is not None:
+        if section.protocol is not None or section.rounding is not None or section.noise or section.channel != "pairs":
             try:
-                ObservationSpec.resolve(section.protocol or "subset", section.rounding or "ceil")
+                ObservationSpec.resolve(section.protocol or "subset", section.rounding or "ceil",
+                                        channel=section.channel)
+                check_noise(section.noise)
             except UserError as exc:
                 raise UserError(f"profile {name_or_path}: section {section.name!r}: {exc}") from None
         if section.mode not in MODES:

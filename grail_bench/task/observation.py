@@ -258,7 +258,7 @@ def get_protocol(name: str) -> ProtocolLike:
     return PROTOCOLS.get(name)
 
 
-def _check_noise(noise: float) -> float:
+def check_noise(noise: float) -> float:
     """A noise share, rounded to :data:`LEVEL_DECIMALS` decimals as it is stored."""
     try:
         value = float(noise)
@@ -288,7 +288,7 @@ def protocol_label(name: str, rounding: str = "ceil", noise: float = 0.0, channe
     (``"subset"``, ``"subset+floor"``, ``"subset+noise0.2"``, ``"subset+floor+noise0.2+actions"``)."""
     _check_rounding(rounding)
     _check_channel(channel)
-    noise = _check_noise(noise)
+    noise = check_noise(noise)
     parts = [name] + ([rounding] if rounding != "ceil" else []) + ([f"noise{noise:g}"] if noise else [])
     return "+".join(parts + ([channel] if channel != "pairs" else []))
 
@@ -308,7 +308,7 @@ def parse_label(label: str) -> LabelParts:
         elif part in CHANNELS:
             parts = parts._replace(channel=part)
         elif part.startswith("noise"):
-            parts = parts._replace(noise=_check_noise(part.removeprefix("noise")))
+            parts = parts._replace(noise=check_noise(part.removeprefix("noise")))
         else:
             raise UserError(f"protocol label {label!r}: {part!r} is no rounding, noise<share> or channel")
     return parts
@@ -506,7 +506,7 @@ class ObservationSpec:
         """
         _check_rounding(rounding)
         _check_channel(channel)
-        noise = _check_noise(noise)
+        noise = check_noise(noise)
         name = get_protocol(protocol).name
         parsed = parse_observability(levels) if (isinstance(levels, str) or list(levels)) else ()
         spurious = None
