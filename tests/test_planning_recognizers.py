@@ -215,6 +215,19 @@ def test_same_inputs_same_scores_on_either_channel(name, crossroads):
 
 
 @pytest.mark.parametrize("name", NAMES)
+def test_goals_it_was_not_fitted_on_score_as_if_fitted(name, crossroads):
+    """Nothing is learnt per goal: fitted on one goal and told both, it scores as when fitted on both."""
+    _, test = crossroads.split(crossroads.generate_demos(seed=2))
+    observed = observe(test[(0,)][1], 0.5, "subset", np.random.default_rng(1))
+    zero_shot = make_recognizer(name)
+    with pytest.raises(RuntimeError, match="fit"):
+        zero_shot.set_goals(list(crossroads.goals))
+    zero_shot.fit({(1,): []}, crossroads.make_env)
+    zero_shot.set_goals(list(crossroads.goals))
+    assert zero_shot.score(observed) == fitted(name, crossroads).score(observed)
+
+
+@pytest.mark.parametrize("name", NAMES)
 def test_bad_input_is_one_line(name, crossroads):
     rec = fitted(name, crossroads)
     traj = crossroads.generate_demos(seed=0)[(0,)][0]

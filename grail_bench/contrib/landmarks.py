@@ -29,7 +29,8 @@ Scores lie in [0, 1] and are the heuristic values as the paper ranks them (its t
 returns every goal within ``θ`` of the best, is the harness's business: it ranks the scores). It reads the
 observed actions only (``channels = {"pairs", "actions"}``), learns nothing from demonstrations (``fit``
 reads the grounded model and the goals from the task's envs) and refuses a task of another domain where the
-run is planned (``check_task``).
+run is planned (``check_task``). Nothing is learnt per goal, so ``set_goals`` takes any of the task's
+hypotheses, fitted or not (zero-shot goals).
 """
 
 from __future__ import annotations

@@ -27,7 +27,8 @@ for ``c(G, O)`` (each unmatched observation costs an action); the searches stop 
 
 It reads the observed actions only (``channels = {"pairs", "actions"}``) and learns nothing from
 demonstrations: ``fit`` reads the grounded model and the goals' state masks from the task's envs, and a task
-of another domain is refused where the run is planned (``check_task``).
+of another domain is refused where the run is planned (``check_task``). Nothing is learnt per goal, so ``set_goals`` takes any of the task's
+hypotheses, fitted or not (zero-shot goals).
 """
 
 from __future__ import annotations

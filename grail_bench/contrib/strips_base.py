@@ -9,7 +9,7 @@ an observed trajectory into the observed operator indices (the actions channel: 
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Sequence
 
 import numpy as np
 from gymnasium import spaces
@@ -30,7 +30,9 @@ class StripsRecognizer(RecognizerBase):
     """Base of recognizers scoring candidate goals on a symbolic task's grounded STRIPS model.
 
     A subclass sets :attr:`Config` (a frozen dataclass of its settings) and implements :meth:`score`, reading
-    :attr:`model`, :attr:`goals` and :attr:`goal_masks` (set by :meth:`fit`) and :meth:`observed_operators`.
+    :attr:`model`, :attr:`goals` and :attr:`goal_masks` (set by :meth:`fit` and :meth:`set_goals`, which then
+    call :meth:`fitted`) and :meth:`observed_operators`. Nothing is learnt per goal, so it scores any candidate
+    goal of the fitted task (``set_goals``: zero-shot goals).
 
     Args:
         **settings: Fields of :attr:`Config`.
@@ -51,6 +53,7 @@ class StripsRecognizer(RecognizerBase):
         self.model: StripsModel | None = None
         self.goals: list[Goal] = []
         self.goal_masks: list[int] = []
+        self._factory: EnvFactory | None = None
 
     def check_task(self, task: Any) -> None:
         """Refuse, before anything is built, a task of another domain than the symbolic one.
@@ -70,9 +73,23 @@ class StripsRecognizer(RecognizerBase):
             UserError: Without goals or an env factory, or when the envs carry no grounded STRIPS model (a
                 task of another domain).
         """
-        goals = [tuple(g) for g in demos]
-        if env_factory is None or not goals:
+        if env_factory is None or not demos:
             raise UserError(f"{self.name}: fit needs the candidate goals and an env_factory building their envs")
+        self._read([tuple(g) for g in demos], env_factory)
+        self._factory = env_factory
+
+    def set_goals(self, goals: Sequence[Goal]) -> None:
+        """Score ``goals`` from now on (any hypotheses of the fitted task: nothing is learnt per goal).
+
+        Raises:
+            NotFittedError: Before :meth:`fit`.
+        """
+        if self._factory is None:
+            raise NotFittedError(f"{self.name}: call fit() before set_goals()")
+        self._read([tuple(g) for g in goals], self._factory)
+
+    def _read(self, goals: list[Goal], env_factory: EnvFactory) -> None:
+        """Read the model and each goal's state mask from its env, then :meth:`fitted`."""
         model, masks = None, []
         for goal in goals:
             env = env_factory(goal)
