@@ -54,7 +54,7 @@ from grail_bench.stats.verdict import plateau, scaling_exponent
 from grail_bench.task import find_task, make_task
 from grail_bench.task.observation import ObservationSpec, check_noise, parse_observability
 
-PROFILES = ("quick", "paper", "support")
+PROFILES = ("quick", "paper", "support", "breadth")
 
 
 @dataclass(frozen=True)
