@@ -66,14 +66,10 @@ from grail_bench.core.seeding import goal_rng, goal_words
 from grail_bench.core.spaces import preprocess
 from grail_bench.core.torchutil import single_thread
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal, rollout, until_success
-from grail_bench.recognizers.contract import FitReport, RecognizerBase, observed_arrays, settings_key
+from grail_bench.recognizers.contract import FitReport, NotFittedError, RecognizerBase, observed_arrays, settings_key
 from grail_bench.recognizers.gcbc import GCBCRecognizer
 
 ROLLOUTS = 7  #: the seed stream of a goal's reference rollouts (grail_bench.core.seeding uses 0-2)
-
-
-class NotFittedError(UserError, RuntimeError):
-    """Scoring, or setting goals, before :meth:`GRAMLRecognizer.fit`."""
 
 
 @dataclass(frozen=True)

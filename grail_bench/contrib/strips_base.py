@@ -11,17 +11,11 @@ from __future__ import annotations
 
 from typing import Any, ClassVar, Sequence
 
-import numpy as np
-from gymnasium import spaces
-
 from grail_bench.core.errors import UserError
 from grail_bench.core.params import check_kwargs
-from grail_bench.core.spaces import check_within
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.domains.symbolic.strips import StripsModel
-from grail_bench.recognizers.contract import RecognizerBase
-from grail_bench.recognizers.scored import NotFittedError
-from grail_bench.task.observation import observed_channel
+from grail_bench.recognizers.contract import NotFittedError, RecognizerBase, observed_arrays
 
 DOMAIN = "symbolic"
 
@@ -96,6 +90,7 @@ class StripsRecognizer(RecognizerBase):
             try:
                 inner = env.unwrapped
                 found, mask = getattr(inner, "model", None), getattr(inner, "goal_mask", None)
+                self.observation_space, self.action_space = env.observation_space, env.action_space
             finally:
                 env.close()
             if not isinstance(found, StripsModel) or not isinstance(mask, int):
@@ -121,17 +116,5 @@ class StripsRecognizer(RecognizerBase):
         """
         if self.model is None:
             raise NotFittedError(f"{self.name}: call fit() before score()")
-        try:
-            obs, acts = np.asarray(observed.obs), np.asarray(observed.acts)
-        except AttributeError:
-            raise UserError(f"expected a Trajectory with obs and acts, got {type(observed).__name__}") from None
-        if len(acts) == 0:
-            raise UserError("the observed trajectory is empty: at least one action is needed")
-        if len(obs) != len(acts) + 1:
-            raise UserError(f"malformed trajectory: {len(obs)} states for {len(acts)} actions (need actions + 1)")
-        if acts.ndim != 1:
-            raise UserError(f"observed actions have shape {acts.shape[1:]}, the env's are () (one operator index)")
-        if observed_channel(observed) == "states":
-            raise UserError(f"{self.name} scores observed actions; this observation carries states only")
-        check_within(acts, spaces.Discrete(self.model.n_operators), "observed actions")
+        _, acts = observed_arrays(observed, self.observation_space, self.action_space, self.channels)
         return [int(a) for a in acts]

@@ -56,7 +56,7 @@ import numpy as np
 from grail_bench.core.errors import UserError
 from grail_bench.core.spaces import check_within
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
-from grail_bench.task.observation import CHANNELS
+from grail_bench.task.observation import CHANNELS, observed_channel
 
 if TYPE_CHECKING:
     from imitation.data.types import Trajectory
@@ -69,6 +69,14 @@ DEFAULT_CHANNELS = frozenset({"pairs"})
 
 class RecognizerError(UserError):
     """A recognizer broke the contract (e.g. returned scores for the wrong goals)."""
+
+
+class NotFittedError(UserError, RuntimeError):
+    """A recognizer asked to score (or to take new goals) before it was fitted.
+
+    A :class:`~grail_bench.core.errors.UserError`, reported in one line; also a ``RuntimeError``, as it was
+    before, so callers catching that keep working. Plugins raise it too (``"name: call fit() before score()"``).
+    """
 
 
 @dataclass(frozen=True)
@@ -388,20 +396,23 @@ def capabilities(recognizer: Any, name: str, kwargs: Mapping[str, Any] | None = 
     )
 
 
-def observed_arrays(observed: Any, observation_space: Any, action_space: Any) -> tuple[np.ndarray, np.ndarray]:
+def observed_arrays(observed: Any, observation_space: Any, action_space: Any,
+                    channels: frozenset[str] = DEFAULT_CHANNELS) -> tuple[np.ndarray, np.ndarray]:
     """Validate an observed trajectory against the env's spaces and return its ``(states, actions)`` pairs.
 
     Args:
         observed: An ``imitation`` ``Trajectory`` (or anything with ``obs`` and ``acts``).
         observation_space: The space each state must belong to.
         action_space: The space each action must belong to.
+        channels: The channels the caller can use (its ``channels`` capability): an observation on one of them
+            has the part it hides (NaN) left unchecked; on any other channel NaN is a value outside its space.
 
     Returns:
         ``(obs[:k], acts)``: the ``k`` states in which the ``k`` actions were taken.
 
     Raises:
-        UserError: For an empty prefix, mismatched lengths, wrong shapes, or values outside a space (NaN
-            included), naming the space.
+        UserError: For an empty prefix, mismatched lengths, wrong shapes, values outside a space (NaN included,
+            unless hidden by one of ``channels``) or an observation on a channel the caller cannot use.
     """
     try:
         obs, acts = np.asarray(observed.obs), np.asarray(observed.acts)
@@ -417,7 +428,12 @@ def observed_arrays(observed: Any, observation_space: Any, action_space: Any) ->
     if acts.shape[1:] != action_space.shape:
         raise UserError(f"observed actions have shape {acts.shape[1:]}, the env's are {action_space.shape} "
                         f"({action_space})")
+    channel = observed_channel(observed)
+    if channel != "pairs" and channel not in channels:
+        raise UserError(f"this observation carries {channel} only; scoring it needs {' or '.join(sorted(channels))}")
     states = obs[: len(acts)]
-    check_within(states, observation_space, "observed states")
-    check_within(acts, action_space, "observed actions")
+    if channel != "actions":
+        check_within(states, observation_space, "observed states")
+    if channel != "states":
+        check_within(acts, action_space, "observed actions")
     return states, acts

@@ -41,7 +41,8 @@ from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy import demos_digest, spaces_of
 from grail_bench.recognizers.policy_bank import PolicyBank, preprocess
 from grail_bench.recognizers.evidence import OffSupport, off_support_setting
-from grail_bench.recognizers.scored import NotFittedError, ScoredRecognizer
+from grail_bench.recognizers.contract import NotFittedError
+from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.recognizers.scoring import PolicyOutput
 
 

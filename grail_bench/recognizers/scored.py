@@ -13,18 +13,10 @@ from gymnasium import spaces
 from grail_bench.core.errors import UserError
 from grail_bench.core.params import check_kwargs
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
-from grail_bench.recognizers.contract import FitDiagnostics, RecognizerBase, observed_arrays
+from grail_bench.recognizers.contract import FitDiagnostics, NotFittedError, RecognizerBase, observed_arrays
 from grail_bench.recognizers.diagnostics import policy_diagnostics
 from grail_bench.recognizers.evidence import Evidence, domain_noop
 from grail_bench.recognizers.scoring import PolicyOutput, Scorer, check_served, get_scorer
-
-class NotFittedError(UserError, RuntimeError):
-    """A recognizer asked to score (or to take new goals) before it was fitted.
-
-    A :class:`~grail_bench.core.errors.UserError`, reported in one line; also a ``RuntimeError``, as it was
-    before, so callers catching that keep working.
-    """
-
 
 @dataclass(frozen=True)
 class NoSettings:

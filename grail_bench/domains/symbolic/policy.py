@@ -26,7 +26,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from grail_bench.core.errors import UserError
 from grail_bench.domains.symbolic.strips import StripsModel
 
 if TYPE_CHECKING:
