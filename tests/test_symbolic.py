@@ -72,6 +72,14 @@ def test_hand_made_problem_plans_are_optimal():
         "(unstack a b)", "(put-down a)", "(pick-up b)", "(stack b a)"]
 
 
+def test_pddl_keywords_and_names_in_upper_case_read_as_lower_case():
+    """PDDL is case-insensitive; some of the dataset's problems write ``(:INIT`` and ``(ON A B)``."""
+    upper = GRProblem("swap", BLOCKS_DOMAIN.upper(), SWAP_TEMPLATE.upper(),
+                      ((("on", "b", "a"),), (("ontable", "a"),)), (("on", "b", "a"),), ())
+    assert upper.model.fluents == _swap().model.fluents
+    assert len(astar(upper.model, upper.goal_masks[0])) == 4
+
+
 @pytest.mark.parametrize("name", sorted(OPTIMAL))
 def test_planner_is_optimal_and_the_env_agrees_on_every_optimal_plan(name):
     """A*'s length is the known optimum, the plan graph holds only plans of that length, and the env ends each

@@ -151,7 +151,7 @@ def parse_domain(text: str) -> LiftedDomain:
     from pddl.logic.predicates import Predicate
 
     try:
-        domain = _parser("domain")(_declare_implied(text))
+        domain = _parser("domain")(_declare_implied(text.lower()))  # PDDL is case-insensitive
     except Exception as err:  # lark and pddl raise many kinds; all mean the text is not valid PDDL
         raise _one_line("domain.pddl does not parse", err) from None
     parents = {str(t).lower(): (str(p).lower() if p else "object") for t, p in domain.types.items()}
@@ -188,7 +188,7 @@ def parse_problem(text: str, domain: LiftedDomain) -> LiftedProblem:
             that is not a conjunction of atoms.
     """
     try:
-        problem = _parser("problem")(text)
+        problem = _parser("problem")(text.lower())
     except Exception as err:  # lark and pddl raise many kinds; all mean the text is not valid PDDL
         raise _one_line("the problem does not parse", err) from None
     objects = dict(domain.constants)
