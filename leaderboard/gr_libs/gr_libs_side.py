@@ -121,8 +121,10 @@ def pretrain(folder: str, env_name: str, task: str, episodes: int, seed: int, wo
     return [{"goal": g, "wall_seconds": w, "cpu_seconds": c} for g, w, c in done]
 
 
-def run_once(recognizer_name: str, env_name: str, task: str, episodes: int, seed: int) -> dict[str, Any]:
-    """One run of ``run_odgr_problem``'s loop, in the current folder; every instance recorded."""
+def run_once(recognizer_name: str, env_name: str, task: str, episodes: int, seed: int,
+             progress: dict[str, str]) -> dict[str, Any]:
+    """One run of ``run_odgr_problem``'s loop, in the current folder; every instance recorded. ``progress["phase"]``
+    names the task input being processed (``base``, ``G_0``, ``I_*``), so a failure can say where it happened."""
     seed_everything(seed)
     recognizer_type = recognizer_str_to_obj(recognizer_name)
     task_inputs = with_budget(PROBLEMS[DOMAIN][env_name][task], episodes)
@@ -131,6 +133,7 @@ def run_once(recognizer_name: str, env_name: str, task: str, episodes: int, seed
     dlp_time, ga_times, instances, goals = 0.0, [], [], []
     same_model = []
     for key, value in task_inputs.items():
+        progress["phase"] = key
         if key == "base":
             if issubclass(recognizer_type, LearningRecognizer):
                 start = time.perf_counter()
@@ -218,12 +221,14 @@ def main() -> None:
                 os.chdir(work)  # gr_libs keeps agents, datasets and outputs under the working folder
                 for name in args.recognizer:
                     start = time.perf_counter()
+                    progress = {"phase": ""}
                     try:
                         with contextlib.redirect_stdout(io.StringIO()):  # gr_libs prints as it trains
-                            run = run_once(name, args.env_name, args.task, args.episodes, seed)
+                            run = run_once(name, args.env_name, args.task, args.episodes, seed, progress)
                     except (ValueError, KeyError) as exc:  # e.g. NaN action probabilities in GRAML's dataset
-                        print(f"{name} run {seed} failed: {type(exc).__name__}: {exc}", flush=True)
-                        runs[name].append({"seed": seed, "failed": f"{type(exc).__name__}: {exc}"})
+                        reason = f"{type(exc).__name__}: {exc}"
+                        print(f"{name} run {seed} failed in {progress['phase']}: {reason}", flush=True)
+                        runs[name].append({"seed": seed, "failed": reason, "phase": progress["phase"]})
                         continue
                     run["wall_seconds"] = time.perf_counter() - start
                     ok = [i for i in run["instances"] if not i["actor_failed"]]

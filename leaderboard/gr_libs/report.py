@@ -104,7 +104,8 @@ def build(gr: Mapping[str, Any], store: Path, task: str, command: str, seconds: 
     recognizers = [r for r in GRAIL if any(k[0] == r for k in acc)]
     n_seeds = max(len(v) for v in acc.values())
     gr_runs = {name: [r for r in runs if "failed" not in r] for name, runs in gr["runs"].items()}
-    failed_runs = {name: [r["failed"] for r in runs if "failed" in r] for name, runs in gr["runs"].items()}
+    failed_runs = {name: [f"{r['failed']} in its `{r.get('phase')}` phase" for r in runs if "failed" in r]
+                   for name, runs in gr["runs"].items()}
     gr_runs = {name: runs for name, runs in gr_runs.items() if runs}
     n_goals = len(next(iter(gr_runs.values()))[0]["goals"])
     gr_acc = {name: gr_libs_accuracy(runs) for name, runs in gr_runs.items()}
@@ -133,18 +134,24 @@ def build(gr: Mapping[str, Any], store: Path, task: str, command: str, seconds: 
                if not i["actor_failed"]]
     same = [run["actor_is_recognizer_model"] for run in gr_runs.get("Graql", [])]
     n_runs = max(len(r) for r in gr_runs.values())
+    scored = {n: len({tuple(i["goal"]) for run in runs for i in run["instances"] if not i["actor_failed"]})
+              for n, runs in gr_runs.items()}
+    q_wall = [t["wall_seconds"] for batch in gr["training"] for t in batch]
+    q_cpu = [t["cpu_seconds"] for batch in gr["training"] for t in batch]
     out = [
         "# gr_libs 1.0.3 and grail-bench on gr_libs' MiniGrid-SimpleCrossingS13N4",
         "",
         f"Command: `{command}`" + (f" ({seconds / 60:.0f} min on this machine's 2 cores, shared with other jobs)."
                                    if seconds else "."),
         "",
-        f"Problem: gr_libs' `MiniGrid-SimpleCrossingS13N4` task `{gr['task']}` (7 candidate goals; its inference "
-        "instances cover 6 of them, all but (6, 1), each at 5 fractions x 2 forms) and grail-bench's "
-        f"`{task}` (the same room, start and 7 goals). Accuracy per observed fraction, "
+        f"Problem: gr_libs' `MiniGrid-SimpleCrossingS13N4` task `{gr['task']}` ({n_goals} candidate goals; its "
+        "inference instances cover 6 of them, all but (6, 1), each at 5 fractions x 2 forms) and grail-bench's "
+        f"`{task}` (the same room, start and goals). Accuracy per observed fraction, "
         f"mean [95 % bootstrap interval] over {n_runs} gr_libs runs and {n_seeds} grail-bench seeds; "
         "k = int(p*T) observed pairs on both sides. gr_libs' cells are as gr_libs scores them: one observed "
-        "sequence per goal and cell in each run (6 per cell and run); grail-bench's score its 3 test "
+        "sequence per true goal and cell in each run (" + "; ".join(
+            f"{GR_LIBS[n]}: {scored[n]} goals of 6 scored, the others' actor failed" if scored[n] < 6
+            else f"{GR_LIBS[n]}: 6 goals" for n in gr_runs) + "); grail-bench's score its 3 test "
         "demonstrations per goal (21 per cell and seed).",
         "",
         *lines,
@@ -164,16 +171,22 @@ def build(gr: Mapping[str, Any], store: Path, task: str, command: str, seconds: 
         "- gr_libs' actor crashed on " + ", ".join(f"{failures[n]} of {totals[n]} {GR_LIBS[n]} instances"
                                                    for n in gr_runs)
         + " (all-zero Q-values on its path give NaN probabilities; gr_libs' executor would stop the run): "
-          "they are left out of its cells.",
+          "they are left out of its cells. Failing goals: " + (", ".join(
+              str(tuple(g)) for g in sorted({tuple(i["goal"]) for runs in gr_runs.values() for run in runs
+                                             for i in run["instances"] if i["actor_failed"]})) or "none") + ".",
+        *[f"- {GR_LIBS[n]} failed in all {len(reasons)} runs: {reasons[0]} (`base` is its domain learning, "
+          "whose LSTM dataset draws 2 x the dataset size sequences from the same actors, unguarded); no column."
+          for n, reasons in failed_runs.items() if reasons and n not in gr_runs],
         f"- gr_libs' correctness check (prefix match) and exact equality disagree on "
         f"{sum(check_disagreements(r) for r in gr_runs.values())} instances: no goal of this problem is a "
         "string prefix of another.",
-        "- Times: gr_libs' GRAQL learning is its goals adaptation (one Q-table per goal); GRAML's is its domain "
-        "learning (the same Q-tables, loaded from the run's folder as gr_libs shares them, then the LSTM dataset "
-        "and training) plus its adaptation (one greedy sequence per goal), both per goal. Inference: one call "
-        "of `inference_phase` per observed sequence, timed exactly; gr_libs' own figure divides by 4 whatever the "
-        "count. grail-bench: fit seconds per goal and scoring µs per observation as it stores them. Both suites "
-        "ran at the same time, on 2 cores shared with other jobs: compare orders of magnitude only.",
+        "- Times. gr_libs' learning: the Q-tables' training, by gr_libs' own `TabularQLearner`, two goals at a "
+        f"time ({np.mean(q_wall):.0f} s wall, {np.mean(q_cpu):.0f} s CPU per goal on average, from "
+        f"{min(q_cpu):.0f} to {max(q_cpu):.0f} s CPU), plus the recognizer's own phases in the first run (GRAQL: "
+        "loading them; GRAML: its LSTM dataset and training, and its library), per goal. Inference: each call "
+        "of `inference_phase` on one observed sequence, timed; gr_libs' own figure below it divides by 4 whatever "
+        "the count. grail-bench: fit seconds per goal and scoring µs per observation as it stores them. Both "
+        "suites ran at the same time, on 2 cores shared with other jobs: compare orders of magnitude only.",
         "",
         "Versions: " + ", ".join(f"{k} {v}" for k, v in gr["versions"].items()) + ".",
         "",
