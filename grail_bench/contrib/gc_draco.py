@@ -43,7 +43,7 @@ from grail_bench.core.spaces import all_states, n_states, state_index
 from grail_bench.core.torchutil import single_thread
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.recognizers.contract import FitReport, settings_key
-from grail_bench.recognizers.gcbc import GCBCRecognizer, GoalEncoder
+from grail_bench.recognizers.gcbc import GCBCRecognizer, GoalEncoder, goal_locator
 from grail_bench.recognizers.policy_bank import PolicyBank
 
 ALGORITHMS = ("auto", "ppo", "sac")
@@ -135,25 +135,6 @@ class GoalSampling(gym.Env):
 def _small_discrete(space: spaces.Space) -> bool:
     discrete = isinstance(space, spaces.Discrete) or (isinstance(space, spaces.MultiDiscrete) and space.nvec.ndim == 1)
     return discrete and n_states(space) <= TABLE_STATES
-
-
-def goal_locator(env_factory: EnvFactory, goal: Goal) -> Callable[[Goal], np.ndarray] | None:
-    """Where a goal lies in the state, read from the domain env's ``goal_in_state``, or None if it does not say."""
-    probe = env_factory(goal)
-    try:
-        if not hasattr(probe.unwrapped, "goal_in_state"):
-            return None
-    finally:
-        probe.close()
-
-    def locate(g: Goal) -> np.ndarray:
-        env = env_factory(g)
-        try:
-            return np.asarray(env.unwrapped.goal_in_state, dtype=np.float64)
-        finally:
-            env.close()
-
-    return locate
 
 
 class GCDRACORecognizer(GCBCRecognizer):

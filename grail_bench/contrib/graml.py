@@ -61,12 +61,18 @@ from torch.nn.utils.rnn import pack_padded_sequence, pad_sequence
 
 from grail_bench.core.cache import cached
 from grail_bench.core.errors import UserError
-from grail_bench.core.params import check_kwargs
 from grail_bench.core.seeding import goal_rng, goal_words
 from grail_bench.core.spaces import preprocess
 from grail_bench.core.torchutil import single_thread
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal, rollout, until_success
-from grail_bench.recognizers.contract import FitReport, NotFittedError, RecognizerBase, observed_arrays, settings_key
+from grail_bench.recognizers.contract import (
+    FitReport,
+    NotFittedError,
+    RecognizerBase,
+    checked_settings,
+    observed_arrays,
+    settings_key,
+)
 from grail_bench.recognizers.gcbc import GCBCRecognizer
 
 ROLLOUTS = 7  #: the seed stream of a goal's reference rollouts (grail_bench.core.seeding uses 0-2)
@@ -275,11 +281,7 @@ class GRAMLRecognizer(RecognizerBase):
     config: GRAMLConfig
 
     def __init__(self, **settings: Any) -> None:
-        checked = check_kwargs(self.Config, settings, f"recognizer {self.name!r}")
-        try:
-            self.config = self.Config(**checked)
-        except UserError as exc:
-            raise UserError(f"recognizer {self.name!r}: {exc}") from None
+        self.config = checked_settings(self.Config, settings, self.name)
         self.goals: list[Goal] = []
         self.seed = 0
         self.encoder: StepEncoder | None = None

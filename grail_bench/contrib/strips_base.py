@@ -12,10 +12,9 @@ from __future__ import annotations
 from typing import Any, ClassVar, Sequence
 
 from grail_bench.core.errors import UserError
-from grail_bench.core.params import check_kwargs
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.domains.symbolic.strips import StripsModel
-from grail_bench.recognizers.contract import NotFittedError, RecognizerBase, observed_arrays
+from grail_bench.recognizers.contract import NotFittedError, RecognizerBase, checked_settings, observed_arrays
 
 DOMAIN = "symbolic"
 
@@ -39,11 +38,7 @@ class StripsRecognizer(RecognizerBase):
     channels = frozenset({"pairs", "actions"})
 
     def __init__(self, **settings: Any) -> None:
-        checked = check_kwargs(self.Config, settings, f"recognizer {self.name!r}")
-        try:
-            self.config = self.Config(**checked)
-        except UserError as exc:
-            raise UserError(f"recognizer {self.name!r}: {exc}") from None
+        self.config = checked_settings(self.Config, settings, self.name)
         self.model: StripsModel | None = None
         self.goals: list[Goal] = []
         self.goal_masks: list[int] = []

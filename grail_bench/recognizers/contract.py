@@ -54,6 +54,7 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Protocol, Sequence, ru
 import numpy as np
 
 from grail_bench.core.errors import UserError
+from grail_bench.core.params import check_kwargs
 from grail_bench.core.spaces import check_within
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.task.observation import CHANNELS, observed_channel
@@ -333,6 +334,24 @@ class Capabilities:
         if out is not None and not isinstance(out, FitDiagnostics):
             raise RecognizerError(f"recognizer {self.name!r}: diagnose() must return FitDiagnostics or None")
         return out
+
+
+def checked_settings(config_class: type, settings: Mapping[str, Any], name: str) -> Any:
+    """A recognizer's settings dataclass built from keywords, each checked against its field's type first.
+
+    Args:
+        config_class: The frozen settings dataclass (a recognizer's ``Config``).
+        settings: The keywords given (e.g. from ``--set name.field=value``).
+        name: The recognizer's registered name, which every message starts with.
+
+    Raises:
+        UserError: For an unknown setting, or a value of the wrong type or refused by the dataclass's own checks.
+    """
+    checked = check_kwargs(config_class, settings, f"recognizer {name!r}")
+    try:
+        return config_class(**checked)
+    except UserError as exc:
+        raise UserError(f"recognizer {name!r}: {exc}") from None
 
 
 def settings_key(settings: Any, *, models: bool = False) -> dict[str, Any]:

@@ -127,7 +127,7 @@ def _standardiser(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return points.mean(axis=0), np.where(spread > 0, spread, 1.0)
 
 
-def _locator(env_factory: EnvFactory, goal: Goal) -> Callable[[Goal], np.ndarray] | None:
+def goal_locator(env_factory: EnvFactory, goal: Goal) -> Callable[[Goal], np.ndarray] | None:
     """Where a goal lies in the state, read from the domain env (``goal_in_state``), or None if it does not say."""
     probe = env_factory(goal)
     try:
@@ -210,7 +210,7 @@ class GCBCRecognizer(ScoredRecognizer):
         self.learn_evidence(demos, env_factory)  # before training: a setting the domain cannot serve fails first
         ordered = sorted(tuple(g) for g in demos)  # the training set's order: by goal, not as listed
         observation_space, action_space = spaces_of(env_factory, ordered[0])
-        encoder = GoalEncoder(observation_space, ordered, _locator(env_factory, ordered[0]))
+        encoder = GoalEncoder(observation_space, ordered, goal_locator(env_factory, ordered[0]))
 
         def train() -> tuple[dict[str, Any], dict[str, Any]]:
             torch.manual_seed(seed)

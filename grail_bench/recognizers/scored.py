@@ -11,9 +11,14 @@ import numpy as np
 from gymnasium import spaces
 
 from grail_bench.core.errors import UserError
-from grail_bench.core.params import check_kwargs
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
-from grail_bench.recognizers.contract import FitDiagnostics, NotFittedError, RecognizerBase, observed_arrays
+from grail_bench.recognizers.contract import (
+    FitDiagnostics,
+    NotFittedError,
+    RecognizerBase,
+    checked_settings,
+    observed_arrays,
+)
 from grail_bench.recognizers.diagnostics import policy_diagnostics
 from grail_bench.recognizers.evidence import Evidence, domain_noop
 from grail_bench.recognizers.scoring import PolicyOutput, Scorer, check_served, get_scorer
@@ -65,11 +70,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     Config: ClassVar[type] = NoSettings
 
     def __init__(self, scorer: str | None = None, **settings: Any) -> None:
-        checked = check_kwargs(self.Config, settings, f"recognizer {self.name!r}")
-        try:
-            self.config = self.Config(**checked)
-        except UserError as exc:
-            raise UserError(f"recognizer {self.name!r}: {exc}") from None
+        self.config = checked_settings(self.Config, settings, self.name)
         self.default_scorer = scorer or type(self).default_scorer
         get_scorer(self.default_scorer)  # unknown names fail at construction
         self.goals: list[Goal] = []
