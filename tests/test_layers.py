@@ -274,7 +274,11 @@ def test_continuous_observations_outside_the_box_are_user_errors():
     rec = make_recognizer("bc", n_epochs=1)
     rec.fit(train, task.env_factory(), seed=0)
     good = observe(test[task.goals[0]][0], 0.2, "subset", np.random.default_rng(0))
-    for obs, acts, message in ((np.full_like(good.obs, np.nan), good.acts, "observed states lie outside"),
+    one_nan = good.obs.copy()
+    one_nan[0, 0] = np.nan
+    for obs, acts, message in ((one_nan, good.acts, "observed states lie outside"),
+                               (np.full_like(good.obs, np.nan), good.acts,
+                                "^this observation carries actions only; scoring it needs pairs$"),
                                (good.obs, good.acts + 5.0, "observed actions lie outside the env's space Box")):
         with pytest.raises(grail_bench.UserError, match=message):
             rec.score(type(good)(obs=obs, acts=acts, infos=None, terminal=False))
