@@ -206,7 +206,7 @@ def markdown(rows: Sequence[dict[str, Any]]) -> str:
     names = [column for column, _, _ in RECOGNIZERS]
     by_cell = {(r["domain"], r["level"], r["recognizer"]): r for r in rows}
     cells = sorted({(r["domain"], r["level"]) for r in rows}, key=lambda c: (c[0], c[1]))
-    head = ["domain", "level %", "problems", "|G|", "|O|"]
+    head = ["domain", "level %", "problems", "goals", "observed"]
     for name in names:
         head += [f"{name} acc", f"{name} spread", f"{name} s"]
     head += ["prp problems", "prp unsolved"]
@@ -216,8 +216,8 @@ def markdown(rows: Sequence[dict[str, Any]]) -> str:
         row = [domain, str(level), str(first["problems"]), f"{first['goals']:.1f}", f"{first['observed']:.1f}"]
         for name in names:
             r = by_cell.get((domain, level, name))
-            row += ([f"{100 * r['accuracy']:.1f}", f"{r['spread']:.2f}", f"{r['seconds']:.3f}"] if r
-                    else ["", "", ""])
+            row += ([f"{100 * r['accuracy']:.1f}", "–" if math.isnan(r["spread"]) else f"{r['spread']:.2f}",
+                     f"{r['seconds']:.3f}"] if r else ["", "", ""])
         prp = by_cell.get((domain, level, "prp"))
         row += [str(prp["problems"]), str(prp["node_limit"] + prp["errors"])] if prp else ["0", ""]
         lines.append("| " + " | ".join(row) + " |")
