@@ -55,7 +55,9 @@ def test_a_search_past_its_node_limit_counts_as_an_unsolved_miss(dataset):
     assert {r.status for r in prp} == {"node-limit"} and not any(r.correct for r in prp)
     cell = _by_cell(records)[(100, "prp")]
     assert cell["accuracy"] == 0.0 and cell["node_limit"] == 3
-    assert "| grid | 100 | 3 |" in markdown(summary(records)) and markdown(summary(records)).rstrip().endswith("| 3 | 3 |")
+    table = markdown(summary(records)).splitlines()
+    assert table[-1].startswith("| grid | 100 | 3 |") and "| 0.0 | – |" in table[-1]  # prp: 0 %, no spread
+    assert table[-1].endswith("| 3 | 3 |")  # prp problems, prp unsolved
 
 
 def test_an_unreadable_archive_is_skipped_with_its_error(dataset, tmp_path, capsys):
