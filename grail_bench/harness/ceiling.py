@@ -494,12 +494,17 @@ def distinct_cells(cells: Iterable[Sequence[Any]]) -> list[Cell]:
     return list(dict.fromkeys(Cell.of(cell) for cell in cells))
 
 
-def _cell_ceiling(cell: Cell, samples: int, pairs_only: bool) -> Ceiling:
-    """One cell's ceiling, computed (an executor's work item: no cache access, so any worker can run it)."""
+def _cell_ceiling(cell: Cell, samples: int, pairs_only: bool) -> Ceiling | None:
+    """One cell's ceiling, computed (an executor's work item: no cache access, so any worker can run it), or None
+    where :func:`bayes_ceiling` refuses its observation model as intractable (e.g. a noisy observation with more
+    clean candidates than the Monte Carlo ceiling sums): that cell has no ceiling."""
     parts = parse_label(cell.protocol)
-    return bayes_ceiling(find_task(cell.task, cell.params.as_dict()), parts.protocol, cell.level,
-                         rounding=parts.rounding, samples=samples, seed=CACHED_SEED, pairs_only=pairs_only,
-                         noise=parts.noise, channel=parts.channel)
+    try:
+        return bayes_ceiling(find_task(cell.task, cell.params.as_dict()), parts.protocol, cell.level,
+                             rounding=parts.rounding, samples=samples, seed=CACHED_SEED, pairs_only=pairs_only,
+                             noise=parts.noise, channel=parts.channel)
+    except UserError:
+        return None
 
 
 def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: Callable[[], None] | None = None,
@@ -531,9 +536,10 @@ def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: C
         tick()
     compute = partial(_cell_ceiling, samples=samples, pairs_only=pairs_only)
     for cell, ceiling in (executor or SerialExecutor()).map_unordered(compute, list(missing)):
-        key, path = missing[cell]
-        _write(key, path, ceiling)
-        out[cell] = ceiling
+        if ceiling is not None:
+            key, path = missing[cell]
+            _write(key, path, ceiling)
+            out[cell] = ceiling
         tick()
     return out
 
