@@ -15,19 +15,9 @@ from grail_bench import GRTask
 from grail_bench.contrib.landmarks import LandmarkRecognizer, fact_landmarks
 from grail_bench.contrib.prp import LOG_ZERO, PRPRecognizer, log_likelihood
 from grail_bench.core.errors import UserError
+from grail_bench.domains.symbolic.generator import GRID_DOMAIN
 from grail_bench.recognizers import make_recognizer
 from grail_bench.task.observation import observe, project
-
-DOMAIN = """\
-(define (domain grid)
-  (:requirements :strips :typing)
-  (:types cell)
-  (:predicates (robot-at ?c - cell) (adjacent ?from ?to - cell))
-  (:action move
-    :parameters (?from ?to - cell)
-    :precondition (and (robot-at ?from) (adjacent ?from ?to))
-    :effect (and (robot-at ?to) (not (robot-at ?from)))))
-"""
 
 NAMES = ("prp", "landmarks")
 
@@ -36,9 +26,9 @@ def grid_problem(root: Path, cells: list[str], edges: list[tuple[str, str]], sta
     """A grid problem in the dataset's layout, as a folder; ``edges`` are undirected."""
     root.mkdir(parents=True, exist_ok=True)
     init = [f"(robot-at {start})"] + [f"(adjacent {a} {b}) (adjacent {b} {a})" for a, b in edges]
-    (root / "domain.pddl").write_text(DOMAIN)
+    (root / "domain.pddl").write_text(GRID_DOMAIN)
     (root / "template.pddl").write_text(
-        f"(define (problem p) (:domain grid) (:objects {' '.join(cells)} - cell)\n"
+        f"(define (problem p) (:domain grid-navigation) (:objects {' '.join(cells)} - cell)\n"
         f"  (:init {' '.join(init)})\n  (:goal (and <HYPOTHESIS>)))\n")
     (root / "hyps.dat").write_text("".join(f"(robot-at {g})\n" for g in goals))
     (root / "obs.dat").write_text("")
