@@ -10,19 +10,12 @@ the 6 goals, both through the same batched policy bank (GC-DRACO's one agent fed
 from __future__ import annotations
 
 import pytest
-from imitation.data.types import Trajectory
 
-import grail_bench
 from grail_bench.recognizers import make_recognizer
 
-TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
-TRAIN, TEST = TASK.split(TASK.generate_demos(seed=0))
+from .workload import TASK, TRAIN, thirty_steps
+
 GC_DRACO = {"ppo_steps": 10_240}
-
-
-def thirty_steps() -> Trajectory:
-    traj = TEST[TASK.goals[0]][0]
-    return Trajectory(obs=traj.obs[:31], acts=traj.acts[:30], infos=None, terminal=False)
 
 
 @pytest.fixture(scope="module")

@@ -9,18 +9,10 @@ before, ``score_new_length`` when the references are embedded anew.
 from __future__ import annotations
 
 import pytest
-from imitation.data.types import Trajectory
 
-import grail_bench
 from grail_bench.recognizers import make_recognizer
 
-TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
-TRAIN, TEST = TASK.split(TASK.generate_demos(seed=0))
-
-
-def thirty_steps() -> Trajectory:
-    traj = TEST[TASK.goals[0]][0]
-    return Trajectory(obs=traj.obs[:31], acts=traj.acts[:30], infos=None, terminal=False)
+from .workload import TASK, TRAIN, thirty_steps
 
 
 @pytest.fixture(scope="module")

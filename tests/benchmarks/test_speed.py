@@ -13,21 +13,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from imitation.data.types import Trajectory
 
 import grail_bench
 from grail_bench.core.torchutil import single_thread
 from grail_bench.harness.ceiling import bayes_ceiling
 from grail_bench.recognizers import make_recognizer
 
-TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
-TRAIN, TEST = TASK.split(TASK.generate_demos(seed=0))
-GOAL = TASK.goals[0]
-
-
-def thirty_steps() -> Trajectory:
-    traj = TEST[GOAL][0]
-    return Trajectory(obs=traj.obs[:31], acts=traj.acts[:30], infos=None, terminal=False)
+from .workload import GOAL, TASK, TEST, TRAIN, thirty_steps
 
 
 @pytest.fixture(scope="module")

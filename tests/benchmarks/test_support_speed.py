@@ -18,8 +18,9 @@ import grail_bench
 from grail_bench.recognizers import make_recognizer
 from grail_bench.task.observation import observe
 
-MINIGRID = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
-TRAIN, TEST = MINIGRID.split(MINIGRID.generate_demos(seed=0))
+from .workload import TASK as MINIGRID
+from .workload import TRAIN, thirty_steps
+
 #: (off_support, scorer) pairs, plain MSE first; ``loglik`` is the ``occupancy`` scorer less the occupancy (what the
 #: scorer's own arithmetic costs beside MSE's, with no evidence read).
 VARIANTS = [("trust", "mse"), ("stay", "mse"), ("uniform", "mse"), ("trust", "occupancy"), ("trust", "loglik")]
@@ -30,11 +31,6 @@ def _variant(rec: Any, off_support: str) -> Any:
     out = copy.copy(rec)
     out.config = dataclasses.replace(rec.config, off_support=off_support)
     return out
-
-
-def thirty_steps() -> Trajectory:
-    traj = TEST[MINIGRID.goals[0]][0]
-    return Trajectory(obs=traj.obs[:31], acts=traj.acts[:30], infos=None, terminal=False)
 
 
 @pytest.fixture(scope="module")
