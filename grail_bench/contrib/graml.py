@@ -45,7 +45,6 @@ the training states' mean and spread), then the action (one-hot for ``Discrete``
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import math
 import time
 from dataclasses import dataclass, field
@@ -64,7 +63,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import goal_rng, goal_words
 from grail_bench.core.spaces import preprocess
 from grail_bench.core.torchutil import single_thread
-from grail_bench.core.trajectory import Demos, EnvFactory, Goal, rollout, until_success
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal, demos_digest, rollout, until_success
 from grail_bench.recognizers.contract import (
     FitReport,
     NotFittedError,
@@ -213,16 +212,6 @@ def selection(length: int, k: int, consecutive: bool, rng: np.random.Generator) 
     return np.sort(rng.choice(length, size=k, replace=False))
 
 
-def demos_digest(demos: Demos, goals: Sequence[Goal]) -> str:
-    """SHA-256 of every goal's demonstrations (states and actions), in the order of ``goals``."""
-    digest = hashlib.sha256()
-    for goal in goals:
-        for traj in demos[goal]:
-            digest.update(np.ascontiguousarray(traj.obs).tobytes())
-            digest.update(np.ascontiguousarray(traj.acts).tobytes())
-    return digest.hexdigest()
-
-
 def train_metric(model: SiameseLSTM, sequences: Sequence[Sequence[np.ndarray]], config: GRAMLConfig,
                  seed: int) -> list[float]:
     """Train ``model`` on pairs of sub-sequences of ``sequences[goal][demo]`` (see the module docstring).
@@ -340,8 +329,8 @@ class GRAMLRecognizer(RecognizerBase):
                 seconds, reused = time.perf_counter() - start, False
             else:
                 key = {"model": "graml-metric", "config": settings_key(metric, models=True), "env": cache_key,
-                       "seed": seed, "goals": [list(g) for g in ordered], "demos": demos_digest(demos, ordered),
-                       "versions": [version("torch")]}
+                       "seed": seed, "goals": [list(g) for g in ordered],
+                       "demos": demos_digest([t for g in ordered for t in demos[g]]), "versions": [version("torch")]}
                 entry = cached("graml-metric", key, train)
                 state, extra, seconds, reused = entry.state, entry.extra, entry.seconds, entry.reused
         self.model = SiameseLSTM(self.encoder.size, metric.hidden)

@@ -9,6 +9,8 @@ there); :func:`goal_horizon` says where the behaviour ends.
 
 from __future__ import annotations
 
+import hashlib
+
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Protocol, Sequence
 
 import numpy as np
@@ -82,3 +84,12 @@ def rollout(env: gym.Env, policy: Policy, *, seed: int = 0, require_success: boo
         raise RuntimeError(f"the demonstration did not reach goal {getattr(env.unwrapped, 'goal', '?')}")
     return Trajectory(obs=np.stack(observations), acts=np.stack(acts), infos=np.array(infos, dtype=object),
                       terminal=True)
+
+
+def demos_digest(demos: Sequence[Trajectory]) -> str:
+    """SHA-256 of the demonstrations' states and actions, in order (keys cached models to what they learnt from)."""
+    digest = hashlib.sha256()
+    for traj in demos:
+        digest.update(np.ascontiguousarray(traj.obs).tobytes())
+        digest.update(np.ascontiguousarray(traj.acts).tobytes())
+    return digest.hexdigest()

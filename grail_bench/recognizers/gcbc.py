@@ -35,10 +35,10 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from grail_bench.core.cache import cached
 from grail_bench.core.errors import UserError
 from grail_bench.core.torchutil import single_thread
-from grail_bench.core.trajectory import Demos, EnvFactory, Goal, until_success
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal, demos_digest, until_success
 from grail_bench.recognizers.bc import train_bc
 from grail_bench.recognizers.contract import FitReport, settings_key
-from grail_bench.recognizers.policy import demos_digest, spaces_of
+from grail_bench.recognizers.policy import spaces_of
 from grail_bench.recognizers.policy_bank import PolicyBank, preprocess
 from grail_bench.recognizers.evidence import OffSupport, off_support_setting
 from grail_bench.recognizers.contract import NotFittedError

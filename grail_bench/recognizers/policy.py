@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import abc
-import hashlib
 import time
 from importlib.metadata import version
 from typing import Any, Mapping, Sequence
@@ -18,7 +17,7 @@ from grail_bench.core.cache import Busy, cached
 from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import goal_seed
 from grail_bench.core.torchutil import single_thread
-from grail_bench.core.trajectory import EnvFactory, Goal
+from grail_bench.core.trajectory import EnvFactory, Goal, demos_digest
 from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy_bank import PolicyBank
 from grail_bench.recognizers.scored import ScoredRecognizer
@@ -138,15 +137,6 @@ class PolicyRecognizer(ScoredRecognizer):
             return PolicyOutput(probs=self.bank.action_probs(states))
         mean, std = self.bank.mean_std(states)
         return PolicyOutput(mean=mean, std=std)
-
-
-def demos_digest(demos: Sequence[Trajectory]) -> str:
-    """SHA-256 of the demonstrations' states and actions."""
-    digest = hashlib.sha256()
-    for traj in demos:
-        digest.update(np.ascontiguousarray(traj.obs).tobytes())
-        digest.update(np.ascontiguousarray(traj.acts).tobytes())
-    return digest.hexdigest()
 
 
 def spaces_of(env_factory: EnvFactory, goal: Goal) -> tuple[spaces.Space, spaces.Space]:
