@@ -202,7 +202,7 @@ def test_bc_fit_one_goal_by_loop(benchmark, panda, domain, loop):
     task, train = (TASK, TRAIN) if domain == "minigrid" else panda[:2]
     goal, rec = task.goals[0], make_recognizer("bc")
     transitions = rollout.flatten_trajectories([until_success(t) for t in train[goal]])
-    cfg = {k: rec.config[k] for k in ("batch_size", "learning_rate", "ent_weight", "n_epochs")}
+    cfg = {k: getattr(rec.config, k) for k in ("batch_size", "learning_rate", "ent_weight", "n_epochs")}
 
     def fit():
         with single_thread():
@@ -239,7 +239,7 @@ def test_draco_fit_one_goal_panda(benchmark, panda, algorithm):
             rec.train_policy(goal, train[goal], task.make_env, 0)
 
     benchmark.pedantic(fit, rounds=1, iterations=1)
-    benchmark.extra_info["steps"] = rec.config[f"{algorithm}_steps"]
+    benchmark.extra_info["steps"] = getattr(rec.config, f"{algorithm}_steps")
 
 
 def test_point_maze_env_step(benchmark):
@@ -273,7 +273,7 @@ def test_adversarial_fit_one_goal_minigrid(benchmark, name):
             rec.train_policy(goal, TRAIN[goal], TASK.make_env, 0)
 
     benchmark.pedantic(fit, rounds=1, iterations=1)
-    benchmark.extra_info["generator_steps_per_second"] = rec.config["total_timesteps"] / benchmark.stats.stats.median
+    benchmark.extra_info["generator_steps_per_second"] = rec.config.total_timesteps / benchmark.stats.stats.median
 
 
 @pytest.mark.parametrize("kind", ["vectorised", "copies"])
