@@ -4,7 +4,8 @@
   demonstration of a goal is the same trajectory.
 * ``noisy`` (``sigma``): the expert's action plus N(0, sigma^2) on each dimension at every step, clipped to
   [-1, 1]; the clipped action is what the demonstration records. The expert is closed-loop, so noisy
-  demonstrations still park.
+  demonstrations still park (all 50 of 50 per goal of gr_libs' set at sigma 0.3); a noisy rollout that
+  crashes or runs out of steps is drawn again, up to :data:`ATTEMPTS` times.
 
 The expert follows :func:`~grail_bench.domains.parking.path.expert_path` (the shortest bounded-curvature
 path to a pre-spot pose, then straight in) with a pure-pursuit steering law inverted through highway-env's
