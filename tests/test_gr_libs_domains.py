@@ -1,7 +1,8 @@
 """gr_libs' GR problems as task cards: MiniGrid's crossings and PointMaze's FourRooms and Obstacles maps.
 
-Every new ID goes through gymnasium's env checker and the seeded-rollout check with the others
-(tests/test_registration.py runs them on every registered ID).
+Every new ID's env goes through gymnasium's env checker and the seeded-rollout check with the others
+(tests/test_registration.py runs them on every distinct env of the registered IDs); tests/test_goal_sets.py
+checks gr_libs' smaller goal sets, L1-L4.
 """
 
 from __future__ import annotations

@@ -17,7 +17,8 @@ PANDA_IDS = [t for t in grail_bench.task_ids() if t.startswith("GRAIL/PandaReach
 def test_ids_and_goals():
     regimes = ("Optimal", "Gaussian-0.1", "Gaussian-0.3", "Uniform-0.1", "Uniform-0.3")
     many = {f"GRAIL/PandaReach-Gaussian-0.1-{k}Goals-v0" for k in (8, 12)}
-    assert set(PANDA_IDS) == {f"GRAIL/PandaReach-{s}{r}-v0" for r in regimes for s in ("", "Aligned-")} | many
+    gr_libs = {f"GRAIL/PandaReach-GrLibs-{r}{level}-v0" for r in regimes for level in ("", "-L1", "-L2", "-L3", "-L4")}
+    assert set(PANDA_IDS) == {f"GRAIL/PandaReach-{s}{r}-v0" for r in regimes for s in ("", "Aligned-")} | many | gr_libs
     task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0")
     assert task.goals == GOALS and (task.n_demos, task.n_train, task.observability) == (200, 150, (0.02,))
     dists = [np.linalg.norm(np.subtract(a, b)) for i, a in enumerate(GOALS) for b in GOALS[i + 1:]]
@@ -67,6 +68,25 @@ def test_bad_goal_and_action():
     env.reset(seed=0)
     with pytest.raises(ValueError, match="invalid action"):
         env.step([0.1, np.nan, 0.0])
+
+
+def test_goals_beyond_the_measured_reach_are_refused_and_gr_libs_farthest_accepted():
+    from grail_bench.domains.panda_reach import BASE, REACH
+
+    far = grail_bench.make_task("GRAIL/PandaReach-GrLibs-Optimal-v0").goals[-1]
+    assert far == (0.2, 0.2, 0.1) and np.linalg.norm(np.subtract(far, BASE)) > 0.83  # gr_libs' farthest: accepted
+    beyond = (BASE[0] + REACH + 0.01, 0.0, 0.0)
+    with pytest.raises(ValueError, match=r"out of the arm's reach \(above the table, within 0.85 m") as info:
+        GRPandaReachEnv(beyond)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("goal", [(0.2, 0.2, 0.1), (0.2, -0.2, 0.1)])
+def test_the_arm_reaches_gr_libs_farthest_goals(goal):
+    env = GRPandaReachEnv(goal, max_action=0.5)
+    *_, info = drive(env, goal, steps=50)
+    assert info["is_success"] and np.linalg.norm(env.ee_position - goal) < 0.03  # 1.8 cm, fully stretched
+    env.close()
 
 
 def test_scripted_demos_reach_every_goal():

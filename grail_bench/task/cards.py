@@ -20,6 +20,22 @@ a Minari dataset to take the demonstrations from instead of the generator (a
 folder, relative to the card's folder, or a dataset ID; read when the task is
 made, see :mod:`grail_bench.task.demos`).
 
+``goal_sets`` names smaller goal sets of the same task: a table ``{ name = [goal, ...], ... }``, each set
+drawn from the block's ``goals`` in any order, that adds one task per entry, equal to the block's but for its
+goals and its ID, which is the block's with ``-name`` inserted before the version (``GRAIL/X-Optimal-v0``
+with ``goal_sets = { L1 = [...] }`` gives ``GRAIL/X-Optimal-L1-v0`` as well). A regime parameter with one
+entry per goal (a list whose default is a list, such as ``routes``) follows its goals into each set. The
+block's own ``goals`` keep the unsuffixed ID; the sets' tasks come after it, in the table's order. Like any
+field but ``id``, ``goal_sets`` may sit in ``[defaults]``::
+
+    [[task]]
+    id = "GRAIL/MiniGrid-Biased-v0"
+    regime = "biased"
+    goals = [[7, 1], [7, 7], [7, 3]]         # GRAIL/MiniGrid-Biased-v0
+    params = { routes = ["NE", "ES", "NE"] }
+    [task.goal_sets]
+    L1 = [[7, 7], [7, 1]]                    # GRAIL/MiniGrid-Biased-L1-v0, routes ["ES", "NE"]
+
 Parsing builds :class:`~grail_bench.task.model.GRTask` objects, which validate every
 field (regime parameters included, through the domain); errors read
 ``file: task[i].field: why``. A task ID defined twice, in one card or two, is
@@ -43,8 +59,10 @@ ID_PATTERN = re.compile(r"^GRAIL/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
 FILE_KEYS = {"domain", "description", "defaults", "task"}
 TASK_KEYS = {
     "id", "regime", "goals", "params", "env", "n_demos", "n_train",
-    "observability", "protocol", "rounding", "description", "demos",
+    "observability", "protocol", "rounding", "description", "demos", "goal_sets",
 }
+#: A ``goal_sets`` name: what it adds to the ID (``L1`` in ``GRAIL/X-L1-v0``).
+GOAL_SET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.]*$")
 #: A Minari dataset ID (``namespace/name-v0``): a card's ``demos`` that is no folder beside the card is one.
 DATASET_ID = re.compile(r"^([\w.-]+/)?[\w.-]+-v\d+$")
 DEFAULT_FIELDS = {"n_demos": 10, "n_train": 7, "observability": [0.1, 0.2, 0.3], "protocol": "subset",
@@ -72,8 +90,15 @@ def _demos_source(value: Any, folder: Path | None) -> Any:
     return value
 
 
-def _task(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: str, where: str,
-          folder: Path | None) -> GRTask:
+def goal_set_id(task_id: str, name: str) -> str:
+    """The ID of goal set ``name`` of the task ``task_id`` (a valid ID): ``-name`` inserted before its version."""
+    head, version = task_id.rsplit("-", 1)
+    return f"{head}-{name}-{version}"
+
+
+def _tasks(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: str, where: str,
+           folder: Path | None) -> list[GRTask]:
+    """The block's task, then one per entry of its ``goal_sets`` (see the module docstring)."""
     unknown = set(raw) - TASK_KEYS
     if unknown:
         raise _fail(source, f"{where}.{sorted(unknown)[0]}", f"unknown field (known: {', '.join(sorted(TASK_KEYS))})")
@@ -81,6 +106,38 @@ def _task(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: st
     task_id = merged.get("id")
     if not isinstance(task_id, str) or not ID_PATTERN.match(task_id):
         raise _fail(source, f"{where}.id", f"expected an ID like 'GRAIL/Name-v0', got {task_id!r}")
+    goal_sets = merged.pop("goal_sets", None)
+    base = _task(merged, domain, source, where, folder)
+    if goal_sets is None:
+        return [base]
+    if not isinstance(goal_sets, dict) or not goal_sets:
+        raise _fail(source, f"{where}.goal_sets", "expected a table of named goal lists, e.g. { L1 = [[7, 1], [7, 7]] }")
+    tasks = [base]
+    for name, goals in goal_sets.items():
+        at = f"{where}.goal_sets.{name}"
+        if not GOAL_SET_NAME.match(name):
+            raise _fail(source, at, "a name is letters, digits and dots, e.g. L1")
+        if not isinstance(goals, list) or not all(isinstance(g, list) and tuple(g) in base.goals for g in goals):
+            raise _fail(source, at, f"expected a list of the task's goals {[list(g) for g in base.goals]}, got {goals!r}")
+        params = _goal_set_params(base, merged.get("params", {}), [base.goal_index(g) for g in goals])
+        tasks.append(_task({**merged, "id": goal_set_id(task_id, name), "goals": goals, "params": params}, domain,
+                           source, at, folder))
+    return tasks
+
+
+def _goal_set_params(base: GRTask, params: Any, picked: list[int]) -> Any:
+    """A goal set's regime parameters: those with one entry per goal of the block (a list whose default is a
+    list, such as ``routes``) cut to the set's goals, in its order; the others as they are."""
+    if not isinstance(params, dict):
+        return params
+    defaults = base.spec.regimes[base.regime]
+    return {name: [value[i] for i in picked]
+            if isinstance(value, list) and isinstance(defaults.get(name), list) and len(value) == len(base.goals)
+            else value for name, value in params.items()}
+
+
+def _task(merged: dict[str, Any], domain: str, source: str, where: str, folder: Path | None) -> GRTask:
+    task_id = merged["id"]
     try:
         return GRTask(
             id=task_id, domain=domain, regime=merged.get("regime"), goals=merged.get("goals"),
@@ -124,7 +181,7 @@ def parse_card(text: str, source: str, folder: Path | None = None) -> list[GRTas
     tasks = data.get("task")
     if not isinstance(tasks, list) or not tasks:
         raise _fail(source, "task", "expected at least one [[task]] table")
-    return unique([_task(raw, domain, defaults, source, f"task[{i}]", folder) for i, raw in enumerate(tasks)])
+    return unique(t for i, raw in enumerate(tasks) for t in _tasks(raw, domain, defaults, source, f"task[{i}]", folder))
 
 
 def unique(tasks: Iterable[GRTask]) -> list[GRTask]:
