@@ -89,6 +89,16 @@ def test_the_arm_reaches_gr_libs_farthest_goals(goal):
     env.close()
 
 
+def test_gr_libs_goals_are_each_reached_by_the_cards_expert():
+    task = grail_bench.make_task("GRAIL/PandaReach-GrLibs-Optimal-v0")
+    assert task.params["expert"] == "scripted" and task.env_params["max_action"] == 0.5
+    for goal, (traj,) in task.generate_demos(seed=0, n_demos=1).items():
+        closest = min(np.linalg.norm(traj.obs[:, :3] - goal, axis=1))
+        assert any(info["is_success"] for info in traj.infos), goal
+        # Every goal but the one next to the base, which the folded arm gets within 4.4 cm of, within 2 cm.
+        assert closest < (0.045 if goal == (-0.5, 0.2, 0.1) else 0.02), (goal, closest)
+
+
 def test_scripted_demos_reach_every_goal():
     task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0", expert="scripted")
     for goal, trajs in task.generate_demos(seed=0, n_demos=2).items():

@@ -111,14 +111,16 @@ def _tasks(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: s
     if goal_sets is None:
         return [base]
     if not isinstance(goal_sets, dict) or not goal_sets:
-        raise _fail(source, f"{where}.goal_sets", "expected a table of named goal lists, e.g. { L1 = [[7, 1], [7, 7]] }")
+        raise _fail(source, f"{where}.goal_sets", "expected a table of named goal lists, e.g. "
+                                                  "{ L1 = [[7, 1], [7, 7]] }")
     tasks = [base]
     for name, goals in goal_sets.items():
         at = f"{where}.goal_sets.{name}"
         if not GOAL_SET_NAME.match(name):
             raise _fail(source, at, "a name is letters, digits and dots, e.g. L1")
         if not isinstance(goals, list) or not all(isinstance(g, list) and tuple(g) in base.goals for g in goals):
-            raise _fail(source, at, f"expected a list of the task's goals {[list(g) for g in base.goals]}, got {goals!r}")
+            raise _fail(source, at, f"expected a list among the task's goals {[list(g) for g in base.goals]}, "
+                                    f"got {goals!r}")
         params = _goal_set_params(base, merged.get("params", {}), [base.goal_index(g) for g in goals])
         tasks.append(_task({**merged, "id": goal_set_id(task_id, name), "goals": goals, "params": params}, domain,
                            source, at, folder))
