@@ -61,7 +61,7 @@ class Registry(Generic[T]):
         self._builtin: dict[str, Any] = {}
         self._local: dict[str, Any] = {}
         self._aliases: dict[str, str] = {}
-        self._loaded: dict[tuple[str, str], T] = {}  # imported targets, by (name, target)
+        self._loaded: dict[tuple[str, Any], tuple[Any, T]] = {}  # checked entries by (name, target or its id)
 
     def add(self, name: str, target: T | str, *, aliases: tuple[str, ...] = ()) -> None:
         """Declare a built-in entry (an object, or a ``"module:attribute"`` target) and its aliases."""
@@ -154,12 +154,14 @@ class Registry(Generic[T]):
             UserError: For an unknown name, or an entry its check refuses.
         """
         canonical, target = self.target(name)
-        if not isinstance(target, str):
-            return self._checked(target, _describe(target))
-        key = (canonical, target)
-        if key not in self._loaded:
-            self._loaded[key] = self._checked(load_target(target), target)
-        return self._loaded[key]
+        named = isinstance(target, str)
+        # an object target is checked once (describing it for messages costs more than a score), keyed by identity
+        key = (canonical, target if named else id(target))
+        found = self._loaded.get(key)
+        if found is None or found[0] is not target and not named:
+            entry = self._checked(load_target(target), target) if named else self._checked(target, _describe(target))
+            found = self._loaded[key] = (target, entry)
+        return found[1]
 
     def _checked(self, obj: Any, target: str) -> T:
         return self._check(obj, target) if self._check is not None else obj

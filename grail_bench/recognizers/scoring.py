@@ -18,6 +18,7 @@ action dimensions.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Callable
 
@@ -198,10 +199,12 @@ def loglik_discrete(probs: np.ndarray, actions: np.ndarray) -> np.ndarray:
 
 def loglik_gaussian_steps(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> np.ndarray:
     """Gaussian log-density of each observed action, summed over dimensions, ``(K, T)``."""
-    std = np.broadcast_to(std, mean.shape)
-    z = (actions[None] - mean) / std
-    logpdf = -0.5 * z * z - np.log(std) - 0.5 * np.log(2 * np.pi)
-    return np.sum(logpdf, axis=-1)
+    z = actions[None] - mean
+    z /= std  # a (K, 1, D) std (one per goal) broadcasts without being copied out to (K, T, D)
+    out = np.einsum("ktd,ktd->kt", z, z)
+    out *= -0.5
+    out -= np.log(std).sum(axis=-1) + 0.5 * mean.shape[-1] * math.log(2 * math.pi)
+    return out
 
 
 def loglik_gaussian(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> np.ndarray:
