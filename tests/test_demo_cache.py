@@ -70,6 +70,22 @@ def test_what_the_demonstrations_depend_on_keys_the_cache(cache):
     assert len(list(cache.glob("*.npz"))) == 3 * len(task.goals)
 
 
+def test_a_domains_own_packages_key_its_entries(cache, monkeypatch):
+    """A domain naming its simulator's distribution (``packages``) gets new entries when that version changes."""
+    from grail_bench.core import provenance
+
+    task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", **PANDA)
+    task.generate_demos(seed=0)
+    monkeypatch.setattr(type(task.spec), "packages", ("some-simulator",), raising=False)
+    task.generate_demos(seed=0)
+    assert len(list(cache.glob("*.npz"))) == 2 * len(task.goals)  # the same demonstrations under a new key
+    real = provenance.package_versions
+    monkeypatch.setattr(demo_cache, "package_versions",
+                        lambda names: real(names).replace('"some-simulator": null', '"some-simulator": "2.0"'))
+    task.generate_demos(seed=0)
+    assert len(list(cache.glob("*.npz"))) == 3 * len(task.goals)
+
+
 def test_a_corrupt_entry_is_regenerated(cache):
     task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0", **PANDA)
     expected = task.generate_demos(seed=0)

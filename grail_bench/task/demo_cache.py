@@ -33,7 +33,8 @@ if TYPE_CHECKING:
     from grail_bench.task.domain import Domain, TaskView
 
 KIND = "demos"
-#: Packages whose versions key the entries: the numerics, the learners and the simulators.
+#: Packages whose versions key the entries: the numerics, the learners and the simulators (and a domain's own
+#: ``packages``).
 _PACKAGES = ("numpy", "torch", "stable-baselines3", "gymnasium", "panda-gym", "pybullet", "mujoco",
              "gymnasium-robotics")
 #: Core modules every demonstrator runs through (rollouts, seeded streams, RL experts).
@@ -67,7 +68,7 @@ def goal_demos(task: TaskView, domain: Domain, goal: Goal, n: int, seed: int,
     key = {"domain": domain.name, "regime": task.regime, "params": dict(task.params),
            "env": dict(task.env_params), "goal": list(goal), "seed": seed, "n": n,
            "source": source_digest(type(domain).__module__),
-           "versions": package_versions(_PACKAGES)}
+           "versions": package_versions(_PACKAGES + tuple(getattr(domain, "packages", ())))}
     entry = cached(KIND, key, lambda: pack(generate(), domain.name), arrays=True)
     return unpack(entry.state)
 

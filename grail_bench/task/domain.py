@@ -63,7 +63,9 @@ class Domain(Protocol):
     with the parameters it really had; see :func:`stored_params`); and
     ``cache_demos = True`` to have its demonstrations generated once per goal,
     regime, parameters and seed and kept on disk (for slow demonstrators; see
-    :mod:`grail_bench.task.demo_cache`).
+    :mod:`grail_bench.task.demo_cache`), and ``packages``: the distributions
+    its simulator comes from beyond the suite's own, whose versions key those
+    cached demonstrations too.
 
     A domain may also declare ``noop_action``: the action that leaves the agent
     where it is (an action of its env's action space: an integer for discrete

@@ -61,6 +61,7 @@ class Parking:
     # The scripted expert in a deterministic simulator, plus continuous noise: no likelihood is stated.
     ceiling_regimes: frozenset[str] = frozenset()
     cache_demos = True  # about 1 s per goal and seed: generated once, kept on disk
+    packages = ("highway-env",)  # its simulator: its version keys the cached demonstrations
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
               goals: Sequence[Goal]) -> None:
