@@ -93,12 +93,15 @@ GR_LIBS = {
                            (0.2, 0.2, 0.1)],
                           [(-0.3, -0.3, 0.1), (-0.1, -0.1, 0.1), (-0.3, 0.2, 0.1), (-0.1, 0.1, 0.1), (0.1, -0.1, 0.1),
                            (0.2, 0.2, 0.1)]],
+    "Parking": [[(1,), (11,), (21,)], [(1,), (8,), (14,), (21,)], [(1,), (8,), (11,), (18,)],
+                [(4,), (8,), (11,), (14,), (18,)]],
 }
 REGIMES = {"MiniGrid-SimpleCrossing": ("Optimal", "Biased", "Suboptimal"),
            "MiniGrid-LavaCrossing": ("Optimal", "Suboptimal"),
            "PointMaze-FourRooms": ("Optimal", "Biased", "Noisy-0.1", "Noisy-0.3"),
            "PointMaze-Obstacles": ("Optimal", "Biased", "Noisy-0.1", "Noisy-0.3"),
-           "PandaReach-GrLibs": ("Optimal", "Gaussian-0.1", "Gaussian-0.3", "Uniform-0.1", "Uniform-0.3")}
+           "PandaReach-GrLibs": ("Optimal", "Gaussian-0.1", "Gaussian-0.3", "Uniform-0.1", "Uniform-0.3"),
+           "Parking": ("Optimal", "Noisy-0.1", "Noisy-0.3")}
 
 
 @pytest.mark.parametrize("problem", sorted(GR_LIBS))
