@@ -60,8 +60,8 @@ def test_the_expert_parks_in_every_spot_of_the_lot():
     task = grail_bench.make_task(IDS[0])
     lengths = []
     for spot in range(28):
-        traj = rollout(DOMAIN.make_env((spot,), **task.env_params), lambda obs, t, act=expert((spot,), 14, math.pi): act(obs),
-                       require_success=True)
+        act = expert((spot,), 14, math.pi)
+        traj = rollout(DOMAIN.make_env((spot,), **task.env_params), lambda obs, t: act(obs), require_success=True)
         assert parked(traj.obs[-1], spot)
         lengths.append(len(traj.acts))
     assert max(lengths) < task.env_params["max_steps"]

@@ -16,8 +16,9 @@ Reward and success are highway-env's: minus the weighted distance
 ``sqrt(|d| . [1, 0.3, 0, 0, 0.02, 0.02])`` between these features and the
 goal's, success when it is below 0.12: ``|dx| + 0.3 |dy| + 2 (|d cos h| + |d sin h|)``
 under 1.44 m, i.e. nose in, lined up with the spot, its centre within a few metres
-of the spot's along the spot (the car enters the spot; speed does not count). As in highway-env, the episode ends on success or on a
-crash (into a wall), and is truncated after ``max_steps`` steps.
+of the spot's along the spot (the car enters the spot; speed does not count). As
+in highway-env, the episode ends on success or on a crash (into a wall), and is
+truncated after ``max_steps`` steps.
 
 highway-env's ``step`` builds each observation through pandas four times
 (about 25 ms a step); this env steps the same simulation (``_simulate``) and
