@@ -18,7 +18,7 @@ from gymnasium.utils.env_checker import check_env
 import grail_bench
 from grail_bench.core.errors import UserError
 from grail_bench.core.spaces import state_index
-from grail_bench.domains.symbolic.dataset import FILES, file_texts, load_problem, write_problem
+from grail_bench.domains.symbolic.dataset import file_texts, load_problem, write_problem
 from grail_bench.domains.symbolic.env import SymbolicEnv
 from grail_bench.domains.symbolic.generator import BLOCKS_DOMAIN, builtin_problem, write_dataset
 from grail_bench.domains.symbolic.likelihood import GoalDemonstrator
