@@ -28,7 +28,8 @@ PANDA="--only panda-trust --only panda-stay --only panda-uniform --only panda-au
     $GB run -t GRAIL/PointMaze-$t-v0 -r draco --scorer wasserstein --seeds 2 --workers 2 --no-progress --store $S
   done
   $RUN $PANDA -r bc --seeds 2 --out /tmp/support-panda
-  # BC at its paper scale under the variants, from a worktree at commit 9c9b5bf: stopped after 3 seeds per task
+  # BC at its paper scale under the variants, from worktrees at commits 9c9b5bf, ecbbad2 and 77636ff: stopped
+  # after 3-4 seeds per task
   # (about 25 min per seed of the 10 tasks on 2 busy cores; it resumes from the store).
   $RUN $PANDA -r bc --out leaderboard/support/panda-bc
   # Not run: DRACO under the variants at 10 seeds (its 10-seed PPO models are no longer cached: ~4 min per goal
