@@ -158,7 +158,7 @@ class Registry(Generic[T]):
         # an object target is checked once (describing it for messages costs more than a score), keyed by identity
         key = (canonical, target if named else id(target))
         found = self._loaded.get(key)
-        if found is None or found[0] is not target and not named:
+        if found is None or (not named and found[0] is not target):
             entry = self._checked(load_target(target), target) if named else self._checked(target, _describe(target))
             found = self._loaded[key] = (target, entry)
         return found[1]
