@@ -42,6 +42,17 @@ def simulator(module: str) -> ModuleType:
         raise
 
 
+def check_spot(goal: Sequence[float], n_spots: int) -> int:
+    """``goal``'s spot, ``[spot]`` being an index among the lot's ``2 * n_spots`` lanes.
+
+    Raises:
+        UserError: For any other goal.
+    """
+    if len(goal) != 1 or float(goal[0]) != int(goal[0]) or not 0 <= int(goal[0]) < 2 * n_spots:
+        raise UserError(f"goal {list(goal)} must be [spot], a spot index in 0..{2 * n_spots - 1}")
+    return int(goal[0])
+
+
 def _number(name: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise UserError(f"{name} must be a finite number, got {value!r}")
@@ -72,8 +83,7 @@ class Parking:
             raise UserError(f"n_spots must be an integer in 2..{MAX_SPOTS}, got {n!r}")
         _number("heading", env_params["heading"])
         for goal in goals:
-            if len(goal) != 1 or float(goal[0]) != int(goal[0]) or not 0 <= int(goal[0]) < 2 * n:
-                raise UserError(f"goal {list(goal)} must be [spot], a spot index in 0..{2 * n - 1}")
+            check_spot(goal, n)
 
     def make_env(self, goal: Goal, **env_params: Any):
         return simulator("env").GRParkingEnv(goal, **env_params)

@@ -82,14 +82,13 @@ def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -
             that the car crashes or runs out of time).
     """
     n_spots, heading = int(task.env_params["n_spots"]), float(task.env_params["heading"])
-    path = expert_path((0.0, 0.0, heading), int(goal[0]), n_spots)
     sigma = float(task.params.get("sigma", 0.0))
     env = task.make_env(goal)
     demos = []
     try:
         for _ in range(n):
             for attempt in range(ATTEMPTS):
-                controller = pure_pursuit(path)
+                controller = expert(goal, n_spots, heading)
 
                 def policy(obs: np.ndarray, t: int, act: Controller = controller) -> np.ndarray:
                     noise = rng.normal(0.0, sigma, size=2) if sigma > 0 else 0.0

@@ -36,6 +36,8 @@ import numpy as np
 from gymnasium import Env, spaces
 
 from grail_bench.core.errors import UserError
+from grail_bench.domains.parking import check_spot
+from grail_bench.domains.parking.path import spot_pose
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # pygame, imported by highway-env, opens no window
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
@@ -92,9 +94,7 @@ class GRParkingEnv(Env):
                  render_mode: str | None = None) -> None:
         if render_mode is not None:
             raise UserError(f"parking envs are not rendered; render_mode must be None, got {render_mode!r}")
-        if len(goal) != 1 or float(goal[0]) != int(goal[0]) or not 0 <= int(goal[0]) < 2 * n_spots:
-            raise UserError(f"goal {list(goal)} must be [spot], a spot index in 0..{2 * n_spots - 1}")
-        self.goal = (int(goal[0]),)
+        self.goal = (check_spot(goal, n_spots),)
         self.n_spots, self.heading, self.max_steps = int(n_spots), float(heading), int(max_steps)
         self.render_mode = None
         self.task = None  # set by GRTask.make_env
@@ -103,13 +103,12 @@ class GRParkingEnv(Env):
         self.observation_space = spaces.Box(-10.0, 10.0, shape=(6,), dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self._steps = 0
+        self._target = np.zeros(6)  # the goal landmark's features, set at every reset
 
     @property
     def goal_in_state(self) -> np.ndarray:
         """The goal spot's centre in the state's coordinates (the state begins with the car's scaled ``(x, y)``;
         goal-conditioned recognizers read it)."""
-        from grail_bench.domains.parking.path import spot_pose
-
         x, y, _ = spot_pose(self.goal[0], self.n_spots)
         return np.array([x, y]) / SCALES[:2]
 
@@ -117,6 +116,7 @@ class GRParkingEnv(Env):
         super().reset(seed=seed)
         self._env.reset(seed=seed)
         self._steps = 0
+        self._target = features(self._env.goal)
         return features(self._env.vehicle).astype(np.float32), {"is_success": False}
 
     def step(self, action: Any):
@@ -129,8 +129,8 @@ class GRParkingEnv(Env):
         self._steps += 1
         achieved = features(env.vehicle)
         crashed = bool(env.vehicle.crashed)
-        reward = float(env.compute_reward(achieved, features(env.goal), {}))
-        success = bool(env._is_success(achieved, features(env.goal)))
+        reward = float(env.compute_reward(achieved, self._target, {}))
+        success = bool(env._is_success(achieved, self._target))
         reward += env.config["collision_reward"] * crashed
         return (achieved.astype(np.float32), reward, success or crashed, self._steps >= self.max_steps,
                 {"is_success": success})
