@@ -80,6 +80,10 @@ def test_a_state_on_a_goals_route_keeps_its_policy_and_a_state_off_it_gets_the_r
     expected = np.eye(4)[STAY] if rule == "stay" else np.full(4, 0.25)
     np.testing.assert_allclose(scored.probs[k, len(on):], np.broadcast_to(expected, (len(off), 4)))
     assert not np.allclose(raw[len(on):], expected)  # the policy itself said something else there
+    assert ruled.bank.tabled  # the rule was applied once to the table of every state: the same as applying it here
+    states = np.concatenate([on, off])
+    here = ruled.evidence.replace_off_support(ruled.outputs_at(states), ruled.goals, states, rule)
+    np.testing.assert_array_equal(scored.probs, here.probs)
     plain, _ = trust.policy_output(_states(train[goal][0], off))
     np.testing.assert_array_equal(plain.probs, trust.outputs_at(off).probs)  # "trust" scores the policy as it is
 

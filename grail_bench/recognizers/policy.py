@@ -138,6 +138,20 @@ class PolicyRecognizer(ScoredRecognizer):
         mean, std = self.bank.mean_std(states)
         return PolicyOutput(mean=mean, std=std)
 
+    def ruled_outputs(self, states: np.ndarray) -> PolicyOutput:
+        """:meth:`outputs_at` with the ``off_support`` rule applied; on a tabled discrete bank the rule is applied
+        once to the table of every state, so scoring under it costs what trusting the policies does."""
+        rule = self.off_support
+        if rule == "trust" or not (self.bank.discrete and self.bank.tabled):
+            return super().ruled_outputs(states)
+        evidence = self._evidence()
+
+        def ruled(every: np.ndarray) -> np.ndarray:
+            trusted = PolicyOutput(probs=self.bank.action_probs(every))
+            return evidence.replace_off_support(trusted, self.goals, every, rule).probs
+
+        return PolicyOutput(probs=self.bank.lookup(f"probs off_support={rule}", ruled, states))
+
 
 def spaces_of(env_factory: EnvFactory, goal: Goal) -> tuple[spaces.Space, spaces.Space]:
     """Observation and action space of a goal's env."""

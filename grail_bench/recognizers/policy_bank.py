@@ -118,8 +118,15 @@ class PolicyBank:
         self._index = _state_index(self.observation_space)
         self._tables: dict[str, np.ndarray | tuple[np.ndarray, ...]] = {}
 
-    def _tabled(self, name: str, compute: Callable[[np.ndarray], Any], obs: np.ndarray) -> Any:
-        """``compute(obs)``, looked up in a table of ``compute`` on every state when the space is small."""
+    @property
+    def tabled(self) -> bool:
+        """Whether the observation space is small enough for the outputs to be tabled over every state."""
+        return self._index is not None
+
+    def lookup(self, name: str, compute: Callable[[np.ndarray], Any], obs: np.ndarray) -> Any:
+        """``compute(obs)``, looked up in a table of ``compute`` on every state (built at first use under
+        ``name``) when the space is small (:attr:`tabled`); ``compute`` maps ``(N, ...)`` states to arrays, or
+        tuples of arrays, of ``(K, N, ...)``."""
         if self._index is None:
             return compute(obs)
         states, rows_of = self._index
@@ -141,7 +148,7 @@ class PolicyBank:
 
     def forward(self, obs: np.ndarray) -> np.ndarray:
         """Action logits (discrete) or deterministic actions (continuous), ``(K, T, A)``."""
-        return self._tabled("forward", self._forward, obs)
+        return self.lookup("forward", self._forward, obs)
 
     def _forward(self, obs: np.ndarray) -> np.ndarray:
         out = _apply(self._latent(obs), self.head)
@@ -149,7 +156,7 @@ class PolicyBank:
 
     def action_probs(self, obs: np.ndarray) -> np.ndarray:
         """Softmax action probabilities, ``(K, T, A)``; discrete actions only."""
-        return self._tabled("probs", lambda x: _softmax(self._forward(x)), obs)
+        return self.lookup("probs", lambda x: _softmax(self._forward(x)), obs)
 
     def mean_std(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean action and its standard deviation per dimension, ``(K, T, D)`` each.
@@ -157,7 +164,7 @@ class PolicyBank:
         For squashed (SAC) policies the mean is ``tanh(mu)`` and the std is
         carried through the tanh to first order: ``(1 - tanh(mu)^2) * std``.
         """
-        return self._tabled("mean_std", lambda x: self._mean_std(self._latent(x)), obs)
+        return self.lookup("mean_std", lambda x: self._mean_std(self._latent(x)), obs)
 
     def outputs_of(self, inputs: np.ndarray) -> tuple[np.ndarray, ...]:
         """The policies on already encoded inputs ``(K or 1, T, F)``: ``(probs,)`` for discrete actions, else

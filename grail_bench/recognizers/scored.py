@@ -144,6 +144,13 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     def outputs_at(self, states: np.ndarray) -> PolicyOutput:
         """Outputs of every goal's policy on ``(T, ...)`` states (already checked against the spaces)."""
 
+    def ruled_outputs(self, states: np.ndarray) -> PolicyOutput:
+        """:meth:`outputs_at` with the ``off_support`` rule applied: what is scored."""
+        output = self.outputs_at(states)
+        if self.off_support != "trust":
+            output = self._evidence().replace_off_support(output, self.goals, states, self.off_support)
+        return output
+
     def policy_output(self, observed: Any, occupancy: bool = False) -> tuple[PolicyOutput, np.ndarray]:
         """Outputs of every goal's policy on the observed states, as scored, and the observed actions.
 
@@ -157,9 +164,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         if not self.goals:
             raise NotFittedError(f"{self.name}: call fit() before score()")
         states, actions = observed_arrays(observed, self.observation_space, self.action_space)
-        output = self.outputs_at(states)
-        if self.off_support != "trust":
-            output = self._evidence().replace_off_support(output, self.goals, states, self.off_support)
+        output = self.ruled_outputs(states)
         if occupancy and "occupancy" in self.exposes(self.action_space):
             output = dataclasses.replace(output, log_occupancy=self._evidence().log_occupancy(self.goals, states))
         return output, actions
