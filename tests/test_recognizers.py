@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import json
 from types import SimpleNamespace
 from typing import Any
 
@@ -16,6 +17,8 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 
 import grail_bench
 from grail_bench.core.errors import UserError
+from grail_bench.core.ppo_update import mirrorable
+from grail_bench.core.rl import make_ppo
 from grail_bench.recognizers import Recognizer, UnknownRecognizerError, available_recognizers, make_recognizer
 from grail_bench.recognizers.contract import capabilities
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
@@ -260,6 +263,18 @@ def test_trained_policies_are_cached_and_reloaded(name, monkeypatch, tmp_path):
     second.fit(other_train, other_task.env_factory(), seed=4, cache_key=other_task.env_key)
     # Imitation learners retrain on other demonstrations; DRACO ignores them and reuses its policies.
     assert calls == ([] if name == "draco" else [1, 1])
+
+
+def test_draco_updates_ppo_in_numpy_on_discrete_actions_and_keys_those_models_apart(monkeypatch, tmp_path):
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path))
+    factory = TASK.env_factory()
+    assert mirrorable(make_ppo(lambda: factory(TASK.goals[0]), [64, 64]))  # DRACO's PPO on MiniGrid: numpy update
+    make_recognizer("draco", **FAST["draco"]).fit(TRAIN, factory, seed=0, cache_key=TASK.env_key)
+    keys = [json.loads(p.read_text())["key"] for p in (tmp_path / "policy-draco").glob("*.json")]
+    assert len(keys) == 2 and all(k["update"] == "numpy" for k in keys)
+    continuous = make_recognizer("draco")  # SB3's own update there: its models keep their keys
+    continuous.action_space = spaces.Box(-1.0, 1.0, (3,))
+    assert continuous.model_key((0, 0)) == {}
 
 
 def test_draco_identity_holds_only_the_chosen_algorithms_budget(monkeypatch):

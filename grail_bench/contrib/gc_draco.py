@@ -37,8 +37,7 @@ from stable_baselines3.common.policies import BasePolicy
 
 from grail_bench.core.cache import cached
 from grail_bench.core.errors import UserError
-from grail_bench.core.ppo_update import NumpyPPO
-from grail_bench.core.rl import empty_policy, learn, make_sac, vec_env
+from grail_bench.core.rl import empty_policy, learn, make_ppo, make_sac
 from grail_bench.core.spaces import all_states, n_states, state_index
 from grail_bench.core.torchutil import single_thread
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
@@ -196,11 +195,8 @@ class GCDRACORecognizer(GCBCRecognizer):
                 model = make_sac(GoalSampling(env_factory, ordered, encoder), net_arch, seed)
                 steps = self.config.sac_steps
             else:
-                # core.rl.make_ppo's PPO (DRACO's), its update run in numpy (the same rule, several times faster).
-                venv = vec_env(lambda: GoalSampling(env_factory, ordered, encoder), 8, seed)
-                model = NumpyPPO("MlpPolicy", venv, policy_kwargs={"net_arch": net_arch}, n_steps=128, batch_size=64,
-                                 learning_rate=self.config.learning_rate, ent_coef=self.config.ent_coef, seed=seed,
-                                 verbose=0, device="cpu")
+                model = make_ppo(lambda: GoalSampling(env_factory, ordered, encoder), net_arch, seed,
+                                 learning_rate=self.config.learning_rate, ent_coef=self.config.ent_coef)
                 steps = self.config.ppo_steps
             state, returns = learn(model, steps)
             model.get_env().close()

@@ -17,6 +17,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
 from stable_baselines3.sac.policies import SACPolicy
 
 from grail_bench.core.cache import cached_state_dict
+from grail_bench.core.ppo_update import NumpyPPO
 from grail_bench.core.torchutil import single_thread
 
 SAC_DEFAULTS = {"learning_starts": 500, "batch_size": 128}
@@ -42,11 +43,14 @@ def vec_env(env_fn: Callable[[], gym.Env], n_envs: int, seed: int = 0) -> VecEnv
     return venv
 
 
-def make_ppo(env_fn: Callable[[], gym.Env], net_arch: Sequence[int], seed: int = 0, n_envs: int = 8) -> PPO:
-    """SB3 PPO on ``n_envs`` copies of an env (:func:`vec_env`)."""
+def make_ppo(env_fn: Callable[[], gym.Env], net_arch: Sequence[int], seed: int = 0, n_envs: int = 8,
+             **kwargs: Any) -> PPO:
+    """SB3 PPO on ``n_envs`` copies of an env (:func:`vec_env`), its update run in numpy where
+    :func:`~grail_bench.core.ppo_update.mirrorable` (discrete actions: the same rule, several times faster) and by
+    SB3 otherwise (continuous actions: SB3's own). ``kwargs`` go to ``PPO`` (e.g. ``learning_rate``)."""
     venv = vec_env(env_fn, n_envs, seed)
-    return PPO("MlpPolicy", venv, policy_kwargs={"net_arch": list(net_arch)}, n_steps=128, batch_size=64,
-               seed=seed, verbose=0, device="cpu")
+    return NumpyPPO("MlpPolicy", venv, policy_kwargs={"net_arch": list(net_arch)}, n_steps=128, batch_size=64,
+                    seed=seed, verbose=0, device="cpu", **kwargs)
 
 
 def empty_policy(algorithm: str, observation_space: gym.Space, action_space: gym.Space,

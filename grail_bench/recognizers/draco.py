@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal, Sequence
+from typing import Any, Literal, Sequence
 
 from gymnasium import spaces
 from imitation.data.types import Trajectory
@@ -104,6 +104,13 @@ class DRACORecognizer(PolicyRecognizer):
         if self.config.algorithm == "sac" and not isinstance(action_space, spaces.Box):
             raise UserError("draco: SAC needs continuous actions; use algorithm=ppo on this domain")
         return self.config.algorithm
+
+    def model_key(self, goal: Goal) -> dict[str, Any]:
+        """PPO on discrete actions runs its update in numpy (:func:`~grail_bench.core.rl.make_ppo`), which keys
+        those models apart from ones SB3's update trained; the others' keys are unchanged."""
+        if self.config.algorithm == "ppo" and isinstance(self.action_space, spaces.Discrete):
+            return {"update": "numpy"}
+        return {}
 
     def _model(self, goal: Goal, env_factory: EnvFactory, seed: int) -> BaseAlgorithm:
         env = env_factory(goal)

@@ -112,7 +112,8 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     def learn_evidence(self, demos: Demos, env_factory: EnvFactory) -> Evidence | None:
         """Learn where each goal's training demonstrations went (:class:`Evidence`), keep it and return it.
 
-        Called by ``fit`` before any training, so a setting the domain cannot serve fails first. On spaces the
+        Called by ``fit`` before any training, so a setting the domain cannot serve fails first; it also sets the
+        env's :attr:`observation_space` and :attr:`action_space`. On spaces the
         evidence cannot be learnt on, None, while no setting needs it (the ``occupancy`` scorer is refused then).
 
         Raises:
@@ -124,6 +125,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
             observation_space, action_space, noop = env.observation_space, env.action_space, domain_noop(env)
         finally:
             env.close()
+        self.observation_space, self.action_space = observation_space, action_space  # for keys made before training
         needs = self._refuse_without_noop(noop, "the env's domain")
         try:
             self.evidence, self._evidence_error = Evidence(demos, observation_space, action_space, noop), ""
