@@ -58,3 +58,19 @@ def test_cell_shows_mean_and_interval_over_runs() -> None:
     assert cell([0.5]) == "0.50"
     text = cell([0.0, 1.0, 0.5, 0.5])
     assert text.startswith("0.50 [") and text.endswith("]")
+
+
+def test_every_reported_figure_names_a_registered_card_and_recognizer() -> None:
+    import gymnasium as gym
+
+    import grail_bench  # noqa: F401  (registers the cards)
+    from grail_bench.recognizers import available_recognizers
+    from reported import RECOGNIZERS, reported, task_id
+
+    figures = reported()
+    assert len(figures) == 400 and {r["fraction"] for r in figures} == {"0.3", "0.5", "0.7", "0.9", "1"}
+    registered = set(gym.registry)
+    for r in figures:
+        card = task_id(r["env"], r["level"])
+        assert card in registered, card
+        assert RECOGNIZERS[r["recognizer"]][0] in available_recognizers()

@@ -242,6 +242,26 @@ def test_draco_fit_one_goal_panda(benchmark, panda, algorithm):
     benchmark.extra_info["steps"] = getattr(rec.config, f"{algorithm}_steps")
 
 
+@pytest.mark.parametrize("update", ["numpy", "torch"])
+def test_draco_fit_one_goal_minigrid(benchmark, monkeypatch, update):
+    """DRACO's fit of one MiniGrid goal at its default budget (150 000 PPO steps): its update in numpy, as it trains,
+    against SB3's torch update (env steps per second stored as extra info)."""
+    from stable_baselines3 import PPO
+
+    from grail_bench.core import rl
+
+    if update == "torch":
+        monkeypatch.setattr(rl, "NumpyPPO", PPO)
+    rec = make_recognizer("draco")
+
+    def fit():
+        with single_thread():  # as PolicyRecognizer.fit trains
+            rec.train_policy(GOAL, TRAIN[GOAL], TASK.make_env, 0)
+
+    benchmark.pedantic(fit, rounds=1, iterations=1)
+    benchmark.extra_info["env_steps_per_second"] = rec.config.ppo_steps / benchmark.stats.stats.median
+
+
 def test_point_maze_env_step(benchmark):
     """One PointMaze step (5 MuJoCo steps of 10 ms)."""
     env = grail_bench.make_task("GRAIL/PointMaze-Optimal-v0").make_env((1, 5))
