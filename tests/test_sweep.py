@@ -246,6 +246,23 @@ def test_reproduce_runs_the_online_and_open_set_sections(tmp_path):
     only = cli(["reproduce", "--profile", str(profile), "--only", "online", "--out", str(tmp_path / "o2"),
                 "--store", str(out / "results.sqlite"), "--no-progress"], tmp_path)
     assert only.returncode == 0 and not (tmp_path / "o2" / "OPEN_SET.md").exists()
+    # --no-run writes the same tables from the store, running nothing
+    again = cli(["reproduce", "--profile", str(profile), "--out", str(tmp_path / "o3"), "--store",
+                 str(out / "results.sqlite"), "--no-run", "--no-progress"], tmp_path)
+    assert again.returncode == 0 and "0 not run" in again.stdout
+    assert (tmp_path / "o3" / "ONLINE.md").read_text() == online
+
+
+def test_reproduce_no_run_counts_the_missing_units_and_runs_none(tmp_path):
+    profile = tmp_path / "studies.toml"
+    profile.write_text(STUDIES)
+    out = tmp_path / "out"
+    result = cli(["reproduce", "--profile", str(profile), "--out", str(out), "--no-run", "--no-progress"], tmp_path)
+    assert result.returncode == 0, result.stderr
+    sweep = json.loads((out / "manifest.json").read_text())["sweep"]
+    assert f"{sweep['units']} not run (--no-run)" in result.stdout and sweep["units"] > 0
+    with ResultsStore(out / "results.sqlite") as store:
+        assert store.select(OnlineRow) == [] and store.select(OpenSetRow) == [] and store.rows() == []
 
 
 @pytest.mark.parametrize("args, message", [

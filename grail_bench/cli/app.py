@@ -327,6 +327,8 @@ def reproduce(
     executor: Optional[str] = typer.Option(None, "--executor", "-x", help=EXECUTOR_HELP),
     address: Optional[str] = typer.Option(None, "--address", help=ADDRESS_HELP),
     site: bool = typer.Option(True, help="Also write the web page into OUT/site (--no-site: tables and figures only)."),
+    run: bool = typer.Option(True, help="Run the units the store lacks (--no-run: write the tables and figures "
+                                        "from the rows it holds, and count the units missing)."),
     progress: bool = typer.Option(True, help="Show a progress bar."),
 ) -> None:
     """Run a profile's grid (resuming from the store), then write the paper's tables and figures."""
@@ -336,7 +338,7 @@ def reproduce(
     from grail_bench.core.seeding import seed_list
     from grail_bench.harness.diagnostics import FitRow
     from grail_bench.harness.modes import MODES
-    from grail_bench.harness.sweep import run_sweep
+    from grail_bench.harness.sweep import plan_sweep, run_sweep
     from grail_bench.report.reproduce import load_profile, manifest, write_outputs
 
     started, commit = datetime.now(timezone.utc), git_commit()
@@ -349,7 +351,10 @@ def reproduce(
         requests = chosen_profile.requests(only or (), recognizer or (), seeds)
         with open_store(store_path or out / "results.sqlite") as store, \
                 make_executor(executor, workers, address) as chosen:
-            summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
+            if run:
+                summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
+            else:
+                summary = plan_sweep(requests, store)[1]
             meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary, commit,
                             recognizer or [], seeds)
             tasks = sorted({r.task_id for r in requests})
@@ -358,9 +363,12 @@ def reproduce(
             with console.status("tables, figures and web page"):
                 written = write_outputs(rows, chosen_profile, out, meta, only or (), site=site, fits=fits,
                                         executor=chosen, plans=summary.planned)
-    say(f"{summary.units} units ({summary.skipped} already stored) in {summary.seconds:.0f} s on {chosen.name} x "
-        f"{chosen.workers}; models trained {summary.trained}, reused from the cache {summary.reused}, a run "
-        f"without reuse would train {summary.naive}")
+    if run:
+        say(f"{summary.units} units ({summary.skipped} already stored) in {summary.seconds:.0f} s on {chosen.name} x "
+            f"{chosen.workers}; models trained {summary.trained}, reused from the cache {summary.reused}, a run "
+            f"without reuse would train {summary.naive}")
+    else:
+        say(f"{summary.units} units, {summary.skipped} stored; {summary.units - summary.skipped} not run (--no-run)")
     for path in written:
         say(f"wrote {path}")
 
