@@ -4,9 +4,9 @@ gr_libs never published a results table; for a while its repository carried per-
 (``reported.csv``: copied verbatim, with the commit they come from). Their candidate goal sets are grail-bench's
 L1-L5 cards and their protocol is gr_libs' own (``int(p * T)`` pairs; ``non_consecutive`` an ordered random subset,
 grail-bench's ``subset``; ``consecutive`` the first pairs, ``prefix``). What differs: gr_libs observes its own RL
-agents (on MiniGrid, the recognizer's own Q-learner), a handful of sequences per level and run, over an unstated
-number of runs; grail-bench observes its demonstrators (the optimal regime here) on every goal of a set, 10 seeds.
-So the table is a reference, not a replication. Each grail-bench cell is the canonical configuration's mean
+agents (on MiniGrid the recognizer's own Q-learner; TD3 on PointMaze; PPO and SAC on PandaReach), a handful of
+sequences per level and run, over an unstated number of runs; grail-bench observes its demonstrators (the optimal
+regime here) on every goal of a set, over its seeds. So the table is a reference, not a replication. Each grail-bench cell is the canonical configuration's mean
 accuracy over its stored seeds.
 
     .venv/bin/python leaderboard/gr_libs/reported.py --store leaderboard/results.sqlite
@@ -28,8 +28,10 @@ REPORTED = Path(__file__).with_name("reported.csv")
 TASKS = {"MiniGrid-SimpleCrossingS13N4": "GRAIL/MiniGrid-SimpleCrossing-Optimal",
          "MiniGrid-LavaCrossingS9N2": "GRAIL/MiniGrid-LavaCrossing-Optimal",
          "PointMaze-FourRoomsEnvDense-11x11": "GRAIL/PointMaze-FourRooms-Optimal",
-         "PointMaze-ObstaclesEnvDense-11x11": "GRAIL/PointMaze-Obstacles-Optimal"}
-RECOGNIZERS = {"Graql": ("graql", "GRAQL"), "ExpertBasedGraml": ("graml", "BG-GRAML"), "Draco": ("draco", "DRACO")}
+         "PointMaze-ObstaclesEnvDense-11x11": "GRAIL/PointMaze-Obstacles-Optimal",
+         "PandaMyReachDense": "GRAIL/PandaReach-GrLibs-Optimal"}
+RECOGNIZERS = {"Graql": ("graql", "GRAQL"), "ExpertBasedGraml": ("graml", "BG-GRAML"), "Draco": ("draco", "DRACO"),
+               "GCDraco": ("gc-draco", "GC-DRACO"), "GCGraml": ("gc-graml", "GC-GRAML")}
 ORDERINGS = {"non_consecutive": ("subset+floor", "non-consecutive (ordered subset)"),
              "consecutive": ("prefix+floor", "consecutive (prefix)")}
 

@@ -68,7 +68,7 @@ def test_every_reported_figure_names_a_registered_card_and_recognizer() -> None:
     from reported import RECOGNIZERS, reported, task_id
 
     figures = reported()
-    assert len(figures) == 400 and {r["fraction"] for r in figures} == {"0.3", "0.5", "0.7", "0.9", "1"}
+    assert len(figures) == 500 and {r["fraction"] for r in figures} == {"0.3", "0.5", "0.7", "0.9", "1"}
     registered = set(gym.registry)
     for r in figures:
         card = task_id(r["env"], r["level"])
