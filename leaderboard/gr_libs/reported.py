@@ -19,6 +19,7 @@ import csv
 from collections import defaultdict
 from pathlib import Path
 
+from grail_bench.core.errors import UserError
 from grail_bench.harness.modes.offline import aggregate
 from grail_bench.harness.store import ResultsStore
 from grail_bench.report.configs import configuration
@@ -84,8 +85,11 @@ def main() -> None:
     parser.add_argument("--store", type=Path, default=Path("leaderboard/results.sqlite"))
     parser.add_argument("--fractions", type=float, nargs="+", default=[0.3, 0.5, 1.0])
     args = parser.parse_args()
-    for ordering in ORDERINGS:
-        print(table(args.store, ordering, tuple(args.fractions)), end="\n\n")
+    try:
+        for ordering in ORDERINGS:
+            print(table(args.store, ordering, tuple(args.fractions)), end="\n\n")
+    except UserError as exc:
+        raise SystemExit(f"error: {exc}") from None
 
 
 if __name__ == "__main__":
