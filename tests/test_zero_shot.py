@@ -10,6 +10,7 @@ import time
 import numpy as np
 import pytest
 from conftest import run_mode
+from gymnasium import spaces
 from typer.testing import CliRunner
 
 import grail_bench
@@ -19,7 +20,8 @@ from grail_bench.harness.modes import MODES
 from grail_bench.harness.modes.zero_shot import held_out_goals, n_held_out
 from grail_bench.harness.planning import RecognizerSpec, plan
 from grail_bench.harness.store import SCHEMA_VERSION, ResultsStore, ZeroShotRow
-from grail_bench.recognizers.gcbc import GCBCRecognizer
+from grail_bench.core.scaling import scale_of
+from grail_bench.recognizers.gcbc import GCBCRecognizer, GoalEncoder
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
 from grail_bench.task.observation import observe
 
@@ -60,6 +62,17 @@ def test_gc_bc_does_not_depend_on_the_order_goals_are_listed_in():
     assert set(scores[0]) == set(task.goals)
     for goal in task.goals:
         assert scores[0][goal] == pytest.approx(scores[1][goal], abs=1e-6)
+
+
+def test_a_goal_coordinate_every_goal_shares_is_not_blown_up_by_rounding():
+    # gr_libs' PandaReach goals all lie at z = 0.1, whose spread computes to ~1e-17, not 0: dividing by it made the
+    # goal features ~1e16 and every goal's policy the same (every observation a tie).
+    goals = [(-0.1, -0.1, 0.1), (-0.1, 0.1, 0.1), (0.2, 0.2, 0.1)]
+    assert 0 < np.asarray(goals).std(axis=0)[2] < 1e-15
+    np.testing.assert_array_equal(scale_of(np.asarray(goals))[2], 1.0)
+    encoder = GoalEncoder(spaces.Box(-1.0, 1.0, (3,)), goals)
+    features = encoder.goal_features(goals)
+    assert np.all(np.abs(features) < 3) and len({tuple(f) for f in features.tolist()}) == 3
 
 
 def test_gc_bc_scores_a_goal_it_was_never_fitted_on():

@@ -60,6 +60,7 @@ from torch.nn.utils.rnn import pack_padded_sequence, pad_sequence
 
 from grail_bench.core.cache import cached
 from grail_bench.core.errors import UserError
+from grail_bench.core.scaling import scale_of
 from grail_bench.core.seeding import goal_rng, goal_words
 from grail_bench.core.spaces import preprocess
 from grail_bench.core.torchutil import single_thread
@@ -150,8 +151,7 @@ class StepEncoder:
         self.mean, self.scale = np.zeros(1, np.float32), np.ones(1, np.float32)
         if isinstance(observation_space, spaces.Box):
             flat = preprocess(np.asarray(states), observation_space)
-            spread = flat.std(axis=0)
-            self.mean, self.scale = flat.mean(axis=0), np.where(spread > 0, spread, 1.0).astype(np.float32)
+            self.mean, self.scale = flat.mean(axis=0), scale_of(flat).astype(np.float32)
 
     def encode(self, states: np.ndarray, acts: np.ndarray) -> np.ndarray:
         """``(T, F)`` float32 features of ``T`` states and the actions taken in them."""

@@ -20,6 +20,7 @@ import numpy as np
 from gymnasium import spaces
 
 from grail_bench.core.errors import UserError
+from grail_bench.core.scaling import scale_of
 from grail_bench.core.spaces import n_states, state_index
 from grail_bench.core.trajectory import Demos, Goal, until_success
 from grail_bench.recognizers.scoring import PolicyOutput
@@ -202,8 +203,7 @@ class Evidence:
     def _learn_density(self) -> None:
         """The shared scaling of coordinates, and the bandwidth chosen by leave-one-demonstration-out likelihood."""
         every = self.flat(np.concatenate([s for g in self.goals for s in self.states[g]]))
-        spread = every.std(axis=0)
-        self._centre, self._scale = every.mean(axis=0), np.where(spread > 0, spread, 1.0)
+        self._centre, self._scale = every.mean(axis=0), scale_of(every)
         self._points = {g: self._scaled(np.concatenate(self.states[g])) for g in self._distinct}
         scores = np.zeros(len(BANDWIDTHS))
         held_out = False

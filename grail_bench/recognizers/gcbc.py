@@ -34,6 +34,7 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 
 from grail_bench.core.cache import cached
 from grail_bench.core.errors import UserError
+from grail_bench.core.scaling import scale_of
 from grail_bench.core.torchutil import single_thread
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal, demos_digest, until_success
 from grail_bench.recognizers.bc import train_bc
@@ -122,9 +123,8 @@ class GoalEncoder:
 
 
 def _standardiser(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and spread of ``(N, D)`` points; a coordinate they all share keeps scale 1."""
-    spread = points.std(axis=0)
-    return points.mean(axis=0), np.where(spread > 0, spread, 1.0)
+    """Mean and spread of ``(N, D)`` points; a coordinate they all share keeps scale 1 (:func:`scale_of`)."""
+    return points.mean(axis=0), scale_of(points)
 
 
 def goal_locator(env_factory: EnvFactory, goal: Goal) -> Callable[[Goal], np.ndarray] | None:
