@@ -13,7 +13,7 @@ cd "$(dirname "$0")/.."
 #   reproduce --profile breadth --only parking-rl-subset --only parking-rl-prefix            (seeds 4-9)
 #   reproduce --profile breadth --only crossing-rl-subset --only crossing-rl-prefix -r draco --seeds 3
 #   reproduce --profile breadth --only maze-rl-prefix --only maze-rl-subset -r gc-draco --seeds 3
-#   reproduce --profile breadth --only panda-grlibs-gc --seeds 1
+#   reproduce --profile breadth --only panda-grlibs-gc --seeds 1     (kept out of the published store for now)
 #   reproduce --profile breadth --only crossing-rl-subset --only crossing-rl-prefix -r draco
 #   reproduce --profile breadth --no-run --out leaderboard/breadth
 # (each with --store leaderboard/results.sqlite --workers 2 --no-progress --no-site; the running ones with
