@@ -163,3 +163,18 @@ def test_continuous_actions_train_one_sac_agent():
     rec.set_goals(task.goals)
     scores = rec.score(observe(test[task.goals[4]][0], 0.3, "prefix"))
     assert list(scores) == list(task.goals) and all(np.isfinite(v) and v < 0 for v in scores.values())
+
+
+def test_ppo_agents_on_continuous_actions_are_keyed_apart_from_sb3_trained_ones(monkeypatch, tmp_path):
+    """PPO's update runs in numpy on continuous actions too; those agents carry it in their cache key, discrete
+    ones keep the key they always had."""
+    import json
+
+    monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path))
+    task = grail_bench.make_task("GRAIL/PointMaze-Optimal-v0")
+    train, _ = task.split(task.generate_demos(0))
+    GCDRACORecognizer(algorithm="ppo", ppo_steps=1024).fit({g: train[g] for g in task.goals[:2]},
+                                                          task.env_factory(), seed=0, cache_key="maze-test")
+    GCDRACORecognizer(**TINY).fit(TRAIN, TASK.env_factory(), seed=0, cache_key="minigrid-test")
+    keys = {(k := json.loads(p.read_text())["key"])["env"]: k for p in (tmp_path / "policy-gc-draco").glob("*.json")}
+    assert keys["maze-test"]["update"] == "numpy" and "update" not in keys["minigrid-test"]

@@ -14,11 +14,12 @@ from grail_bench.core.ppo_update import NumpyPPO, mirrorable
 from grail_bench.core.rl import vec_env
 
 TASK = grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0")
+MAZE = grail_bench.make_task("GRAIL/PointMaze-Optimal-v0")  # continuous: two action dimensions
 
 
-def one_round(cls: type[PPO], **kwargs) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
+def one_round(cls: type[PPO], task=TASK, **kwargs) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
     """Weights before and after one rollout of 8 x 64 steps and one update (10 epochs of 32-sample minibatches)."""
-    venv = vec_env(lambda: TASK.make_env(TASK.goals[1]), 8, seed=0)
+    venv = vec_env(lambda: task.make_env(task.goals[1]), 8, seed=0)
     model = cls("MlpPolicy", venv, batch_size=32, n_steps=64, seed=0, device="cpu", **kwargs)
     model.set_logger(Logger(folder=None, output_formats=[]))
     before = {k: v.clone() for k, v in model.policy.state_dict().items()}
@@ -34,6 +35,20 @@ def one_round(cls: type[PPO], **kwargs) -> tuple[dict[str, torch.Tensor], dict[s
 def test_numpy_update_equals_sb3_train(kwargs):
     before, expected = one_round(PPO, **kwargs)
     _, got = one_round(NumpyPPO, **kwargs)
+    assert_same_update(before, expected, got)
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"ent_coef": 0.05, "policy_kwargs": {"log_std_init": -0.5}}],
+                         ids=["default", "entropy-log-std"])
+def test_numpy_update_equals_sb3_train_on_continuous_actions(kwargs):
+    before, expected = one_round(PPO, MAZE, **kwargs)
+    _, got = one_round(NumpyPPO, MAZE, gaussian=True, **kwargs)
+    assert_same_update(before, expected, got)
+    assert float((got["log_std"] - before["log_std"]).abs().max()) > 1e-4  # log_std is trained, not left alone
+
+
+def assert_same_update(before: dict[str, torch.Tensor], expected: dict[str, torch.Tensor],
+                       got: dict[str, torch.Tensor]) -> None:
     assert expected.keys() == got.keys()
     for key, value in expected.items():
         torch.testing.assert_close(got[key], value, rtol=0, atol=1e-6)
@@ -44,6 +59,11 @@ def test_numpy_update_equals_sb3_train(kwargs):
 def test_what_numpy_cannot_mirror_runs_sb3_update():
     continuous = PPO("MlpPolicy", gym.make("Pendulum-v1"), n_steps=64, batch_size=32, device="cpu")
     assert not mirrorable(continuous)
+    assert not mirrorable(NumpyPPO("MlpPolicy", gym.make("Pendulum-v1"), n_steps=64, batch_size=32, device="cpu"))
+    assert mirrorable(NumpyPPO("MlpPolicy", gym.make("Pendulum-v1"), n_steps=64, batch_size=32, device="cpu",
+                               gaussian=True))
+    assert not mirrorable(NumpyPPO("MlpPolicy", gym.make("Pendulum-v1"), n_steps=64, batch_size=32, device="cpu",
+                                   gaussian=True, use_sde=True))
     clipped_values = NumpyPPO("MlpPolicy", vec_env(lambda: TASK.make_env(), 2), n_steps=64, batch_size=32,
                               clip_range_vf=0.2, device="cpu")
     assert not mirrorable(clipped_values)

@@ -265,16 +265,18 @@ def test_trained_policies_are_cached_and_reloaded(name, monkeypatch, tmp_path):
     assert calls == ([] if name == "draco" else [1, 1])
 
 
-def test_draco_updates_ppo_in_numpy_on_discrete_actions_and_keys_those_models_apart(monkeypatch, tmp_path):
+def test_draco_updates_ppo_in_numpy_and_keys_those_models_apart(monkeypatch, tmp_path):
     monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path))
     factory = TASK.env_factory()
     assert mirrorable(make_ppo(lambda: factory(TASK.goals[0]), [64, 64]))  # DRACO's PPO on MiniGrid: numpy update
     make_recognizer("draco", **FAST["draco"]).fit(TRAIN, factory, seed=0, cache_key=TASK.env_key)
     keys = [json.loads(p.read_text())["key"] for p in (tmp_path / "policy-draco").glob("*.json")]
     assert len(keys) == 2 and all(k["update"] == "numpy" for k in keys)
-    continuous = make_recognizer("draco")  # SB3's own update there: its models keep their keys
-    continuous.action_space = spaces.Box(-1.0, 1.0, (3,))
-    assert continuous.model_key((0, 0)) == {}
+    # Continuous actions too (PandaReach, PointMaze): SB3-trained models there had no such entry.
+    maze = grail_bench.make_task("GRAIL/PointMaze-Optimal-v0")
+    assert mirrorable(make_ppo(lambda: maze.make_env(maze.goals[0]), [64, 64]))
+    assert make_recognizer("draco").model_key(maze.goals[0]) == {"update": "numpy"}
+    assert make_recognizer("draco", algorithm="sac").model_key(maze.goals[0]) == {}
 
 
 def test_draco_identity_holds_only_the_chosen_algorithms_budget(monkeypatch):

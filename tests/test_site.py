@@ -188,6 +188,12 @@ def test_summaries_compare_methods_on_the_strata_they_share_and_name_the_gaps():
     strata = {"a": {1: [0.5], 2: [0.6], 3: [0.7]}, "b": {2: [0.1], 3: [0.2]}, "c": {9: [0.3]}}
     names, shared, left_out = common_strata(strata)
     assert names == ["a", "b"] and shared == {2, 3} and left_out == ["c"]
+    # Methods on few strata that overlap no one else leave themselves out, not the larger group they miss.
+    many = {"a": {1: [0.5], 2: [0.5]}, "b": {1: [0.5], 2: [0.5]}, "c": {1: [0.5], 2: [0.5]},
+            "d": {k: [0.5] for k in range(3, 9)}, "e": {k: [0.5] for k in range(3, 9)}}
+    assert common_strata(many) == (["a", "b", "c"], {1, 2}, ["d", "e"])
+    many["e"][1] = [0.5]  # a tie on size goes to the group sharing more strata
+    assert common_strata({k: many[k] for k in "bde"}) == (["d", "e"], set(range(3, 9)), ["b"])
     # A method run on more strata is aggregated over the shared ones only, and the others' gap is named.
     task = "GRAIL/MiniGrid-Optimal-6Goals-v0"
     config_json, hashed = stored_config(task, "bc")

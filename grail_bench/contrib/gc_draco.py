@@ -207,6 +207,8 @@ class GCDRACORecognizer(GCBCRecognizer):
         key = {"recognizer": self.name, "config": settings_key(self.config, models=True), "algorithm": algorithm,
                "env": cache_key, "seed": seed, "goals": [list(g) for g in ordered],
                "versions": [version("stable-baselines3"), version("torch")]}
+        if algorithm == "ppo" and isinstance(action_space, spaces.Box):
+            key["update"] = "numpy"  # keyed apart from agents SB3's update trained (discrete ones always had numpy's)
         with single_thread():
             if cache_key is None:
                 start = time.perf_counter()

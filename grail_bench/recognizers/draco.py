@@ -106,11 +106,9 @@ class DRACORecognizer(PolicyRecognizer):
         return self.config.algorithm
 
     def model_key(self, goal: Goal) -> dict[str, Any]:
-        """PPO on discrete actions runs its update in numpy (:func:`~grail_bench.core.rl.make_ppo`), which keys
-        those models apart from ones SB3's update trained; the others' keys are unchanged."""
-        if self.config.algorithm == "ppo" and isinstance(self.action_space, spaces.Discrete):
-            return {"update": "numpy"}
-        return {}
+        """PPO runs its update in numpy (:func:`~grail_bench.core.rl.make_ppo`), which keys its models apart from
+        ones SB3's update trained; SAC's keys are unchanged."""
+        return {"update": "numpy"} if self.config.algorithm == "ppo" else {}
 
     def _model(self, goal: Goal, env_factory: EnvFactory, seed: int) -> BaseAlgorithm:
         env = env_factory(goal)

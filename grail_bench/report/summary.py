@@ -3,8 +3,8 @@
 For each domain, every canonical method (references such as the demonstrator excluded) is compared over the
 (task, protocol, level) strata that all of them ran (common ground: a method run on more strata is not
 aggregated over more work). A method lacking strata another ran is not dropped silently: the summary names
-the strata it lacks (a gap in the data); only when no stratum is shared by all is the method with the fewest
-left out, and named. Per method:
+the strata it lacks (a gap in the data); only when no stratum is shared by all are methods left out (and
+named): the largest set of methods sharing a stratum is compared. Per method:
 
 * the interquartile mean of F1 over every seed of those strata, with a 95 %
   bootstrap interval stratified by stratum, and the plain mean;
@@ -111,17 +111,22 @@ def describe_strata(strata: Sequence[Stratum]) -> list[str]:
 def common_strata(strata: dict[str, dict[Any, list[float]]]) -> tuple[list[str], set, list[str]]:
     """The methods a domain summary compares, the strata they all ran, and the methods left out.
 
-    Every compared method is aggregated over the same strata (common ground). If no stratum is shared by
-    all, the method with the fewest strata is left out until one is.
+    Every compared method is aggregated over the same strata (common ground). The compared methods are the
+    largest set that shares a stratum; among sets as large, the one sharing the most strata (then the first
+    by name). A method run on few strata thus leaves itself out, never the methods it does not overlap.
     """
-    names = sorted(strata, key=lambda n: (-len(strata[n]), n))
-    left_out = []
-    while names:
-        shared = set.intersection(*(set(strata[n]) for n in names))
-        if shared:
-            return sorted(names), shared, sorted(left_out)
-        left_out.append(names.pop())
-    return [], set(), sorted(left_out)
+    ran: dict[Any, frozenset[str]] = defaultdict(frozenset)
+    for name, per_stratum in strata.items():
+        for stratum in per_stratum:
+            ran[stratum] |= {name}
+    if not ran:
+        return [], set(), sorted(strata)
+
+    def shared_by(group: frozenset[str]) -> set:
+        return {k for k, names in ran.items() if group <= names}
+
+    best = min(set(ran.values()), key=lambda g: (-len(g), -len(shared_by(g)), sorted(g)))
+    return sorted(best), shared_by(best), sorted(set(strata) - best)
 
 
 def domain_summaries(boards: Sequence[Board], reps: int = 2000, seed: int = 0) -> list[DomainSummary]:

@@ -243,21 +243,26 @@ def test_draco_fit_one_goal_panda(benchmark, panda, algorithm):
 
 
 @pytest.mark.parametrize("update", ["numpy", "torch"])
-def test_draco_fit_one_goal_minigrid(benchmark, monkeypatch, update):
-    """DRACO's fit of one MiniGrid goal at its default budget (150 000 PPO steps): its update in numpy, as it trains,
-    against SB3's torch update (env steps per second stored as extra info)."""
+@pytest.mark.parametrize("domain", ["minigrid", "maze"])
+def test_draco_fit_one_goal_by_update(benchmark, monkeypatch, domain, update):
+    """DRACO's fit of one goal at its default budget (150 000 PPO steps): its update in numpy, as it trains,
+    against SB3's torch update, on MiniGrid's discrete and PointMaze's continuous actions (env steps per second
+    stored as extra info)."""
     from stable_baselines3 import PPO
 
     from grail_bench.core import rl
 
     if update == "torch":
-        monkeypatch.setattr(rl, "NumpyPPO", PPO)
+        monkeypatch.setattr(rl, "NumpyPPO", lambda *args, gaussian=False, **kwargs: PPO(*args, **kwargs))
+    task = TASK if domain == "minigrid" else grail_bench.make_task("GRAIL/PointMaze-Optimal-v0")
+    goal = GOAL if domain == "minigrid" else task.goals[0]
     rec = make_recognizer("draco")
 
     def fit():
         with single_thread():  # as PolicyRecognizer.fit trains
-            rec.train_policy(GOAL, TRAIN[GOAL], TASK.make_env, 0)
+            rec.train_policy(goal, [], task.make_env, 0)
 
+    benchmark.group = f"DRACO fit of one goal ({domain})"
     benchmark.pedantic(fit, rounds=1, iterations=1)
     benchmark.extra_info["env_steps_per_second"] = rec.config.ppo_steps / benchmark.stats.stats.median
 
