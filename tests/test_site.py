@@ -235,9 +235,30 @@ def test_a_superseded_default_is_archived_and_a_variant_named():
     assert variants == {"BC-GRAIL · kl", "BC-GRAIL · off_support stay"}
 
 
+def every_page(page: dict) -> dict[str, str]:
+    """The index's HTML and each domain page's, by file name."""
+    return {"index.html": render(page), **{p["file"]: render(page, domain=p["domain"]) for p in page["pages"]}}
+
+
 def test_same_rows_same_page():
-    first = render(page_of(rows()))
-    assert first == render(page_of(rows()))
+    first = every_page(page_of(rows()))
+    assert first == every_page(page_of(rows()))
+    assert list(first) == ["index.html", "minigrid.html", "panda_reach.html"]
+
+
+def test_each_domain_page_holds_its_own_boards_and_the_index_links_them(page):
+    for p in page["pages"]:
+        assert {s.domain for s in p["sections"] + p["variants"]} == {p["domain"]}
+    assert sum(len(p["sections"]) for p in page["pages"]) == len(page["sections"])
+    index = render(page)
+    assert "section class=\"board\"" not in index and 'href="minigrid.html#s0"' in index
+    minigrid = render(page, domain="minigrid")
+    assert 'id="summary"' not in minigrid and 'href="index.html#run-' in minigrid  # runs are listed on the index
+    taken: set[str] = set()
+    from grail_bench.report.html import _page_file
+
+    names = [_page_file(d, taken) for d in ("MiniGrid", "</script>", "index", "minigrid", "")]
+    assert names == ["minigrid.html", "script.html", "index-2.html", "minigrid-2.html", "domain.html"]
 
 
 def test_embedded_json_escapes_markup():
@@ -247,20 +268,23 @@ def test_embedded_json_escapes_markup():
 
 
 def test_embedded_details_cannot_close_the_script(page):
-    html = render(page)
-    assert "bc</script>" not in html
-    start = html.index('<script type="application/json" id="records">') + len('<script type="application/json" id="records">')
-    embedded = json.loads(html[start:html.index("</script>", start)])
-    assert {r["id"] for r in embedded} == {c.record for c in main_cells(page)}  # the main boards' cells
-    for ref in ('src="http', "src='http", 'href="http', "href='http", "url(http", "@import"):
-        assert ref not in html  # nothing loads from the network
+    embedded = []
+    for name, html in every_page(page).items():
+        assert "bc</script>" not in html
+        for ref in ('src="http', "src='http", 'href="http', "href='http", "url(http", "@import"):
+            assert ref not in html  # nothing loads from the network
+        tag = '<script type="application/json" id="records">'
+        if name != "index.html":  # the index has no board, so no details
+            start = html.index(tag) + len(tag)
+            embedded += [r["id"] for r in json.loads(html[start:html.index("</script>", start)])]
+    assert sorted(embedded) == sorted(c.record for c in main_cells(page))  # each main-board cell, on its page
 
 
 def test_the_page_stays_small_whatever_the_records_hold(page):
     """Full records, fits and figures live beside the page: it embeds only what a cell's details need."""
-    html = render(page)
-    assert len(html.encode()) < 200_000 < MAX_PAGE_BYTES
-    assert '"task_params"' not in html and "<svg" not in html  # records.json and figures/ hold them
+    for html in every_page(page).values():
+        assert len(html.encode()) < 200_000 < MAX_PAGE_BYTES
+        assert '"task_params"' not in html and "<svg" not in html  # records.json and figures/ hold them
     assert page["figures"] and all(name.startswith("figures/") for name in page["figures"])
 
 
@@ -273,7 +297,7 @@ def test_details_embed_thinned_curves_and_rounded_values():
     loss = page["shown_fits"][key]["curves"]["0"]["loss"]
     assert len(loss) == CURVE_POINTS and loss[0] == 0.333 and loss[-1] == pytest.approx(1 / 20_002, rel=1e-3)
     assert len(page["fits"][key]["curves"]["0"]["loss"]) == 20_000  # fits.json keeps every point
-    assert len(render(page).encode()) < 200_000
+    assert all(len(html.encode()) < 200_000 for html in every_page(page).values())
 
 
 def test_online_and_open_set_runs_get_tables_of_their_own(page):
@@ -297,6 +321,7 @@ def test_cli_writes_the_page(tmp_path):
     result = CliRunner().invoke(app, ["leaderboard", "--store", str(store_path), "--no-ceiling", "--html", str(out)])
     assert result.exit_code == 0, result.output
     assert (out / "index.html").stat().st_size > 0 and list((out / "figures").glob("s*.svg"))
+    assert sorted(p.name for p in out.glob("*.html")) == ["index.html", "minigrid.html", "panda_reach.html"]
     assert len(json.loads((out / "records.json").read_text())) == n_records(rows(seeds=2))
     assert "BC-GRAIL" in (out / "index.html").read_text()
     missing = CliRunner().invoke(app, ["leaderboard", "--store", str(tmp_path / "none.sqlite"), "--html", str(out)])
@@ -351,7 +376,8 @@ def canonical(rs: list[ResultRow]) -> list[ResultRow]:
 
 @pytest.fixture(scope="module")
 def served(odd_site):
-    """The odd page's folder served over HTTP on the loopback (a variant's details are read from beside it)."""
+    """The odd site's folder served over HTTP on the loopback, at its MiniGrid page (a variant's details are read
+    from beside it)."""
     import functools
     import http.server
     import threading
@@ -363,9 +389,14 @@ def served(odd_site):
     server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(Quiet, directory=str(odd_site.parent)))
     thread = threading.Thread(target=server.serve_forever, daemon=True)
     thread.start()
-    yield f"http://127.0.0.1:{server.server_port}/index.html"
+    yield f"http://127.0.0.1:{server.server_port}/minigrid.html"
     server.shutdown()
     server.server_close()
+
+
+def domain_pages(site: Path) -> list[Path]:
+    """The site's domain pages (every page but the index)."""
+    return sorted(p for p in site.parent.glob("*.html") if p.name != "index.html")
 
 
 def open_page(browser, site: Path | str, **context):
@@ -395,17 +426,27 @@ def test_page_loads_offline_without_errors(browser, site, tmp_path):
     assert errors == []
     assert requests and all(url.startswith(("file://", "data:")) for url in requests)
     assert page.title() == "grail-bench leaderboard"
-    assert page.locator("td.cell").count() == n_records(rows())  # main boards and (folded) variants
-    assert page.locator("section.board td.cell").count() == n_records(canonical(rows()))
-    embedded = "JSON.parse(document.getElementById('records').textContent).length"
-    assert page.evaluate(embedded) == n_records(canonical(rows()))  # variants' details are fetched on demand
-    assert page.locator("form#filters").is_visible()
-    figures = page.locator("section.board figure img")
-    assert figures.count() and all(loaded(figures.nth(i)) for i in range(figures.count()))  # beside the page
-    shot = tmp_path / "leaderboard.png"
-    page.screenshot(path=str(shot), full_page=True)
-    assert shot.stat().st_size > 10_000
+    assert page.locator("td.cell").count() == 0 and page.locator("form#filters").is_visible()
+    assert page.locator("#boards a[href='minigrid.html']").count() == 1
     page.context.close()
+    cells = board_cells = embedded = 0
+    for path in domain_pages(site):
+        page, errors, requests = open_page(browser, path)
+        assert errors == [] and all(url.startswith(("file://", "data:")) for url in requests)
+        assert page.title() == f"grail-bench leaderboard: {path.stem}"
+        cells += page.locator("td.cell").count()  # main boards and (folded) variants
+        board_cells += page.locator("section.board td.cell").count()
+        # variants' details are fetched on demand
+        embedded += page.evaluate("JSON.parse(document.getElementById('records').textContent).length")
+        figures = page.locator("section.board figure img")
+        assert all(loaded(figures.nth(i)) for i in range(figures.count()))  # beside the page
+        if path.stem == "minigrid":
+            assert figures.count() and page.locator("form#filters").is_visible()
+            shot = tmp_path / "leaderboard.png"
+            page.screenshot(path=str(shot), full_page=True)
+            assert shot.stat().st_size > 10_000
+        page.context.close()
+    assert cells == n_records(rows()) and board_cells == embedded == n_records(canonical(rows()))
 
 
 def column_values(page, table, col: int) -> list[float | None]:
@@ -415,7 +456,7 @@ def column_values(page, table, col: int) -> list[float | None]:
 
 
 def test_sorting_a_column_reorders_rows(browser, site):
-    page, errors, _ = open_page(browser, site)
+    page, errors, _ = open_page(browser, site.parent / "minigrid.html")
     table = page.locator("section.board table").first
     first = 5  # the first recognizer column, after task, goals, observed, ceiling and pairs-only
     assert table.locator("thead th").all_inner_texts()[first - 2:first] == ["ceiling", "pairs-only"]
@@ -440,29 +481,38 @@ def test_sorting_a_column_reorders_rows(browser, site):
 
 
 def test_filters_hide_exactly_what_they_should(browser, site):
-    page, errors, _ = open_page(browser, site)
-    panda_rows = len({(r.task, r.protocol, r.observability) for r in rows() if "Panda" in r.task})
+    page, errors, _ = open_page(browser, site)  # the index: summaries by domain, other modes' tables by recognizer
     page.select_option("select[name=domain]", "panda_reach")
-    visible = page.locator("section.board:visible")
+    visible = page.locator(".domain-summary:visible")
     assert visible.count() == 1 and visible.first.get_attribute("data-domain") == "panda_reach"
-    assert page.locator("section.board:visible tbody tr").count() == panda_rows
     page.select_option("select[name=domain]", "")
+    page.select_option("select[name=recognizer]", "graql")
+    assert page.locator("section.study tbody tr:visible").count() == 2  # graql's online and open-set rows
+    assert page.locator("section.study tr[data-recognizer=bc]:visible").count() == 0
+    page.select_option("select[name=recognizer]", "")
+    assert page.locator("section.study tbody tr:visible").count() == 4
+    assert errors == []
+    page.context.close()
+    page, errors, _ = open_page(browser, site.parent / "minigrid.html")  # a domain's boards by regime, recognizer
+    assert page.locator("select[name=domain]").count() == 0
     page.select_option("select[name=regime]", "biased")
     assert page.locator("section.board:visible").count() == 1
     assert page.locator("section.board:visible tbody tr").count() == len(TASKS["GRAIL/MiniGrid-Biased-v0"])
     page.select_option("select[name=regime]", "")
     page.select_option("select[name=recognizer]", "graql")
-    assert page.locator("td.cell:visible").count() == n_records([r for r in rows() if r.recognizer == "graql"])
+    minigrid = [r for r in rows() if "Panda" not in r.task]
+    assert page.locator("td.cell:visible").count() == n_records([r for r in minigrid if r.recognizer == "graql"])
     assert page.locator("td.cell[data-recognizer=bc]:visible").count() == 0
-    assert page.locator("section.study tbody tr:visible").count() == 2  # graql's online and open-set rows
-    assert page.locator("section.study tr[data-recognizer=bc]:visible").count() == 0
     page.select_option("select[name=recognizer]", "")
-    assert page.locator("td.cell:visible").count() == n_records(canonical(rows()))  # variants stay folded
+    assert page.locator("td.cell:visible").count() == n_records(canonical(minigrid))  # variants stay folded
     page.locator("details.variant-board summary").first.click()
     assert page.locator("details.variant-board td.cell:visible").count() == n_records(
-        [r for r in rows() if r.scorer == "kl" and r.recognizer == "bc" and "Panda" not in r.task])
-    assert page.locator("section.study tbody tr:visible").count() == 4
+        [r for r in minigrid if r.scorer == "kl" and r.recognizer == "bc"])
     assert errors == []
+    page.context.close()
+    panda_rows = len({(r.task, r.protocol, r.observability) for r in rows() if "Panda" in r.task})
+    page, errors, _ = open_page(browser, site.parent / "panda_reach.html")
+    assert page.locator("section.board:visible tbody tr").count() == panda_rows
     page.context.close()
 
 
@@ -480,16 +530,18 @@ def test_online_table_sorts_by_value(browser, site):
 
 
 def test_cell_links_to_its_run(browser, site):
-    page, _, _ = open_page(browser, site)
+    page, _, _ = open_page(browser, site.parent / "minigrid.html")
     page.locator("td.cell a").first.click()
+    page.wait_for_load_state("load")
     target = page.evaluate("location.hash")
+    assert page.url.split("#")[0].endswith("/index.html")  # runs are listed once, on the index
     assert target.startswith("#run-") and page.locator(f"{target}").is_visible()
     assert "grail-bench run" in page.locator("#run-0").inner_text()
     page.context.close()
 
 
 def test_a_cell_shows_its_confusion_imitation_and_curves_on_demand(browser, site):
-    page, errors, _ = open_page(browser, site)
+    page, errors, _ = open_page(browser, site.parent / "minigrid.html")
     assert not page.locator("#details").is_visible()
     index = page.evaluate("JSON.parse(document.getElementById('records').textContent).find(r => r.task === "
                           "'GRAIL/MiniGrid-Optimal-v0' && r.column === 'BC-GRAIL' && r.observability === 0.1).id")
@@ -511,13 +563,19 @@ def test_a_cell_shows_its_confusion_imitation_and_curves_on_demand(browser, site
 
 def test_page_reads_without_scripts(browser, site):
     page, errors, _ = open_page(browser, site, java_script_enabled=False)
-    assert page.locator("td.cell").count() == n_records(rows())
-    assert page.locator("td.cell").first.is_visible()
-    assert not page.locator("form#filters").is_visible()  # nothing to filter with, so not shown
-    assert page.locator("button.diag:visible").count() == 0  # details need the script: no dead buttons
-    assert page.locator("figure img").count() >= 1
     assert page.locator("#summary table").first.is_visible() and page.locator("#claims").is_visible()
+    assert not page.locator("form#filters").is_visible()  # nothing to filter with, so not shown
     page.context.close()
+    cells = 0
+    for path in domain_pages(site):
+        page, errors, _ = open_page(browser, path, java_script_enabled=False)
+        cells += page.locator("td.cell").count()
+        assert page.locator("td.cell").first.is_visible()
+        assert not page.locator("form#filters").is_visible()
+        assert page.locator("button.diag:visible").count() == 0  # details need the script: no dead buttons
+        assert page.locator("figure img").count() >= (path.stem == "minigrid")
+        page.context.close()
+    assert cells == n_records(rows())
 
 
 def test_profiles_and_calibration_show_offline(browser, tmp_path):
@@ -555,16 +613,19 @@ def test_first_screen_shows_every_methods_summary_and_the_claims(browser, site):
 def test_no_main_board_header_carries_a_hash(browser, site):
     import re
 
-    page, _, _ = open_page(browser, site)
-    headers = page.locator("section.board thead th").all_inner_texts()
+    headers = []
+    for path in domain_pages(site):
+        page, _, _ = open_page(browser, path)
+        headers += page.locator("section.board thead th").all_inner_texts()
+        page.context.close()
     hashes = {r.config_hash for r in rows()}
     assert not [h for h in headers if re.search(r"[0-9a-f]{6}", h) or any(x[:6] in h for x in hashes)]
     assert {"BC-GRAIL", "GRAQL"} <= set(headers) and "BC-GRAIL · kl" not in headers
-    page.context.close()
 
 
 def test_published_page_stays_small(site):
-    assert site.stat().st_size < 200_000 < MAX_PAGE_BYTES  # records.json, fits.json and figures/ hold the rest
+    for path in site.parent.glob("*.html"):  # records.json, fits.json and figures/ hold the rest
+        assert path.stat().st_size < 200_000 < MAX_PAGE_BYTES
 
 
 PUBLISHED = Path(__file__).resolve().parents[1] / "leaderboard" / "site" / "index.html"
@@ -576,7 +637,7 @@ def test_the_published_page_reads_as_a_ranking(browser):
     methods and the claims; no main-board header names a configuration by hash."""
     import re
 
-    assert PUBLISHED.stat().st_size < MAX_PAGE_BYTES
+    assert all(p.stat().st_size < MAX_PAGE_BYTES for p in PUBLISHED.parent.glob("*.html"))
     page, errors, _ = open_page(browser, PUBLISHED)
     height = page.viewport_size["height"]
     summaries = page.locator(".domain-summary")
@@ -586,23 +647,30 @@ def test_the_published_page_reads_as_a_ranking(browser):
     assert not any("·" in m or "archived" in m for m in methods)  # canonical configurations only
     claims = page.locator("#claims table").first
     assert claims.bounding_box()["y"] < 2 * height and "verdict" in claims.locator("thead").inner_text()
-    headers = page.locator("section.board thead th").all_inner_texts()
-    assert headers and not [h for h in headers if re.search(r"\b[0-9a-f]{6,}\b", h)]
     assert errors == []
     page.context.close()
+    for path in domain_pages(PUBLISHED):
+        page, errors, _ = open_page(browser, path)
+        headers = page.locator("section.board thead th").all_inner_texts()
+        assert headers and not [h for h in headers if re.search(r"\b[0-9a-f]{6,}\b", h)]
+        assert errors == []
+        page.context.close()
 
 
 def test_superseded_and_variant_configurations_on_the_page(browser, odd_site):
     page, errors, _ = open_page(browser, odd_site)
     archive = page.locator("#archive table").inner_text()
     assert "BC-GRAIL · archived" in archive and "ent_weight unset" in archive
-    assert "archived" not in " ".join(page.locator("section.board thead th").all_inner_texts())
     assert "archived" not in page.locator("#summary").inner_text()
+    iqm = page.locator(".domain-summary[data-domain=minigrid] tr[data-recognizer=bc] td").nth(1)
+    assert float(iqm.inner_text()) > 0.6  # the superseded runs (F1 0.1) do not count
+    assert errors == []
+    page.context.close()
+    page, errors, _ = open_page(browser, odd_site.parent / "minigrid.html")
+    assert "archived" not in " ".join(page.locator("section.board thead th").all_inner_texts())
     variants = page.locator("#variants details summary").all_inner_texts()  # named while folded
     variants = " ".join(variants)
     assert "BC-GRAIL · off_support stay" in variants and "BC-GRAIL · kl" in variants
-    iqm = page.locator(".domain-summary[data-domain=minigrid] tr[data-recognizer=bc] td").nth(1)
-    assert float(iqm.inner_text()) > 0.6  # the superseded runs (F1 0.1) do not count
     assert errors == []
     page.context.close()
 
@@ -635,7 +703,7 @@ def test_names_like_markup_render_escaped_and_the_page_still_works(browser, serv
 
 
 def test_a_variants_details_from_a_local_file_say_how_to_read_them(browser, odd_site):
-    page, errors, _ = open_page(browser, odd_site)
+    page, errors, _ = open_page(browser, odd_site.parent / "minigrid.html")
     button = page.locator("details.variant-board td.cell button.diag").first
     button.evaluate("b => { b.closest('details').open = true; }")  # unfold the board that holds it
     button.click()

@@ -1,24 +1,26 @@
-"""The leaderboard as one static web page: ``grail-bench leaderboard --html DIR``.
+"""The leaderboard as a static web site: ``grail-bench leaderboard --html DIR``.
 
-The page (``DIR/index.html``) is rendered from a
-:class:`~grail_bench.report.leaderboard.Leaderboard` through a Jinja2
-template and needs nothing but a browser: no server, no network, CSS and a
-small sorting/filtering script inline, figures as SVG files beside it
-(``DIR/figures/``, loaded lazily), readable with scripts off. Its first screen is the per-domain summaries and the headline
-claims checked against the data.
+The pages are rendered from a
+:class:`~grail_bench.report.leaderboard.Leaderboard` through Jinja2
+templates and need nothing but a browser: no server, no network, CSS and a
+small sorting/filtering script inline, figures as SVG files beside them
+(``DIR/figures/``, loaded lazily), readable with scripts off. The index
+(``DIR/index.html``) opens on the per-domain summaries and the headline claims
+checked against the data, then lists each domain's boards, the archived
+configurations (with links to their runs), the other modes' tables, the
+timings and the runs.
 
-The main boards (one per domain, regime and protocol; a row per task and
-observability; a column per method in its canonical configuration, the
-demonstrator after them as a reference) come first; each domain's named
-variants follow, folded; the archived configurations are listed with links to
-their runs. Each cell shows the mean F1 over seeds with a 95 % bootstrap
+Each domain has a page of its own (``DIR/<domain>.html``): its main boards (one
+per regime and protocol; a row per task and observability; a column per
+method in its canonical configuration, the demonstrator after them as a
+reference), then its named variants, folded. Each cell shows the mean F1 over seeds with a 95 % bootstrap
 interval (:mod:`grail_bench.stats.robust`); the method cells whose intervals
 overlap the best one's are all marked, rather than one winner by a hair.
 
-To keep the page small (:data:`MAX_PAGE_BYTES`), what only some readers open
+To keep every page small (:data:`MAX_PAGE_BYTES`), what only some readers open
 lives beside it, measured on the published store: figures are files of their
-own (``figures/``, about 0.8 MB inline); the page embeds only what a main-board
-cell's details need (:data:`DETAILS`: its confusion matrix, and its
+own (``figures/``, about 0.8 MB inline); a domain's page embeds only what its
+main-board cells' details need (:data:`DETAILS`: its confusion matrix, and its
 configuration's fit diagnostics with training curves thinned to
 :data:`CURVE_POINTS` points and every value to :data:`DIGITS` significant
 digits); variant cells show mean and interval only, their details fetched from
@@ -50,9 +52,8 @@ from grail_bench.report.summary import DomainSummary, domain_summaries, profile_
 from grail_bench.report.text import comparison_lines
 from grail_bench.stats.robust import Interval, pooled_mean, stratified_bootstrap, tied_best
 
-#: The published page must stay under this size (records and diagnostics beyond a cell's details live beside it).
-#: Five domains, gr_libs' problems and their smaller goal sets (L1-L4) make the main boards' tables about 2 MB of it;
-#: more breadth calls for a page per domain rather than a larger limit.
+#: Every published page must stay under this size (records and diagnostics beyond a cell's details live beside
+#: them). A domain's boards have a page of their own, so breadth adds pages rather than bytes to one.
 MAX_PAGE_BYTES = 3_500_000
 
 #: Training curves embedded for a cell's details are thinned to at most this many points each.
@@ -301,17 +302,17 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0, summaries: S
                          "paper_verdict": c.verdict if c else None,
                          "normalised_f1": c.normalised if c else None,
                          "runs": sorted(cells.runs_of[_record_key(r)])})
-    main = sorted({c.record for s in sections for row in s.rows for c in row["cells"] if c is not None})
-    shown_fits = {(exported[i]["task"], exported[i]["recognizer"], exported[i]["config_hash"]) for i in main}
-    details = [{k: exported[i][k] for k in DETAILS} for i in main]
     canonical = {c.label for s in sections for c in s.columns}
+    domains = sorted({s.domain for s in sections + variants})
+    taken: set[str] = set()
+    pages = [_domain_page(d, _page_file(d, taken), sections, variants, exported, board.fits,
+                          comparison_lines([b for b in board.boards if b.domain == d])) for d in domains]
     return {"sections": sections, "variants": variants, "archive": _archive(board.archive, cells.runs_of),
             "summaries": summaries, "claims": [c for c in claims if c.configuration in canonical],
             "variant_claims": [c for c in claims if c.configuration not in canonical],
-            "runs": cells.runs, "records": exported, "details": details,
+            "runs": cells.runs, "records": exported, "pages": pages,
             "timings": [t for t in timing_rows(records, board.fits) if t.column in canonical],
-            "domains": sorted({s.domain for s in sections + variants}),
-            "regimes": sorted({s.regime for s in sections if s.regime}),
+            "domains": domains,
             "recognizers": sorted({r.recognizer for r in records}), "reps": reps, "seed": seed,
             "studies": _studies(board, figures), "n_seeds": sorted({r.n_seeds for r in records}),
             "comparison": comparison_lines(board.boards),
@@ -321,8 +322,34 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0, summaries: S
                                               (lambda: plots.reliability(calibration)) if calibration else None),
             "figures": figures.files,
             "fits": {"|".join(key): s.to_dict() for key, s in sorted(board.fits.items())},
-            "shown_fits": {"|".join(key): _thin_fit(s) for key, s in sorted(board.fits.items())
-                           if key in shown_fits}}
+            "shown_fits": {key: fit for page in pages for key, fit in page["shown_fits"].items()}}
+
+
+def _page_file(domain: str, taken: set[str]) -> str:
+    """A file name for a domain's page, safe whatever the domain is called and unlike the others' (and the
+    index's)."""
+    stem = re.sub(r"[^a-z0-9_-]+", "-", domain.lower()).strip("-") or "domain"
+    name, n = f"{stem}.html", 1
+    while name in taken or name == "index.html":
+        n += 1
+        name = f"{stem}-{n}.html"
+    taken.add(name)
+    return name
+
+
+def _domain_page(domain: str, file: str, sections: Sequence[Section], variants: Sequence[Section],
+                 exported: Sequence[dict[str, Any]], fits: dict[tuple, FitSummary],
+                 comparison: list[str]) -> dict[str, Any]:
+    """One domain's page: its main boards and variants, what its main-board cells' details need, and its cells'
+    counts against the paper (``comparison``)."""
+    own, own_variants = [s for s in sections if s.domain == domain], [s for s in variants if s.domain == domain]
+    main = sorted({c.record for s in own for row in s.rows for c in row["cells"] if c is not None})
+    shown = {(exported[i]["task"], exported[i]["recognizer"], exported[i]["config_hash"]) for i in main}
+    return {"domain": domain, "file": file, "sections": own, "variants": own_variants,
+            "details": [{k: exported[i][k] for k in DETAILS} for i in main],
+            "shown_fits": {"|".join(key): _thin_fit(fit) for key, fit in sorted(fits.items()) if key in shown},
+            "regimes": sorted({s.regime for s in own if s.regime}), "comparison": comparison,
+            "recognizers": sorted({c.recognizer for s in own + own_variants for c in s.columns})}
 
 
 def json_for_script(data: Any) -> str:
@@ -332,35 +359,44 @@ def json_for_script(data: Any) -> str:
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
-def render(page: dict[str, Any], title: str = "grail-bench leaderboard") -> str:
-    """The page's HTML."""
+def render(page: dict[str, Any], title: str = "grail-bench leaderboard", domain: str | None = None) -> str:
+    """The index's HTML, or with ``domain`` that domain's page."""
     import jinja2
 
     env = jinja2.Environment(loader=jinja2.PackageLoader("grail_bench.report", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]), undefined=jinja2.StrictUndefined,
                              trim_blocks=True, lstrip_blocks=True)
     env.filters["f2"] = lambda v: "–" if v is None or v != v else f"{v:.2f}"
-    html = env.get_template("leaderboard.html").render(
-        **page, title=title, version=version("grail-bench"), records_json=json_for_script(page["details"]),
-        fits_json=json_for_script(page["shown_fits"]))
-    return re.sub(r"\n[ \t]+", "\n", html)  # the template's indentation: a tenth of the page, shown nowhere
+    context = {**page, "title": title, "version": version("grail-bench")}
+    if domain is None:
+        html = env.get_template("index.html").render(**context)
+    else:
+        here = next(p for p in page["pages"] if p["domain"] == domain)
+        html = env.get_template("domain.html").render(**context, here=here,
+                                                      records_json=json_for_script(here["details"]),
+                                                      fits_json=json_for_script(here["shown_fits"]))
+    return re.sub(r"\n[ \t]+", "\n", html)  # the templates' indentation: a tenth of a page, shown nowhere
 
 
 def write_site(board: Leaderboard, out: str | Path, title: str = "grail-bench leaderboard",
                summaries: Sequence[DomainSummary] | None = None, claims: Sequence[Any] | None = None) -> list[Path]:
-    """Render the page into ``out``: ``index.html``, ``records.json``, ``fits.json`` and the figures
-    (``figures/*.svg``, stale ones removed); returns the files written (``summaries`` and ``claims``: see
-    :func:`build_page`)."""
+    """Render the site into ``out``: ``index.html``, a page per domain, ``records.json``, ``fits.json`` and the
+    figures (``figures/*.svg``); pages and figures of an earlier rendering are removed. Returns the files written,
+    the index first (``summaries`` and ``claims``: see :func:`build_page`)."""
     out = Path(out)
     page = build_page(board, summaries=summaries, claims=claims)
     (out / FIGURES).mkdir(parents=True, exist_ok=True)
-    for old in (out / FIGURES).glob("*.svg"):
+    for old in [*(out / FIGURES).glob("*.svg"), *out.glob("*.html")]:
         old.unlink()
     index, data, fits = out / "index.html", out / "records.json", out / "fits.json"
     index.write_text(render(page, title), encoding="utf-8")
+    written = [index]
+    for p in page["pages"]:
+        written.append(out / p["file"])
+        written[-1].write_text(render(page, title, p["domain"]), encoding="utf-8")
     data.write_text(json.dumps(page["records"], indent=1, sort_keys=True, default=str) + "\n", encoding="utf-8")
     fits.write_text(json.dumps(page["fits"], sort_keys=True, default=str) + "\n", encoding="utf-8")
-    written = [index, data, fits]
+    written += [data, fits]
     for name, svg in page["figures"].items():
         written.append(out / name)
         written[-1].write_text(svg, encoding="utf-8")
