@@ -46,8 +46,8 @@ def vec_env(env_fn: Callable[[], gym.Env], n_envs: int, seed: int = 0) -> VecEnv
 def make_ppo(env_fn: Callable[[], gym.Env], net_arch: Sequence[int], seed: int = 0, n_envs: int = 8,
              **kwargs: Any) -> PPO:
     """SB3 PPO on ``n_envs`` copies of an env (:func:`vec_env`), its update run in numpy
-    (:class:`~grail_bench.core.ppo_update.NumpyPPO`, discrete and continuous actions alike: the same rule,
-    several times faster) wherever it can be mirrored, by SB3 otherwise. ``kwargs`` go to ``PPO`` (e.g.
+    (:class:`~grail_bench.core.ppo_update.NumpyPPO`, discrete and continuous actions alike: the same rule at a
+    fraction of torch's overhead) wherever it can be mirrored, by SB3 otherwise. ``kwargs`` go to ``PPO`` (e.g.
     ``learning_rate``)."""
     venv = vec_env(env_fn, n_envs, seed)
     return NumpyPPO("MlpPolicy", venv, policy_kwargs={"net_arch": list(net_arch)}, n_steps=128, batch_size=64,
