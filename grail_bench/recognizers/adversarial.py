@@ -22,6 +22,7 @@ from typing import Any, Callable, Literal, Sequence
 
 import numpy as np
 import torch
+from gymnasium import spaces
 from imitation.algorithms.adversarial.airl import AIRL
 from imitation.algorithms.adversarial.gail import GAIL
 from imitation.data.types import Trajectory
@@ -107,8 +108,8 @@ class AdversarialConfig:
         demo_batch_size: Paper: 16.
         update: How PPO's update runs: ``"numpy"`` (the same update written out in numpy,
             :mod:`grail_bench.core.ppo_update`; ~4x faster on these networks, equal to SB3's to
-            float32 rounding) or ``"torch"`` (SB3's own ``train()``). The numpy update mirrors discrete
-            actions only: on continuous ones (PandaReach, PointMaze) both values run SB3's ``train()``.
+            float32 rounding) or ``"torch"`` (SB3's own ``train()``), on discrete and continuous actions
+            alike (continuous ones were left to SB3's ``train()`` before; their generators are keyed apart).
         off_support: What a goal's generator outputs at states off its goal's support when scored:
             ``"trust"`` (its own output: the paper's method), ``"stay"`` (the domain's no-op) or ``"uniform"``
             (no preference); see :class:`~grail_bench.recognizers.evidence.Evidence`. Scoring only: the trained
@@ -187,10 +188,18 @@ class AdversarialRecognizer(PolicyRecognizer):
         # Monitored, so the generator's returns under the environment's own reward can be read (a curve).
         venv = vec_env(lambda: env_factory(goal), n_envs, seed)
         optimizer = {**_GENERATOR_ADAM, **(_ADAM if cfg.update == "torch" else {})}  # numpy's update skips it
+        numpy = {"gaussian": True} if cfg.update == "numpy" else {}  # continuous actions too
         return UPDATES[cfg.update](
             "MlpPolicy", venv, batch_size=cfg.batch_size, gamma=cfg.gamma, learning_rate=cfg.learning_rate,
             n_steps=cfg.n_steps, n_epochs=cfg.n_epochs, seed=seed, verbose=0, device="cpu",
-            policy_kwargs={"optimizer_kwargs": optimizer}, rollout_buffer_class=_RewardedRolloutBuffer)
+            policy_kwargs={"optimizer_kwargs": optimizer}, rollout_buffer_class=_RewardedRolloutBuffer, **numpy)
+
+    def model_key(self, goal: Goal) -> dict[str, Any]:
+        """The numpy update runs continuous actions too (it once left them to SB3's), which keys those generators
+        apart from ones SB3's update trained; discrete ones keep their keys."""
+        if self.config.update == "numpy" and isinstance(self.action_space, spaces.Box):
+            return {"update": "numpy"}
+        return {}
 
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
         return empty_policy("ppo", *spaces_of(env_factory, goal))

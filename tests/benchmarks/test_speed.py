@@ -301,6 +301,23 @@ def test_adversarial_fit_one_goal_minigrid(benchmark, name):
     benchmark.extra_info["generator_steps_per_second"] = rec.config.total_timesteps / benchmark.stats.stats.median
 
 
+@pytest.mark.parametrize("update", ["numpy", "torch"])
+def test_gail_fit_one_goal_point_maze_by_update(benchmark, update):
+    """GAIL's default budget (20 000 generator steps) on PointMaze's continuous actions: the generator's update in
+    numpy, as it trains, against SB3's torch update."""
+    task = grail_bench.make_task("GRAIL/PointMaze-Optimal-v0")
+    train, _ = task.split(task.generate_demos(seed=0))
+    rec, goal = make_recognizer("gail", update=update), task.goals[0]
+    rec.learn_evidence(train, task.env_factory())
+
+    def fit():
+        with single_thread():  # as PolicyRecognizer.fit trains
+            rec.train_policy(goal, train[goal], task.make_env, 0)
+
+    benchmark.group = "GAIL fit of one goal (PointMaze)"
+    benchmark.pedantic(fit, rounds=1, iterations=1)
+
+
 @pytest.mark.parametrize("kind", ["vectorised", "copies"])
 def test_minigrid_8_envs_step(benchmark, kind):
     """One step of 8 copies of a goal's room, as PPO collects rollouts: the numpy-vectorised env against SB3's
