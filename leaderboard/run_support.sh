@@ -27,6 +27,11 @@ PANDA="--only panda-trust --only panda-stay --only panda-uniform --only panda-au
   for t in Optimal Biased Noisy-0.1 Noisy-0.3; do  # DRACO under its own scorer, from the same models
     $GB run -t GRAIL/PointMaze-$t-v0 -r draco --scorer wasserstein --seeds 2 --workers 2 --no-progress --store $S
   done
+  # DRACO to 10 seeds, from a worktree at commit fd16f77 (its PPO update in numpy on continuous actions)
+  $RUN $MAZE -r draco --out /tmp/support-maze-draco
+  for t in Optimal Biased Noisy-0.1 Noisy-0.3; do
+    $GB run -t GRAIL/PointMaze-$t-v0 -r draco --scorer wasserstein --seeds 10 --workers 2 --no-progress --store $S
+  done
   $RUN $PANDA -r bc --seeds 2 --out /tmp/support-panda
   # BC at its paper scale under the variants, from worktrees at commits 9c9b5bf, ecbbad2 and 77636ff: stopped
   # after 3-4 seeds per task
