@@ -237,7 +237,7 @@ def test_a_superseded_default_is_archived_and_a_variant_named():
 
 def every_page(page: dict) -> dict[str, str]:
     """The index's HTML and each domain page's, by file name."""
-    return {"index.html": render(page), **{p["file"]: render(page, domain=p["domain"]) for p in page["pages"]}}
+    return {"index.html": render(page), **{p.file: render(page, domain=p.domain) for p in page["pages"]}}
 
 
 def test_same_rows_same_page():
@@ -248,8 +248,8 @@ def test_same_rows_same_page():
 
 def test_each_domain_page_holds_its_own_boards_and_the_index_links_them(page):
     for p in page["pages"]:
-        assert {s.domain for s in p["sections"] + p["variants"]} == {p["domain"]}
-    assert sum(len(p["sections"]) for p in page["pages"]) == len(page["sections"])
+        assert {s.domain for s in p.sections + p.variants} == {p.domain}
+    assert sum(len(p.sections) for p in page["pages"]) == len(page["sections"])
     index = render(page)
     assert "section class=\"board\"" not in index and 'href="minigrid.html#s0"' in index
     minigrid = render(page, domain="minigrid")
@@ -293,8 +293,9 @@ def test_details_embed_thinned_curves_and_rounded_values():
     from grail_bench.report.html import CURVE_POINTS
 
     page = page_of(rows(seeds=2), fits=fit_rows([1 / (i + 3) for i in range(20_000)]))
-    (key,) = page["shown_fits"]
-    loss = page["shown_fits"][key]["curves"]["0"]["loss"]
+    (shown,) = [p.fits for p in page["pages"] if p.fits]
+    (key,) = shown
+    loss = shown[key]["curves"]["0"]["loss"]
     assert len(loss) == CURVE_POINTS and loss[0] == 0.333 and loss[-1] == pytest.approx(1 / 20_002, rel=1e-3)
     assert len(page["fits"][key]["curves"]["0"]["loss"]) == 20_000  # fits.json keeps every point
     assert all(len(html.encode()) < 200_000 for html in every_page(page).values())
@@ -323,6 +324,14 @@ def test_cli_writes_the_page(tmp_path):
     assert (out / "index.html").stat().st_size > 0 and list((out / "figures").glob("s*.svg"))
     assert sorted(p.name for p in out.glob("*.html")) == ["index.html", "minigrid.html", "panda_reach.html"]
     assert len(json.loads((out / "records.json").read_text())) == n_records(rows(seeds=2))
+    # Written again without PandaReach's rows: its stale page goes, a page the site did not write stays.
+    (out / "notes.html").write_text("<p>my own page</p>")
+    with ResultsStore(tmp_path / "minigrid.sqlite") as store:
+        store.add([r for r in rows(seeds=2) if "Panda" not in r.task])
+    result = CliRunner().invoke(app, ["leaderboard", "--store", str(tmp_path / "minigrid.sqlite"), "--no-ceiling",
+                                      "--html", str(out)])
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in out.glob("*.html")) == ["index.html", "minigrid.html", "notes.html"]
     assert "BC-GRAIL" in (out / "index.html").read_text()
     missing = CliRunner().invoke(app, ["leaderboard", "--store", str(tmp_path / "none.sqlite"), "--html", str(out)])
     assert missing.exit_code != 0 and "no results store" in missing.output

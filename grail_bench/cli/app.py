@@ -214,7 +214,7 @@ def leaderboard_(
     plot: Optional[Path] = typer.Option(
         None, "--plot", help="With --ablation or --online: also write a PNG plot here."),
     html: Optional[Path] = typer.Option(
-        None, "--html", help="Also write the leaderboard as a static web page into this folder (index.html)."),
+        None, "--html", help="Also write the leaderboard as a static web site into this folder (index.html and a page per domain)."),
     profiles: Optional[Path] = typer.Option(
         None, "--profiles", help="Also write performance profiles, optimality gaps and calibration (PROFILES.md, "
         "performance_profiles.png, CALIBRATION.md, reliability.png) into this folder."),

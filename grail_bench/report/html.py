@@ -62,6 +62,9 @@ CURVE_POINTS = 40
 #: Significant digits of the diagnostics embedded for a cell's details.
 DIGITS = 3
 
+#: The tag every page carries in its head, by which a later rendering knows the pages it may replace.
+GENERATOR = '<meta name="generator" content="grail-bench">'
+
 #: Where figures are written, beside the page.
 FIGURES = "figures"
 
@@ -119,6 +122,23 @@ class Section:
     protocols: bool = False  # a protocol column (variant boards span several)
     rows: list[dict[str, Any]] = field(default_factory=list)
     figure: str | None = None
+
+
+@dataclass
+class DomainPage:
+    """One domain's page: its main boards and variants, what its main-board cells' details need (``details``:
+    their records' :data:`DETAILS`; ``fits``: their configurations' diagnostics, thinned), the filters' choices and
+    its cells' counts against the paper (``comparison``)."""
+
+    domain: str
+    file: str
+    sections: list[Section]
+    variants: list[Section]
+    details: list[dict[str, Any]]
+    fits: dict[str, dict[str, Any]]
+    regimes: list[str]
+    recognizers: list[str]
+    comparison: list[str]
 
 
 def _runs(rows: Sequence[Any]) -> tuple[list[dict[str, Any]], dict[str, int]]:
@@ -321,8 +341,7 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0, summaries: S
             "calibration_figure": figures.add("reliability",
                                               (lambda: plots.reliability(calibration)) if calibration else None),
             "figures": figures.files,
-            "fits": {"|".join(key): s.to_dict() for key, s in sorted(board.fits.items())},
-            "shown_fits": {key: fit for page in pages for key, fit in page["shown_fits"].items()}}
+            "fits": {"|".join(key): s.to_dict() for key, s in sorted(board.fits.items())}}
 
 
 def _page_file(domain: str, taken: set[str]) -> str:
@@ -339,17 +358,16 @@ def _page_file(domain: str, taken: set[str]) -> str:
 
 def _domain_page(domain: str, file: str, sections: Sequence[Section], variants: Sequence[Section],
                  exported: Sequence[dict[str, Any]], fits: dict[tuple, FitSummary],
-                 comparison: list[str]) -> dict[str, Any]:
-    """One domain's page: its main boards and variants, what its main-board cells' details need, and its cells'
-    counts against the paper (``comparison``)."""
+                 comparison: list[str]) -> DomainPage:
+    """One domain's :class:`DomainPage`."""
     own, own_variants = [s for s in sections if s.domain == domain], [s for s in variants if s.domain == domain]
     main = sorted({c.record for s in own for row in s.rows for c in row["cells"] if c is not None})
     shown = {(exported[i]["task"], exported[i]["recognizer"], exported[i]["config_hash"]) for i in main}
-    return {"domain": domain, "file": file, "sections": own, "variants": own_variants,
-            "details": [{k: exported[i][k] for k in DETAILS} for i in main],
-            "shown_fits": {"|".join(key): _thin_fit(fit) for key, fit in sorted(fits.items()) if key in shown},
-            "regimes": sorted({s.regime for s in own if s.regime}), "comparison": comparison,
-            "recognizers": sorted({c.recognizer for s in own + own_variants for c in s.columns})}
+    return DomainPage(domain, file, own, own_variants, details=[{k: exported[i][k] for k in DETAILS} for i in main],
+                      fits={"|".join(key): _thin_fit(fit) for key, fit in sorted(fits.items()) if key in shown},
+                      regimes=sorted({s.regime for s in own if s.regime}),
+                      recognizers=sorted({c.recognizer for s in own + own_variants for c in s.columns}),
+                      comparison=comparison)
 
 
 def json_for_script(data: Any) -> str:
@@ -371,29 +389,31 @@ def render(page: dict[str, Any], title: str = "grail-bench leaderboard", domain:
     if domain is None:
         html = env.get_template("index.html").render(**context)
     else:
-        here = next(p for p in page["pages"] if p["domain"] == domain)
+        here = next(p for p in page["pages"] if p.domain == domain)
         html = env.get_template("domain.html").render(**context, here=here,
-                                                      records_json=json_for_script(here["details"]),
-                                                      fits_json=json_for_script(here["shown_fits"]))
+                                                      records_json=json_for_script(here.details),
+                                                      fits_json=json_for_script(here.fits))
     return re.sub(r"\n[ \t]+", "\n", html)  # the templates' indentation: a tenth of a page, shown nowhere
 
 
 def write_site(board: Leaderboard, out: str | Path, title: str = "grail-bench leaderboard",
                summaries: Sequence[DomainSummary] | None = None, claims: Sequence[Any] | None = None) -> list[Path]:
     """Render the site into ``out``: ``index.html``, a page per domain, ``records.json``, ``fits.json`` and the
-    figures (``figures/*.svg``); pages and figures of an earlier rendering are removed. Returns the files written,
-    the index first (``summaries`` and ``claims``: see :func:`build_page`)."""
+    figures (``figures/*.svg``); the pages and figures an earlier rendering wrote are removed (any other file in
+    ``out`` is left alone). Returns the files written, the index first (``summaries`` and ``claims``: see
+    :func:`build_page`)."""
     out = Path(out)
     page = build_page(board, summaries=summaries, claims=claims)
     (out / FIGURES).mkdir(parents=True, exist_ok=True)
-    for old in [*(out / FIGURES).glob("*.svg"), *out.glob("*.html")]:
+    ours = [p for p in out.glob("*.html") if GENERATOR in p.read_text(encoding="utf-8", errors="replace")[:2000]]
+    for old in [*(out / FIGURES).glob("*.svg"), *ours]:
         old.unlink()
     index, data, fits = out / "index.html", out / "records.json", out / "fits.json"
     index.write_text(render(page, title), encoding="utf-8")
     written = [index]
     for p in page["pages"]:
-        written.append(out / p["file"])
-        written[-1].write_text(render(page, title, p["domain"]), encoding="utf-8")
+        written.append(out / p.file)
+        written[-1].write_text(render(page, title, p.domain), encoding="utf-8")
     data.write_text(json.dumps(page["records"], indent=1, sort_keys=True, default=str) + "\n", encoding="utf-8")
     fits.write_text(json.dumps(page["fits"], sort_keys=True, default=str) + "\n", encoding="utf-8")
     written += [data, fits]
