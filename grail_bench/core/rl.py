@@ -1,9 +1,8 @@
-"""Reinforcement learning on a goal env's true reward (domain experts, DRACO)."""
+"""Reinforcement learning on a goal env's true reward (DRACO, GC-DRACO, and training domain experts)."""
 
 from __future__ import annotations
 
 import sys
-from importlib.metadata import version
 from typing import Any, Callable, Sequence
 
 import gymnasium as gym
@@ -16,9 +15,7 @@ from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
 from stable_baselines3.sac.policies import SACPolicy
 
-from grail_bench.core.cache import cached_state_dict
 from grail_bench.core.ppo_update import NumpyPPO
-from grail_bench.core.torchutil import single_thread
 
 SAC_DEFAULTS = {"learning_starts": 500, "batch_size": 128}
 
@@ -101,24 +98,3 @@ def learn(model: BaseAlgorithm, steps: int) -> tuple[dict[str, Any], list[float]
     model.learn(steps, progress_bar=sys.stderr.isatty(), callback=curve)
     return model.policy.state_dict(), curve.values
 
-
-def sac_expert(kind: str, env: gym.Env, key: dict[str, Any], steps: int, seed: int,
-               net_arch: Sequence[int]) -> Callable[[np.ndarray], np.ndarray]:
-    """A SAC expert on ``env``'s reward, trained once per ``key`` and cached; its deterministic policy.
-
-    Args:
-        kind: Cache folder (e.g. ``"panda-sac-expert"``).
-        env: The goal's env (not closed here).
-        key: Everything the expert depends on besides ``steps``, ``seed`` and ``net_arch``.
-        steps: SAC training steps.
-        seed: Training seed.
-        net_arch: Hidden layers.
-    """
-    full_key = {**key, "seed": seed, "steps": steps, "net": list(net_arch),
-                "versions": [version("stable-baselines3"), version("torch")]}
-    with single_thread():
-        state, _ = cached_state_dict(kind, full_key, lambda: learn(make_sac(env, net_arch, seed), steps)[0])
-        policy = empty_policy("sac", env.observation_space, env.action_space, net_arch)
-    policy.load_state_dict(state)
-    policy.set_training_mode(False)
-    return lambda obs: policy.predict(obs, deterministic=True)[0]

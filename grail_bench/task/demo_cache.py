@@ -37,8 +37,8 @@ KIND = "demos"
 #: ``packages``).
 _PACKAGES = ("numpy", "torch", "stable-baselines3", "gymnasium", "panda-gym", "pybullet", "mujoco",
              "gymnasium-robotics")
-#: Core modules every demonstrator runs through (rollouts, seeded streams, RL experts).
-_CORE = ("grail_bench.core.trajectory", "grail_bench.core.seeding", "grail_bench.core.rl")
+#: Core modules every demonstrator runs through (rollouts, seeded streams, RL experts' actors).
+_CORE = ("grail_bench.core.trajectory", "grail_bench.core.seeding", "grail_bench.core.experts")
 
 
 @lru_cache(maxsize=None)

@@ -221,10 +221,28 @@ def test_panda_sac_expert_training_one_goal(benchmark):
     env = GRPandaReachEnv()
 
     def train():
-        with single_thread():  # as grail_bench.rl.sac_expert trains
+        with single_thread():  # as grail_bench.core.experts.sac_expert trains
             learn(make_sac(env, SAC_NET, seed=0), 15_000)
 
     benchmark.pedantic(train, rounds=1, iterations=1)
+
+
+@pytest.mark.parametrize("path", ["actor", "predict"])
+def test_sac_expert_action_by_path(benchmark, path):
+    """One action of a PandaReach SAC expert (the demonstrators' per-step cost beside pybullet's step): the
+    suite's deterministic actor against SB3's ``predict``, which it equals bit for bit (tests/test_experts.py)."""
+    from grail_bench.core.experts import deterministic_actor
+    from grail_bench.core.rl import empty_policy
+    from grail_bench.domains.panda_reach.demos import SAC_NET
+    from grail_bench.domains.panda_reach.env import GRPandaReachEnv
+
+    env = GRPandaReachEnv()
+    policy = empty_policy("sac", env.observation_space, env.action_space, SAC_NET)
+    policy.set_training_mode(False)
+    act = deterministic_actor(policy) if path == "actor" else lambda o: policy.predict(o, deterministic=True)[0]
+    obs = env.reset(seed=0)[0]
+    benchmark.group = "SAC expert action, by path"
+    assert benchmark(act, obs).shape == (3,)
 
 
 @pytest.mark.parametrize("algorithm", ["ppo", "sac"])

@@ -42,12 +42,12 @@ def sac_expert(task: GRTask, goal: Goal, seed: int) -> Policy:
     """The goal's SAC expert, trained once per goal, expert seed, env and budget, then read from the cache."""
     from importlib.metadata import version
 
-    from grail_bench.core import rl
+    from grail_bench.core import experts
 
     env = task.make_env(goal)
     try:
         key = {"goal": list(goal), "env": dict(task.env_params), "panda-gym": version("panda-gym")}
-        return rl.sac_expert("panda-sac-expert", env, key, int(task.params["expert_steps"]),
+        return experts.sac_expert("panda-sac-expert", env, key, int(task.params["expert_steps"]),
                              goal_seed(seed, goal, EXPERT), SAC_NET)
     finally:
         env.close()

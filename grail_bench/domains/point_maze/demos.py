@@ -71,12 +71,12 @@ def sac_controller(task: GRTask, goal: Goal) -> Controller:
     """The goal's SAC expert, trained once per goal, expert seed, env and budget, then read from the cache."""
     from importlib.metadata import version
 
-    from grail_bench.core import rl
+    from grail_bench.core import experts
 
     env = task.make_env(goal)
     try:
         key = {"goal": list(goal), "env": dict(task.env_params), "gymnasium-robotics": version("gymnasium-robotics")}
-        return rl.sac_expert("point-maze-sac-expert", env, key, int(task.params["expert_steps"]),
+        return experts.sac_expert("point-maze-sac-expert", env, key, int(task.params["expert_steps"]),
                              goal_seed(int(task.params["expert_seed"]), goal, EXPERT), SAC_NET)
     finally:
         env.close()
