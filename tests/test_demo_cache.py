@@ -86,6 +86,25 @@ def test_a_domains_own_packages_key_its_entries(cache, monkeypatch):
     assert len(list(cache.glob("*.npz"))) == 3 * len(task.goals)
 
 
+@pytest.mark.parametrize("edited, changes", [("grail_bench.domains.panda_reach.demos", True),
+                                              ("grail_bench.core.experts", True), ("grail_bench.core.rl", False)])
+def test_the_key_follows_the_demonstrators_code_not_the_recognizers_training(monkeypatch, edited, changes):
+    """Editing a domain's demonstrator or the experts' actor regenerates its demonstrations; editing how DRACO
+    trains (grail_bench.core.rl) does not."""
+    from importlib.util import find_spec
+    from pathlib import Path
+
+    def digest() -> str:
+        demo_cache.source_digest.cache_clear()
+        return demo_cache.source_digest("grail_bench.domains.panda_reach")
+
+    before, path, read = digest(), Path(find_spec(edited).origin), Path.read_bytes
+    monkeypatch.setattr(Path, "read_bytes", lambda self: read(self) + (b"\n# edited" if self == path else b""))
+    assert (digest() != before) is changes
+    monkeypatch.undo()
+    demo_cache.source_digest.cache_clear()
+
+
 def test_a_corrupt_entry_is_regenerated(cache):
     task = grail_bench.make_task("GRAIL/PandaReach-Optimal-v0", **PANDA)
     expected = task.generate_demos(seed=0)
