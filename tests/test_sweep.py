@@ -87,6 +87,27 @@ def test_a_seed_starts_with_one_unit_of_each_group_that_shares_models(tmp_path):
         ("Aligned-Optimal-v0", "ppo"), ("Aligned-Optimal-v0", "sac")]]           # then its models are reused
 
 
+def test_two_workers_start_on_different_demonstrations(tmp_path):
+    """With two workers, units take turns between two tasks' demonstrations (PandaReach caches them: a worker
+    asking for the ones another is generating waits), keeping the model groups' order: each goal set and
+    algorithm still trains first."""
+    specs = (RecognizerSpec("draco", {"ppo_steps": 64}), RecognizerSpec("draco", {"algorithm": "sac", "sac_steps": 64}))
+    tasks = ("GRAIL/PandaReach-Aligned-Optimal-v0", "GRAIL/PandaReach-Gaussian-0.1-v0",
+             "GRAIL/PandaReach-Aligned-Gaussian-0.1-v0", "GRAIL/PandaReach-Gaussian-0.3-v0")
+    requests = [Request(t, specs, (0,), ObservationSpec("subset", "ceil", (0.02,))) for t in tasks]
+    store = ResultsStore(tmp_path / "s.sqlite")
+    units, _ = plan_sweep(requests, store, workers=2)
+    order = [(u.task.id.removeprefix("GRAIL/PandaReach-"), json.loads(u.planned.config)["config"]["algorithm"])
+             for u in units]
+    assert order == [("Aligned-Gaussian-0.1-v0", "ppo"), ("Gaussian-0.1-v0", "ppo"),  # firsts of each group,
+                     ("Aligned-Gaussian-0.1-v0", "sac"), ("Gaussian-0.1-v0", "sac"),  # two tasks in turn
+                     ("Aligned-Optimal-v0", "ppo"), ("Gaussian-0.3-v0", "ppo"),
+                     ("Aligned-Optimal-v0", "sac"), ("Gaussian-0.3-v0", "sac")]
+    one_worker = plan_sweep(requests, store)[0]
+    assert sorted((u.describe(), u.planned.config) for u in units) == \
+        sorted((u.describe(), u.planned.config) for u in one_worker), "the same units, in another order"
+
+
 def test_a_lost_worker_loses_only_its_units_and_the_rerun_completes(tmp_path):
     site = install_plugin(tmp_path / "site")
     marker = tmp_path / "crashed"

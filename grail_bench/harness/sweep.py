@@ -19,6 +19,7 @@ import json
 import time
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
+from itertools import groupby, zip_longest
 from typing import Any, Sequence
 
 from grail_bench.core.provenance import package_versions, stamp
@@ -204,11 +205,16 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
     return planned, units, skipped
 
 
-def order_units(units: Sequence[Unit]) -> list[Unit]:
+def order_units(units: Sequence[Unit], workers: int = 1) -> list[Unit]:
     """Seed by seed, each task's recognizers together (a worker reuses the demonstrations it generated), but
     within a seed first one unit of each group that may share models: the same recognizer configuration,
     env and goals (e.g. DRACO or GRAQL on every regime of a goal set). Workers then start by training different
-    models instead of waiting for each other's, and the rest of each group reuses them."""
+    models instead of waiting for each other's, and the rest of each group reuses them.
+
+    With several workers, consecutive units also take turns among ``workers`` sets of demonstrations at a time
+    (one unit of each, then the next of each), so workers that start together generate different ones: where a
+    domain caches its demonstrations, a second worker asking for the same ones waits for the first.
+    """
     ordered = sorted(units, key=lambda u: (u.seed, u.task.id, u.planned.name, u.mode))
     seen: set[tuple] = set()
     later = []
@@ -217,11 +223,31 @@ def order_units(units: Sequence[Unit]) -> list[Unit]:
                  u.task.env_key, tuple(sorted(u.task.goals)))
         later.append(group in seen)
         seen.add(group)
-    return [u for _, u in sorted(zip(later, ordered), key=lambda pair: (pair[1].seed, pair[0]))]  # stable
+    blocks = groupby(sorted(zip(later, ordered), key=lambda pair: (pair[1].seed, pair[0])),  # stable
+                     key=lambda pair: (pair[1].seed, pair[0]))
+    return [u for _, block in blocks for u in _take_turns([u for _, u in block], workers)]
 
 
-def plan_sweep(requests: Sequence[Request], store: ResultsStore) -> tuple[list[Unit], SweepSummary]:
-    """Plan every request (all are checked before any unit runs): the units to run, in order, and the counts."""
+def _demos_group(task: GRTask) -> tuple:
+    """What a task's demonstrations depend on besides the seed and goals: tasks alike in it (a regime's goal
+    sets) share their common goals' demonstrations."""
+    return (task.domain, task.regime, json.dumps(dict(task.params), sort_keys=True, default=str), task.env_key,
+            task.n_demos, task.demos)
+
+
+def _take_turns(units: Sequence[Unit], workers: int) -> list[Unit]:
+    """``units`` grouped by demonstrations, ``workers`` groups at a time in turn (order within a group kept)."""
+    groups: dict[tuple, list[Unit]] = {}
+    for u in units:
+        groups.setdefault(_demos_group(u.task), []).append(u)
+    lists = list(groups.values())
+    return [u for i in range(0, len(lists), max(1, workers)) for turn in zip_longest(*lists[i:i + workers])
+            for u in turn if u is not None]
+
+
+def plan_sweep(requests: Sequence[Request], store: ResultsStore, workers: int = 1) -> tuple[list[Unit], SweepSummary]:
+    """Plan every request (all are checked before any unit runs): the units to run, in order for ``workers``
+    (:func:`order_units`), and the counts."""
     summary = SweepSummary()
     units: list[Unit] = []
     for request in requests:
@@ -231,7 +257,7 @@ def plan_sweep(requests: Sequence[Request], store: ResultsStore) -> tuple[list[U
         summary.skipped += skipped
     summary.units = len(units) + summary.skipped
     summary.naive = sum(u.goals for u in units)
-    return order_units(units), summary
+    return order_units(units, workers), summary
 
 
 def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Executor | None = None,
@@ -258,7 +284,7 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
     )
 
     executor = executor or SerialExecutor()
-    units, summary = plan_sweep(requests, store)
+    units, summary = plan_sweep(requests, store, executor.workers)
     origin = stamp()
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                TextColumn("eta"), TimeRemainingColumn())
