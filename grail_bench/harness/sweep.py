@@ -223,9 +223,11 @@ def order_units(units: Sequence[Unit], workers: int = 1) -> list[Unit]:
                  u.task.env_key, tuple(sorted(u.task.goals)))
         later.append(group in seen)
         seen.add(group)
-    blocks = groupby(sorted(zip(later, ordered), key=lambda pair: (pair[1].seed, pair[0])),  # stable
-                     key=lambda pair: (pair[1].seed, pair[0]))
-    return [u for _, block in blocks for u in _take_turns([u for _, u in block], workers)]
+    def block(pair: tuple[bool, Unit]) -> tuple[int, bool]:
+        return pair[1].seed, pair[0]
+
+    blocks = groupby(sorted(zip(later, ordered), key=block), key=block)  # a stable sort
+    return [u for _, pairs in blocks for u in _take_turns([u for _, u in pairs], workers)]
 
 
 def _demos_group(task: GRTask) -> tuple:
