@@ -217,7 +217,8 @@ def test_zero_shot_rows_carry_the_three_times_gr_libs_reports(goal_spy):
     (record,) = [r for r in MODES["zero-shot"].aggregate(rows) if r.observability == 1.0]
     assert record.adapt_seconds_per_goal == pytest.approx(rows[1].adapt_seconds_per_goal)
     shown = {c.header: c.text(record) for c in MODES["zero-shot"].columns}  # what every report of the mode shows
-    assert float(shown["adapt s/new goal"]) == pytest.approx(record.adapt_seconds_per_goal, rel=0.01)
+    # shown to two significant digits: within 5 % of the record whatever the timing
+    assert float(shown["adapt s/new goal"]) == pytest.approx(record.adapt_seconds_per_goal, rel=0.05)
     assert float(shown["µs / observation"]) > 0 and "fit s/goal" in shown
 
 
