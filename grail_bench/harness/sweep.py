@@ -242,9 +242,9 @@ def _take_turns(units: Sequence[Unit], workers: int) -> list[Unit]:
     groups: dict[tuple, list[Unit]] = {}
     for u in units:
         groups.setdefault(_demos_group(u.task), []).append(u)
-    lists = list(groups.values())
-    return [u for i in range(0, len(lists), max(1, workers)) for turn in zip_longest(*lists[i:i + workers])
-            for u in turn if u is not None]
+    lists, step = list(groups.values()), max(1, workers)
+    return [u for i in range(0, len(lists), step) for turn in zip_longest(*lists[i:i + step]) for u in turn
+            if u is not None]
 
 
 def plan_sweep(requests: Sequence[Request], store: ResultsStore, workers: int = 1) -> tuple[list[Unit], SweepSummary]:
