@@ -15,9 +15,11 @@ import grail_bench  # noqa: E402
 from grail_bench.core.errors import UserError  # noqa: E402
 from grail_bench.core.trajectory import rollout  # noqa: E402
 from grail_bench.domains.parking.demos import expert  # noqa: E402
-from grail_bench.domains.parking.env import SCALES  # noqa: E402
+from grail_bench.domains.parking.env import SCALES, GRParkingEnv, features  # noqa: E402
 from grail_bench.domains.parking.path import spot_pose  # noqa: E402
 from grail_bench.harness.api import evaluate  # noqa: E402
+from highway_env import utils  # noqa: E402
+from highway_env.vehicle.kinematics import Vehicle  # noqa: E402
 
 IDS = ["GRAIL/Parking-Optimal-v0", "GRAIL/Parking-Noisy-0.1-v0", "GRAIL/Parking-Noisy-0.3-v0"]
 GR_LIBS_L5 = ((1,), (4,), (8,), (11,), (14,), (18,), (21,))
@@ -121,3 +123,51 @@ def test_bc_fits_and_scores_end_to_end():
     (record,) = evaluate(IDS[1], [("bc", {"n_epochs": 5})], seeds=1, observability=[0.5],
                          task_params={"n_demos": 4, "n_train": 3})
     assert record.n_seeds == 1 and record.accuracy_mean > 2 / 7  # 7 goals: chance is 1/7
+
+
+class _HighwayEnvsOwn(GRParkingEnv):
+    """The same env reset by highway-env's own ``reset`` and stepped with its own ``Vehicle`` (the reference)."""
+
+    def reset(self, *, seed=None, options=None):
+        gym.Env.reset(self, seed=seed)
+        self._env.reset(seed=seed)
+        self._env.vehicle.__class__ = Vehicle
+        self._steps = 0
+        self._target = features(self._env.goal)
+        return features(self._env.vehicle).astype(np.float32), {"is_success": False}
+
+
+def test_the_fast_car_steps_as_highway_envs_own_bit_for_bit(monkeypatch):
+    """Random driving (into the walls too) and the expert's paths give the same observations, rewards, ends and
+    crash impacts with ``ParkingCar``'s shortcuts and ``restart`` as with highway-env's vehicle and reset."""
+    calls = {"fast": 0}
+    full_test = utils.are_polygons_intersecting
+
+    def counted(*args):
+        calls["fast"] += stepping_fast
+        return full_test(*args)
+
+    monkeypatch.setattr(utils, "are_polygons_intersecting", counted)
+    rng = np.random.default_rng(0)
+    crashes, stepping_fast = 0, False
+    for episode in range(24):
+        spot = int(rng.integers(28))
+        fast, ref = GRParkingEnv((spot,), max_steps=80), _HighwayEnvsOwn((spot,), max_steps=80)
+        assert np.array_equal(fast.reset(seed=episode)[0], ref.reset(seed=episode)[0])
+        act = expert((spot,), 14, math.pi) if episode % 3 == 0 else None
+        obs, throttle = fast.reset(seed=episode)[0], rng.uniform(0.05, 1.0)
+        ref.reset(seed=episode)
+        for _ in range(80):
+            a = act(obs) if act else np.array([throttle, rng.uniform(-1, 1)], np.float32)
+            stepping_fast = True
+            out_fast = fast.step(a)
+            stepping_fast = False
+            out_ref = ref.step(a)
+            assert np.array_equal(out_fast[0], out_ref[0]) and out_fast[1:] == out_ref[1:]
+            assert fast._env.vehicle.crashed == ref._env.vehicle.crashed
+            obs = out_fast[0]
+            if out_fast[2] or out_fast[3]:
+                crashes += fast._env.vehicle.crashed
+                break
+    assert crashes >= 3  # the walls were hit, so the shortcut's fallback to the full test was exercised
+    assert calls["fast"] > 0
