@@ -380,3 +380,19 @@ def test_parking_env_step(benchmark, car):
     reset()
     benchmark.group = "parking env step"
     benchmark(step)
+
+
+def test_draco_fit_one_goal_parking(benchmark):
+    """DRACO's fit of one parking goal at its default budget (150 000 PPO steps, env steps per second stored as
+    extra info): where the parking lot's simulator used to make DRACO hours per seed."""
+    pytest.importorskip("highway_env")
+    task = grail_bench.make_task("GRAIL/Parking-Optimal-v0")
+    rec = make_recognizer("draco")
+
+    def fit():
+        with single_thread():  # as PolicyRecognizer.fit trains
+            rec.train_policy(task.goals[0], [], task.make_env, 0)
+
+    benchmark.pedantic(fit, rounds=1, iterations=1)
+    benchmark.extra_info["env_steps_per_second"] = rec.config.ppo_steps / benchmark.stats.stats.median
+
