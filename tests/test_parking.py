@@ -151,12 +151,14 @@ def test_the_fast_car_steps_as_highway_envs_own_bit_for_bit(monkeypatch):
     rng = np.random.default_rng(0)
     crashes, stepping_fast = 0, False
     for episode in range(24):
-        spot = int(rng.integers(28))
-        fast, ref = GRParkingEnv((spot,), max_steps=80), _HighwayEnvsOwn((spot,), max_steps=80)
-        assert np.array_equal(fast.reset(seed=episode)[0], ref.reset(seed=episode)[0])
+        if episode % 4 == 0:  # new envs, then three unseeded resets that continue their generators
+            spot = int(rng.integers(28))
+            fast, ref = GRParkingEnv((spot,), max_steps=80), _HighwayEnvsOwn((spot,), max_steps=80)
+        seed = episode if episode % 4 == 0 else None
+        obs, first = fast.reset(seed=seed)[0], ref.reset(seed=seed)[0]
+        assert np.array_equal(obs, first)
         act = expert((spot,), 14, math.pi) if episode % 3 == 0 else None
-        obs, throttle = fast.reset(seed=episode)[0], rng.uniform(0.05, 1.0)
-        ref.reset(seed=episode)
+        throttle = rng.uniform(0.05, 1.0)
         for _ in range(80):
             a = act(obs) if act else np.array([throttle, rng.uniform(-1, 1)], np.float32)
             stepping_fast = True
