@@ -27,7 +27,7 @@ directly, and its ``reset`` rebuilds the scene without those observations.
 The ego car (``ParkingCar``) skips two costs of highway-env's vehicle that
 this env never reads or that cannot change the outcome: the scan of every
 lane for the nearest one after each move, and the polygon collision test
-against an object it is visibly clear of. A step then takes about 0.3 ms, and
+against an object it is visibly clear of. A step then takes about 0.15 ms, and
 its results are highway-env's bit for bit (``tests/test_parking.py``).
 Nothing is rendered: pygame never opens a window.
 """
@@ -89,7 +89,7 @@ class ParkingCar(Vehicle):
         if self.road is not None and self.road.record_history:
             self.history.appendleft(self.create_from(self))
 
-    def _is_colliding(self, other: RoadObject, dt: float):
+    def _is_colliding(self, other: RoadObject, dt: float) -> tuple[bool, bool, np.ndarray | None]:
         if _clear_of(self, other, dt):
             return False, False, np.zeros(2)
         return super()._is_colliding(other, dt)
