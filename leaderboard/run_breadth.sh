@@ -8,9 +8,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 .venv/bin/grail-bench reproduce --profile breadth --store leaderboard/results.sqlite --out leaderboard/breadth \
     --workers 2 --no-progress --no-site
-# The RL baselines were added section by section from worktrees at commits 6300a0e, 836951d, c2f4270, cf23443,
-# aad8842 and fd16f77 (each command resumes from the store; the tables and figures were then written from it with
-# --no-run):
+# The RL baselines and the later sections were added section by section from worktrees at commits 6300a0e,
+# 836951d, c2f4270, cf23443, aad8842, fd16f77, 4dadf1c and 79f7f79 (each command resumes from the store; the
+# tables and figures were then written from it with --no-run):
 #   reproduce --profile breadth --only parking-rl-subset --only parking-rl-prefix            (seeds 4-9)
 #   reproduce --profile breadth --only crossing-rl-subset --only crossing-rl-prefix -r draco --seeds 3
 #   reproduce --profile breadth --only maze-rl-prefix --only maze-rl-subset -r gc-draco --seeds 3
@@ -19,6 +19,13 @@ cd "$(dirname "$0")/.."
 #   reproduce --profile breadth --only panda-grlibs-gc --seeds 3                             (aad8842)
 #   reproduce --profile breadth --only maze-rl-subset --only maze-rl-prefix -r draco         (fd16f77)
 #   reproduce --profile breadth --only maze-rl-subset --only maze-rl-prefix -r gc-draco      (fd16f77)
+#   reproduce --profile breadth --only levels-parking --seeds 10                              (4dadf1c)
+#   reproduce --profile breadth --only levels-maze --seeds 10                                 (79f7f79)
+#   reproduce --profile breadth --only levels-crossing-prefix --seeds 10                      (79f7f79)
+#   reproduce --profile breadth --only parking-rl-subset --only parking-rl-prefix -r draco --seeds N
+#                                                                    (79f7f79; N = 1, ..., 10: seed by seed)
+#   reproduce --profile breadth --only levels-maze-prefix --seeds N                (79f7f79; N = 3, 5, 10)
+#   reproduce --profile breadth --only panda-grlibs-gc-prefix                                 (79f7f79)
 #   reproduce --profile breadth --no-run --out leaderboard/breadth
 # (each with --store leaderboard/results.sqlite --workers 2 --no-progress --no-site; the running ones with
 # --out <a scratch folder>).

@@ -33,9 +33,8 @@ PANDA="--only panda-trust --only panda-stay --only panda-uniform --only panda-au
     $GB run -t GRAIL/PointMaze-$t-v0 -r draco --scorer wasserstein --seeds 10 --workers 2 --no-progress --store $S
   done
   $RUN $PANDA -r bc --seeds 2 --out /tmp/support-panda
-  # BC at its paper scale under the variants, from worktrees at commits 9c9b5bf, ecbbad2 and 77636ff: stopped
-  # after 3-4 seeds per task
-  # (about 25 min per seed of the 10 tasks on 2 busy cores; it resumes from the store).
+  # BC at its paper scale under the variants, 10 seeds, from worktrees at commits 9c9b5bf, ecbbad2 and 77636ff
+  # (seeds 0-3), 6c04e07 (4-8, one `--seeds N` at a time) and 4dadf1c (9); it resumes from the store.
   $RUN $PANDA -r bc --out leaderboard/support/panda-bc
   # Not run: DRACO under the variants at 10 seeds (its 10-seed PPO models are no longer cached: ~4 min per goal
   # and seed to retrain).
