@@ -15,11 +15,11 @@ import grail_bench  # noqa: E402
 from grail_bench.core.errors import UserError  # noqa: E402
 from grail_bench.core.trajectory import rollout  # noqa: E402
 from grail_bench.domains.parking.demos import expert  # noqa: E402
-from grail_bench.domains.parking.env import SCALES, GRParkingEnv, features  # noqa: E402
+from grail_bench.domains.parking.env import SCALES, GRParkingEnv  # noqa: E402
 from grail_bench.domains.parking.path import spot_pose  # noqa: E402
 from grail_bench.harness.api import evaluate  # noqa: E402
 from highway_env import utils  # noqa: E402
-from highway_env.vehicle.kinematics import Vehicle  # noqa: E402
+from parking_reference import HighwayEnvsOwn  # noqa: E402
 
 IDS = ["GRAIL/Parking-Optimal-v0", "GRAIL/Parking-Noisy-0.1-v0", "GRAIL/Parking-Noisy-0.3-v0"]
 GR_LIBS_L5 = ((1,), (4,), (8,), (11,), (14,), (18,), (21,))
@@ -125,18 +125,6 @@ def test_bc_fits_and_scores_end_to_end():
     assert record.n_seeds == 1 and record.accuracy_mean > 2 / 7  # 7 goals: chance is 1/7
 
 
-class _HighwayEnvsOwn(GRParkingEnv):
-    """The same env reset by highway-env's own ``reset`` and stepped with its own ``Vehicle`` (the reference)."""
-
-    def reset(self, *, seed=None, options=None):
-        gym.Env.reset(self, seed=seed)
-        self._env.reset(seed=seed)
-        self._env.vehicle.__class__ = Vehicle
-        self._steps = 0
-        self._target = features(self._env.goal)
-        return features(self._env.vehicle).astype(np.float32), {"is_success": False}
-
-
 def test_the_fast_car_steps_as_highway_envs_own_bit_for_bit(monkeypatch):
     """Random driving (into the walls too) and the expert's paths give the same observations, rewards, ends and
     crash impacts with ``ParkingCar``'s shortcuts and ``restart`` as with highway-env's vehicle and reset."""
@@ -153,7 +141,7 @@ def test_the_fast_car_steps_as_highway_envs_own_bit_for_bit(monkeypatch):
     for episode in range(24):
         if episode % 4 == 0:  # new envs, then three unseeded resets that continue their generators
             spot = int(rng.integers(28))
-            fast, ref = GRParkingEnv((spot,), max_steps=80), _HighwayEnvsOwn((spot,), max_steps=80)
+            fast, ref = GRParkingEnv((spot,), max_steps=80), HighwayEnvsOwn((spot,), max_steps=80)
         seed = episode if episode % 4 == 0 else None
         obs, first = fast.reset(seed=seed)[0], ref.reset(seed=seed)[0]
         assert np.array_equal(obs, first)

@@ -358,26 +358,20 @@ def test_parking_env_step(benchmark, car):
     """One parking step (3 highway-env frames) under random actions, reset every 100 steps as in training: the
     env's car and reset against highway-env's own ``Vehicle`` and ``reset`` (same results bit for bit)."""
     pytest.importorskip("highway_env")
-    from highway_env.vehicle.kinematics import Vehicle
+    from parking_reference import HighwayEnvsOwn
 
-    env = grail_bench.make_task("GRAIL/Parking-Optimal-v0").make_env((4,))
+    from grail_bench.domains.parking.env import GRParkingEnv
+
+    env = (GRParkingEnv if car == "ParkingCar" else HighwayEnvsOwn)((4,))
     actions = np.random.default_rng(0).uniform(-1, 1, size=(4096, 2)).astype(np.float32)
     state = {"i": 0}
-
-    def reset():
-        if car == "ParkingCar":
-            env.reset(seed=0)
-        else:
-            env.reset(seed=0)
-            env._env.reset(seed=0)
-            env._env.vehicle.__class__ = Vehicle
 
     def step():
         i = state["i"] = (state["i"] + 1) % len(actions)
         if i % 100 == 0 or any(env.step(actions[i])[2:4]):
-            reset()
+            env.reset(seed=0)
 
-    reset()
+    env.reset(seed=0)
     benchmark.group = "parking env step"
     benchmark(step)
 
