@@ -311,7 +311,7 @@ GOALS_UNITS = 5 * 3 * 5 + 5 * 2 * 5 + 3 * 10
 # (subset only) x 2, x 10 seeds, 10 PandaReach tasks x BC (subset) and 5 x (GC-DRACO and GC-GRAML, both) x 3 seeds;
 # symbolic: 8 tasks x 5 methods x 10 seeds missing and noisy, x 2 planners actions only, and the demonstrator on the
 # 5 optimal and biased tasks.
-BREADTH_UNITS = (2 * (5 * 6 + 8 * 4 + 3 * 4) * 10 + 2 * (20 * 3 + 32 * 3) * 10 + 12 * 2 * 10 + 10 * 3
+BREADTH_UNITS = (2 * (5 * 6 + 8 * 4 + 3 * 4) * 10 + 2 * (20 * 3 + 32 * 3) * 10 + 12 * 2 * 10 + 2 * 10 * 10
                  + 2 * 5 * 2 * 3 + 2 * 8 * 5 * 10 + 8 * 2 * 10 + 5 * 10)
 
 
