@@ -151,3 +151,41 @@ def test_a_bad_section_protocol_or_rounding_is_one_line(tmp_path, extra, message
     path.write_text(PROFILE + extra)
     result = CliRunner().invoke(app, ["reproduce", "--profile", str(path), "--out", str(tmp_path / "o")])
     assert result.exit_code == 2 and message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+NAMED = """seeds = 1
+[tasks]
+rooms = ["GRAIL/MiniGrid-Optimal-v0", "GRAIL/MiniGrid-Biased-v0"]
+[[section]]
+name = "subset"
+protocol = "subset"
+tasks = "rooms"
+recognizers = ["bc"]
+[[section]]
+name = "prefix"
+tasks = "rooms"
+recognizers = ["bc"]
+protocol = "prefix"
+"""
+
+
+def test_sections_share_a_named_task_list(tmp_path):
+    path = tmp_path / "p.toml"
+    path.write_text(NAMED)
+    requests = load_profile(str(path)).requests()
+    assert [(r.task_id, r.observation.protocol) for r in requests] == [
+        ("GRAIL/MiniGrid-Optimal-v0", "subset"), ("GRAIL/MiniGrid-Biased-v0", "subset"),
+        ("GRAIL/MiniGrid-Optimal-v0", "prefix"), ("GRAIL/MiniGrid-Biased-v0", "prefix")]
+
+
+@pytest.mark.parametrize("text, message", [
+    (NAMED.replace('tasks = "rooms"\nrecognizers = ["bc"]\nprotocol', 'tasks = "halls"\nrecognizers = ["bc"]\nprotocol'),
+     "section 'prefix' names the task list 'halls', which its [tasks] table lacks (it has rooms)"),
+    (NAMED.replace('rooms = [', 'rooms = 3 #'), "[tasks] must map a name to a list of task IDs"),
+])
+def test_a_missing_or_malformed_task_list_is_one_line(tmp_path, text, message):
+    path = tmp_path / "p.toml"
+    path.write_text(text)
+    result = CliRunner().invoke(app, ["reproduce", "--profile", str(path), "--out", str(tmp_path / "o")])
+    assert result.exit_code == 2 and message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o" / "results.sqlite").exists()

@@ -4,7 +4,8 @@ A profile (``grail_bench/report/profiles/*.toml``, or any TOML file of that shap
 lists sections (``minigrid``, ``panda``, ``online``, ``open-set``), each with
 tasks, recognizers, scorers, optional task parameters and a mode (``offline``,
 the paper's protocol, by default; ``online`` or ``open-set`` for the studies
-beyond it), plus the seeds and recognizer configs shared by all. A section
+beyond it), plus the seeds and recognizer configs shared by all, and task
+lists several sections share (a ``[tasks]`` table; ``tasks = "minigrid"``). A section
 with ``vary`` is a budget study: one recognizer hyperparameter (``vary =
 {param = "total_timesteps", values = [...]}``) or the training demonstrations
 per goal (``vary = {task_param = "n_train", values = [...], test = 3}``) takes
@@ -207,6 +208,8 @@ class Profile:
 def load_profile(name_or_path: str) -> Profile:
     """A shipped profile by name (``quick``, ``paper``) or a TOML file of the same shape.
 
+    A section lists its tasks, or names one of the lists of the profile's ``[tasks]`` table.
+
     Raises:
         UserError: For an unknown name, an unreadable file or a malformed profile.
     """
@@ -223,8 +226,9 @@ def load_profile(name_or_path: str) -> Profile:
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise UserError(f"cannot read profile {name_or_path}: {exc}") from None
     try:
+        task_lists = _task_lists(data.get("tasks", {}))
         sections = tuple(Section(
-            s["name"], tuple(s["tasks"]), tuple(s["recognizers"]), tuple(s.get("scorers", ())),
+            s["name"], _section_tasks(s, task_lists, f"profile {name_or_path}"), tuple(s["recognizers"]), tuple(s.get("scorers", ())),
             dict(s.get("params", {})), str(s.get("mode", "offline")),
             Vary.parse(s["vary"], f"profile {name_or_path}: section {s['name']!r}") if "vary" in s else None,
             parse_observability(s["observability"]) if "observability" in s else (),
@@ -233,6 +237,8 @@ def load_profile(name_or_path: str) -> Profile:
             str(s.get("channel", "pairs"))) for s in data["section"])
         seeds = int(data["seeds"])
         config = {k: dict(v) for k, v in data.get("config", {}).items()}
+    except UserError:
+        raise
     except (KeyError, TypeError, ValueError) as exc:
         raise UserError(f"profile {name_or_path}: malformed ({type(exc).__name__}: {exc})") from None
     if not sections:
@@ -260,6 +266,33 @@ def load_profile(name_or_path: str) -> Profile:
                 raise UserError(f"profile {name_or_path}: section {section.name!r} needs {field_name} as a list of "
                                 "names")
     return Profile(name, str(data.get("description", "")), seeds, sections, config)
+
+
+def _task_lists(table: Any) -> dict[str, tuple[str, ...]]:
+    """A profile's named task lists (its ``[tasks]`` table: a name, then a list of task IDs).
+
+    Raises:
+        TypeError: For a table that does not map names to lists.
+    """
+    if not isinstance(table, dict) or not all(isinstance(v, list) for v in table.values()):
+        raise TypeError("[tasks] must map a name to a list of task IDs")
+    return {name: tuple(ids) for name, ids in table.items()}
+
+
+def _section_tasks(section: Mapping[str, Any], task_lists: Mapping[str, tuple[str, ...]],
+                   where: str) -> tuple[str, ...]:
+    """A section's tasks: its own list, or the profile's task list it names (``tasks = "minigrid"``).
+
+    Raises:
+        UserError: For a name the profile's ``[tasks]`` table lacks.
+    """
+    tasks = section["tasks"]
+    if not isinstance(tasks, str):
+        return tuple(tasks)
+    if tasks not in task_lists:
+        raise UserError(f"{where}: section {section.get('name')!r} names the task list {tasks!r}, which its [tasks] "
+                        f"table lacks (it has {', '.join(task_lists) or 'none'})")
+    return task_lists[tasks]
 
 
 def _optional_name(section: Mapping[str, Any], key: str) -> str | None:
