@@ -179,7 +179,7 @@ def test_sections_share_a_named_task_list(tmp_path):
 
 
 @pytest.mark.parametrize("text, message", [
-    (NAMED.replace('tasks = "rooms"\nrecognizers = ["bc"]\nprotocol', 'tasks = "halls"\nrecognizers = ["bc"]\nprotocol'),
+    (NAMED.replace('"rooms"\nrecognizers = ["bc"]\nprotocol', '"halls"\nrecognizers = ["bc"]\nprotocol'),
      "section 'prefix' names the task list 'halls', which its [tasks] table lacks (it has rooms)"),
     (NAMED.replace('rooms = [', 'rooms = 3 #'), "[tasks] must map a name to a list of task IDs"),
 ])
