@@ -36,8 +36,11 @@ PANDA="--only panda-trust --only panda-stay --only panda-uniform --only panda-au
   # BC at its paper scale under the variants, 10 seeds, from worktrees at commits 9c9b5bf, ecbbad2 and 77636ff
   # (seeds 0-3), 6c04e07 (4-8, one `--seeds N` at a time) and 4dadf1c (9); it resumes from the store.
   $RUN $PANDA -r bc --out leaderboard/support/panda-bc
-  # Not run: DRACO under the variants at 10 seeds (its 10-seed PPO models are no longer cached: ~4 min per goal
-  # and seed to retrain).
-  # $RUN $PANDA -r draco --out leaderboard/support/panda-draco
+  # DRACO and GAIL under the variants, 3 seeds (DRACO from a worktree at commit de0c254, GAIL at b7e0bc9, which
+  # lists GAIL and AIRL in the PandaReach sections; both retrain their models: the cache keys of continuous PPO
+  # carry the numpy update). DRACO's seeds 3-9 and AIRL are not run yet.
+  $RUN $PANDA -r draco --seeds 3 --out /tmp/support-panda-draco
+  $RUN $PANDA -r gail --seeds 3 --out /tmp/support-panda-gail
+  $GB reproduce --profile support $PANDA --no-run --store $S --no-progress --no-site --out leaderboard/support/panda-rl
 }
 leaderboard/publish.sh

@@ -483,3 +483,49 @@ def test_a_space_of_more_states_than_an_integer_holds_is_refused_by_the_evidence
     demos = {(0.0,): [Trajectory(obs=obs, acts=np.zeros(2, dtype=np.int64), infos=None, terminal=True)]}
     with pytest.raises(UserError, match=r"^off-support rules need discrete observation spaces of fewer than 2\*\*62"):
         Evidence(demos, space, spaces.Discrete(2))
+
+
+# --- action_box: continuous means clipped to the env's action box ----------------------------------------------------
+
+
+def _loud(rec: Any) -> Any:
+    """``rec`` with every policy's mean 200 times larger, so that it leaves the action box, as a PPO agent's does."""
+    quiet = rec.outputs_at
+    rec.outputs_at = lambda states: dataclasses.replace(quiet(states), mean=quiet(states).mean * 200)
+    return rec
+
+
+def test_action_box_clip_scores_the_mean_clipped_to_the_box_from_the_same_models():
+    task, train = _panda()
+    plain = _loud(_fitted(task, train, n_epochs=1))
+    clipped = _loud(_fitted(task, train, n_epochs=1, action_box="clip"))
+    goal = task.goals[0]
+    states = np.concatenate(training_states(train[goal]))
+    box, raw = plain.action_space, plain.outputs_at(states)
+    assert np.any(raw.mean > box.high) and np.any(raw.mean < box.low)
+    observed = _states(train[goal][0], states)
+    scored, _ = clipped.policy_output(observed)
+    np.testing.assert_array_equal(scored.mean, np.clip(raw.mean, box.low, box.high))
+    np.testing.assert_array_equal(np.broadcast_to(scored.std, scored.mean.shape),
+                                  np.broadcast_to(raw.std, raw.mean.shape))  # the spread is kept
+    as_is, _ = plain.policy_output(observed)
+    np.testing.assert_array_equal(as_is.mean, raw.mean)  # "ignore", the default, scores the mean as it is
+    assert clipped.score(observed, "mse") != plain.score(observed, "mse")
+    assert "action_box" not in settings_key(plain.config) and settings_key(clipped.config)["action_box"] == "clip"
+    assert settings_key(clipped.config, models=True) == settings_key(plain.config, models=True)
+
+
+def test_action_box_clip_on_discrete_actions_is_one_line_before_training(monkeypatch):
+    from grail_bench.recognizers.bc import BCRecognizer
+
+    def trained(*_: Any, **__: Any) -> Any:
+        raise AssertionError("a policy trained")
+
+    monkeypatch.setattr(BCRecognizer, "train_policy", trained)
+    message = "bc: action_box='clip' needs a bounded continuous action box, got Discrete(4)"
+    with pytest.raises(UserError) as err:
+        evaluate(MINIGRID, [("bc", TINY), ("bc", {**TINY, "action_box": "clip"})], seeds=1, observability=[0.3])
+    assert str(err.value) == message
+    task, train, _ = _minigrid()
+    with pytest.raises(UserError, match=r"^bc: action_box='clip' needs"):
+        make_recognizer("bc", action_box="clip").fit(train, task.env_factory(), seed=0)

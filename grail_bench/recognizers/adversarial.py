@@ -39,6 +39,7 @@ from grail_bench.core.torchutil import scratch_logger, unchecked_distributions
 from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.recognizers.evidence import OffSupport, off_support_setting
+from grail_bench.recognizers.scored import ActionBox, action_box_setting
 from grail_bench.stats.metrics import thin
 
 # Adam's fused kernel: the same update rule as the default per-tensor loop in one kernel per step
@@ -114,6 +115,9 @@ class AdversarialConfig:
             ``"trust"`` (its own output: the paper's method), ``"stay"`` (the domain's no-op) or ``"uniform"``
             (no preference); see :class:`~grail_bench.recognizers.evidence.Evidence`. Scoring only: the trained
             policies are shared across its values.
+        action_box: ``"ignore"`` (the mean as it is: the published method) or ``"clip"`` (the mean clipped to the
+            env's action box, as SB3's deterministic ``predict`` returns it); continuous actions only, scoring
+            only (:func:`~grail_bench.recognizers.scored.action_box_setting`).
     """
 
     # budget-gail: 20 000 steps is on the plateau of both 6-goal MiniGrid tasks (5 seeds, 30 % observed)
@@ -129,6 +133,7 @@ class AdversarialConfig:
     demo_batch_size: int = 16
     update: Literal["numpy", "torch"] = "numpy"
     off_support: OffSupport = off_support_setting()
+    action_box: ActionBox = action_box_setting()
 
     def __post_init__(self) -> None:
         sizes = (self.total_timesteps, self.n_envs, self.n_steps, self.batch_size, self.n_epochs,

@@ -20,6 +20,7 @@ from grail_bench.core.torchutil import recording_logger
 from grail_bench.core.trajectory import EnvFactory, Goal, until_success
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.recognizers.evidence import OffSupport, off_support_setting
+from grail_bench.recognizers.scored import ActionBox, action_box_setting
 from grail_bench.stats.metrics import thin
 
 
@@ -39,6 +40,9 @@ class BCConfig:
             (its own output: the paper's method), ``"stay"`` (the domain's no-op) or ``"uniform"`` (no
             preference); see :class:`~grail_bench.recognizers.evidence.Evidence`. Scoring only: the trained
             policies are shared across its values.
+        action_box: ``"ignore"`` (the mean as it is: the published method) or ``"clip"`` (the mean clipped to the
+            env's action box, as SB3's deterministic ``predict`` returns it); continuous actions only, scoring
+            only (:func:`~grail_bench.recognizers.scored.action_box_setting`).
         augment: ``"none"`` (the paper's method) or ``"stay"``: goal ``g``'s policy also learns the domain's
             no-op at every distinct training state of the other goals that lies off ``g``'s support (pairs
             ``(s, no-op)`` added once each to its demonstrations' pairs), so it learns to stay where its goal
@@ -50,6 +54,7 @@ class BCConfig:
     learning_rate: float = 1e-3
     ent_weight: float = 1e-3
     off_support: OffSupport = off_support_setting()
+    action_box: ActionBox = action_box_setting()
     augment: Literal["none", "stay"] = field(default="none", metadata={"omit_default": True})
 
     def __post_init__(self) -> None:

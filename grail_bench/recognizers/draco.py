@@ -15,6 +15,7 @@ from grail_bench.core.rl import empty_policy, learn, make_ppo, make_sac
 from grail_bench.core.trajectory import EnvFactory, Goal
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.recognizers.evidence import OffSupport, off_support_setting
+from grail_bench.recognizers.scored import ActionBox, action_box_setting
 from grail_bench.stats.metrics import thin
 
 ALGORITHMS = ("ppo", "sac")
@@ -45,6 +46,9 @@ class DRACOConfig:
             alone, so its policies have no demonstrations of their own: a goal's support is still the states its
             *training demonstrations* visit (``fit`` receives them). Scoring only: the trained policies are shared
             across its values.
+        action_box: ``"ignore"`` (the mean as it is: the published method) or ``"clip"`` (the mean clipped to the
+            env's action box, as SB3's deterministic ``predict`` returns it); continuous actions only, scoring
+            only (:func:`~grail_bench.recognizers.scored.action_box_setting`).
     """
 
     algorithm: Literal["ppo", "sac"] = "ppo"
@@ -52,6 +56,7 @@ class DRACOConfig:
     ppo_steps: int | None = field(default=None, metadata={"omit_none": True})
     net_arch: tuple[int, ...] = (64, 64)
     off_support: OffSupport = off_support_setting()
+    action_box: ActionBox = action_box_setting()
 
     def __post_init__(self) -> None:
         if self.algorithm not in ALGORITHMS:

@@ -43,7 +43,7 @@ from grail_bench.recognizers.policy import spaces_of
 from grail_bench.recognizers.policy_bank import PolicyBank, preprocess
 from grail_bench.recognizers.evidence import OffSupport, off_support_setting
 from grail_bench.recognizers.contract import NotFittedError
-from grail_bench.recognizers.scored import ScoredRecognizer
+from grail_bench.recognizers.scored import ActionBox, ScoredRecognizer, action_box_setting
 from grail_bench.recognizers.scoring import PolicyOutput
 
 
@@ -160,6 +160,9 @@ class GCBCConfig:
             ``"trust"`` (its own output), ``"stay"`` (the domain's no-op) or ``"uniform"`` (no preference); see
             :class:`~grail_bench.recognizers.evidence.Evidence`. A goal without demonstrations (zero-shot) has no
             support: every state is off it. Scoring only: the trained policy is shared across its values.
+        action_box: ``"ignore"`` (the mean as it is: the published method) or ``"clip"`` (the mean clipped to the
+            env's action box, as SB3's deterministic ``predict`` returns it); continuous actions only, scoring
+            only (:func:`~grail_bench.recognizers.scored.action_box_setting`).
     """
 
     n_batches: int = 4000
@@ -168,6 +171,7 @@ class GCBCConfig:
     ent_weight: float = 1e-3
     hidden: int = 64
     off_support: OffSupport = off_support_setting()
+    action_box: ActionBox = action_box_setting()
 
     def __post_init__(self) -> None:
         if self.n_batches < 1 or self.batch_size < 1 or self.hidden < 1 or self.learning_rate <= 0:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import abc
 import dataclasses
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from gymnasium import spaces
@@ -22,6 +22,22 @@ from grail_bench.recognizers.contract import (
 from grail_bench.recognizers.diagnostics import policy_diagnostics
 from grail_bench.recognizers.evidence import Evidence, domain_noop
 from grail_bench.recognizers.scoring import PolicyOutput, Scorer, check_served, get_scorer
+
+#: How a continuous policy's predicted action meets its env's action box when scored (:func:`action_box_setting`).
+ActionBox = Literal["ignore", "clip"]
+
+
+def action_box_setting() -> Any:
+    """The ``action_box`` field of a settings dataclass (``action_box: ActionBox = action_box_setting()``).
+
+    ``"ignore"`` (the default: the published method) scores a continuous policy's Gaussian mean as it is, which
+    may lie outside the env's action box (a PPO agent trained on the env's reward often pushes it far past the
+    bounds the env clips its actions to); ``"clip"`` scores the mean clipped to the box, the action SB3's
+    deterministic ``predict`` returns (the spread is kept). Left out of the configuration's key at its default, so
+    earlier keys stay valid; scoring only (metadata ``scoring``), so cached models are shared across its values.
+    """
+    return field(default="ignore", metadata={"scoring": True, "omit_default": True})
+
 
 @dataclass(frozen=True)
 class NoSettings:
@@ -54,6 +70,8 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     task whose domain declares none is refused by :meth:`check_task` where the run is planned, before any
     training. A subclass that learns the evidence may also expose ``"occupancy"``: each goal's smoothed state
     occupancy in its training demonstrations, which the ``occupancy`` scorer adds to the policy's log-likelihood.
+    A :attr:`Config` with an ``action_box`` field (:func:`action_box_setting`) may score continuous means clipped to
+    the env's action box.
 
     Args:
         scorer: What :meth:`score` uses when no scorer is named; defaults to
@@ -85,6 +103,11 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         """The configured off-support rule (``"trust"`` for settings without one)."""
         return getattr(self.config, "off_support", "trust")
 
+    @property
+    def action_box(self) -> str:
+        """How a continuous mean meets the action box when scored (``"ignore"`` for settings without it)."""
+        return getattr(self.config, "action_box", "ignore")
+
     def noop_settings(self) -> list[str]:
         """The settings, as ``name='value'``, that need the domain's no-op action (subclasses add theirs)."""
         return ["off_support='stay'"] if self.off_support == "stay" else []
@@ -93,9 +116,27 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         """Refuse a task whose domain cannot serve the settings (called where a run is planned, before training).
 
         Raises:
-            UserError: In one line, when a setting needs the domain's no-op action and the domain declares none.
+            UserError: In one line, when a setting needs the domain's no-op action and the domain declares none,
+                or for ``action_box='clip'`` on actions that are not a bounded box.
         """
         self._refuse_without_noop(getattr(task.spec, "noop_action", None), f"domain {task.domain!r}")
+        if self.action_box == "clip":
+            env = task.make_env()
+            try:
+                self._check_action_box(env.action_space)
+            finally:
+                env.close()
+
+    def _check_action_box(self, action_space: Any) -> None:
+        """Refuse ``action_box='clip'`` on actions that are not a bounded box.
+
+        Raises:
+            UserError: In one line.
+        """
+        if self.action_box == "clip" and not (isinstance(action_space, spaces.Box)
+                                              and np.all(np.isfinite(action_space.low))
+                                              and np.all(np.isfinite(action_space.high))):
+            raise UserError(f"{self.name}: action_box='clip' needs a bounded continuous action box, got {action_space}")
 
     def _refuse_without_noop(self, noop: Any, domain: str) -> list[str]:
         """The settings that need the domain's no-op action (:meth:`noop_settings`), refused if ``noop`` is None.
@@ -118,7 +159,8 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
 
         Raises:
             UserError: When a setting needs the domain's no-op action and the env's task names no domain
-                declaring one, or for ``off_support='uniform'`` on an unbounded action box.
+                declaring one, or for ``off_support='uniform'`` or ``action_box='clip'`` on an unbounded action box
+                (``action_box='clip'``: on discrete actions too).
         """
         env = env_factory(next(iter(demos)))
         try:
@@ -126,6 +168,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         finally:
             env.close()
         self.observation_space, self.action_space = observation_space, action_space  # for keys made before training
+        self._check_action_box(action_space)
         needs = self._refuse_without_noop(noop, "the env's domain")
         try:
             self.evidence, self._evidence_error = Evidence(demos, observation_space, action_space, noop), ""
@@ -147,8 +190,12 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         """Outputs of every goal's policy on ``(T, ...)`` states (already checked against the spaces)."""
 
     def ruled_outputs(self, states: np.ndarray) -> PolicyOutput:
-        """:meth:`outputs_at` with the ``off_support`` rule applied: what is scored."""
+        """:meth:`outputs_at` with the mean clipped to the action box (``action_box="clip"``) and the ``off_support``
+        rule applied: what is scored."""
         output = self.outputs_at(states)
+        if self.action_box == "clip":
+            output = dataclasses.replace(output, mean=np.clip(output.mean, self.action_space.low,
+                                                              self.action_space.high).astype(output.mean.dtype))
         if self.off_support != "trust":
             output = self._evidence().replace_off_support(output, self.goals, states, self.off_support)
         return output
