@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 .venv/bin/grail-bench reproduce --profile breadth --store leaderboard/results.sqlite --out leaderboard/breadth \
     --workers 2 --no-progress --no-site
 # The RL baselines and the later sections were added section by section from worktrees at commits 6300a0e,
-# 836951d, c2f4270, cf23443, aad8842, fd16f77, 4dadf1c and 79f7f79 (each command resumes from the store; the
+# 836951d, c2f4270, cf23443, aad8842, fd16f77, 4dadf1c, 79f7f79 and 4c67657 (each command resumes from the store; the
 # tables and figures were then written from it with --no-run):
 #   reproduce --profile breadth --only parking-rl-subset --only parking-rl-prefix            (seeds 4-9)
 #   reproduce --profile breadth --only crossing-rl-subset --only crossing-rl-prefix -r draco --seeds 3
@@ -26,6 +26,8 @@ cd "$(dirname "$0")/.."
 #                                                                    (79f7f79; N = 1, ..., 10: seed by seed)
 #   reproduce --profile breadth --only levels-maze-prefix --seeds N                (79f7f79; N = 3, 5, 10)
 #   reproduce --profile breadth --only panda-grlibs-gc-prefix                                 (79f7f79)
+#   reproduce --profile breadth --only panda-grlibs --only panda-grlibs-prefix --seeds N
+#                                                       (4c67657: BC and GRAML, both protocols; N = 5, 7, 10)
 #   reproduce --profile breadth --no-run --out leaderboard/breadth
 # (each with --store leaderboard/results.sqlite --workers 2 --no-progress --no-site; the running ones with
 # --out <a scratch folder>).

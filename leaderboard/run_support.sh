@@ -36,11 +36,16 @@ PANDA="--only panda-trust --only panda-stay --only panda-uniform --only panda-au
   # BC at its paper scale under the variants, 10 seeds, from worktrees at commits 9c9b5bf, ecbbad2 and 77636ff
   # (seeds 0-3), 6c04e07 (4-8, one `--seeds N` at a time) and 4dadf1c (9); it resumes from the store.
   $RUN $PANDA -r bc --out leaderboard/support/panda-bc
-  # DRACO and GAIL under the variants, 3 seeds (DRACO from a worktree at commit de0c254, GAIL at b7e0bc9, which
-  # lists GAIL and AIRL in the PandaReach sections; both retrain their models: the cache keys of continuous PPO
-  # carry the numpy update). DRACO's seeds 3-9 and AIRL are not run yet.
+  # DRACO and GAIL under the variants, 3 seeds (DRACO from a worktree at commit de0c254, the rest at 4c67657, which
+  # lists GAIL and AIRL in the PandaReach sections and adds action_box; both retrain their models: the cache keys of
+  # continuous PPO carry the numpy update), and their means clipped to the action box (scoring only, the same
+  # models). DRACO's seeds 3-9 and AIRL are not run yet.
+  CLIP="--only panda-clip --only panda-clip-stay"
   $RUN $PANDA -r draco --seeds 3 --out /tmp/support-panda-draco
-  $RUN $PANDA -r gail --seeds 3 --out /tmp/support-panda-gail
-  $GB reproduce --profile support $PANDA --no-run --store $S --no-progress --no-site --out leaderboard/support/panda-rl
+  $RUN $CLIP -r draco --seeds 3 --out /tmp/support-panda-clip
+  $RUN $PANDA -r gail --seeds 3 --out /tmp/support-panda-gail    # --seeds 2, then 3
+  $RUN $CLIP -r gail --seeds 3 --out /tmp/support-panda-clip     # --seeds 2, then 3
+  $GB reproduce --profile support $PANDA $CLIP --no-run --store $S --no-progress --no-site \
+      --out leaderboard/support/panda-rl
 }
 leaderboard/publish.sh

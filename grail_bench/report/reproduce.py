@@ -228,7 +228,8 @@ def load_profile(name_or_path: str) -> Profile:
     try:
         task_lists = _task_lists(data.get("tasks", {}))
         sections = tuple(Section(
-            s["name"], _section_tasks(s, task_lists, f"profile {name_or_path}"), tuple(s["recognizers"]), tuple(s.get("scorers", ())),
+            s["name"], _section_tasks(s, task_lists, f"profile {name_or_path}"), tuple(s["recognizers"]),
+            tuple(s.get("scorers", ())),
             dict(s.get("params", {})), str(s.get("mode", "offline")),
             Vary.parse(s["vary"], f"profile {name_or_path}: section {s['name']!r}") if "vary" in s else None,
             parse_observability(s["observability"]) if "observability" in s else (),
