@@ -194,6 +194,12 @@ def test_summaries_compare_methods_on_the_strata_they_share_and_name_the_gaps():
     assert common_strata(many) == (["a", "b", "c"], {1, 2}, ["d", "e"])
     many["e"][1] = [0.5]  # a tie on size goes to the group sharing more strata
     assert common_strata({k: many[k] for k in "bde"}) == (["d", "e"], set(range(3, 9)), ["b"])
+    # ... unless the other shares more tasks: two tasks at one level beat one task at five levels.
+    levels = {"p": {("T1", "subset", 0.02): [0.5], ("T2", "subset", 0.02): [0.5]},
+              "q": {("T1", "subset", 0.02): [0.5], ("T2", "subset", 0.02): [0.5]},
+              "r": {("T3", "prefix", x): [0.5] for x in (0.1, 0.3, 0.5, 0.7, 1.0)},
+              "s": {("T3", "prefix", x): [0.5] for x in (0.1, 0.3, 0.5, 0.7, 1.0)}}
+    assert common_strata(levels) == (["p", "q"], set(levels["p"]), ["r", "s"])
     # A method run on more strata is aggregated over the shared ones only, and the others' gap is named.
     task = "GRAIL/MiniGrid-Optimal-6Goals-v0"
     config_json, hashed = stored_config(task, "bc")

@@ -112,8 +112,9 @@ def common_strata(strata: dict[str, dict[Any, list[float]]]) -> tuple[list[str],
     """The methods a domain summary compares, the strata they all ran, and the methods left out.
 
     Every compared method is aggregated over the same strata (common ground). The compared methods are the
-    largest set that shares a stratum; among sets as large, the one sharing the most strata (then the first
-    by name). A method run on few strata thus leaves itself out, never the methods it does not overlap.
+    largest set that shares a stratum; among sets as large, the one sharing the most tasks (a stratum's first
+    field; more observation levels of the same tasks say less than more tasks do), then the most strata, then
+    the first by name. A method run on few strata thus leaves itself out, never the methods it does not overlap.
     """
     ran: dict[Any, frozenset[str]] = defaultdict(frozenset)
     for name, per_stratum in strata.items():
@@ -125,7 +126,10 @@ def common_strata(strata: dict[str, dict[Any, list[float]]]) -> tuple[list[str],
     def shared_by(group: frozenset[str]) -> set:
         return {k for k, names in ran.items() if group <= names}
 
-    best = min(set(ran.values()), key=lambda g: (-len(g), -len(shared_by(g)), sorted(g)))
+    def tasks(group: frozenset[str]) -> int:
+        return len({k[0] if isinstance(k, tuple) else k for k in shared_by(group)})
+
+    best = min(set(ran.values()), key=lambda g: (-len(g), -tasks(g), -len(shared_by(g)), sorted(g)))
     return sorted(best), shared_by(best), sorted(set(strata) - best)
 
 
