@@ -47,15 +47,6 @@ def _specs(recognizers: RecognizerLike | Sequence[RecognizerLike]) -> tuple[Reco
     return tuple(RecognizerSpec.of(item) for item in items)
 
 
-def task_action_space(task: GRTask) -> Any:
-    """The task's action space (where noisy observations draw spurious actions)."""
-    env = task.make_env()
-    try:
-        return env.action_space
-    finally:
-        env.close()
-
-
 def request(task_id: str, recognizers: RecognizerLike | Sequence[RecognizerLike], *,
             seeds: int | Sequence[int] = 3, observability: Iterable[float] | str | None = None,
             protocol: str | None = None, rounding: str | None = None, task_params: Mapping[str, Any] | None = None,
@@ -79,7 +70,7 @@ def request(task_id: str, recognizers: RecognizerLike | Sequence[RecognizerLike]
         levels = task.observability if chosen.takes_levels else ()
     specs = _specs(recognizers)
     observation = ObservationSpec.resolve(protocol or task.protocol, rounding or task.rounding, levels, noise=noise,
-                                          channel=channel, action_space=task_action_space(task) if noise else None)
+                                          channel=channel, action_space=task.action_space() if noise else None)
     check_channel(specs, observation.channel)
     seeds = tuple(seed_list(seeds))
     if task.demos:

@@ -364,11 +364,7 @@ def _observation_model(task: GRTask, noise: float, channel: str) -> ObservationM
     """The observation model of a ceiling (the task's action space read only under noise)."""
     if not noise:
         return ObservationModel(channel=channel)
-    env = task.make_env()
-    try:
-        return ObservationModel(noise, channel, SpuriousActions.of(env.action_space))
-    finally:
-        env.close()
+    return ObservationModel(noise, channel, SpuriousActions.of(task.action_space()))
 
 
 def _applies(task: GRTask | None, label: str, pairs_only: bool = False) -> bool:

@@ -187,9 +187,7 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
     check_channel(request.specs, request.observation.channel)
     mode = get_mode(request.mode)
     mode.check(task, request.observation)
-    env = task.make_env()
-    action_space = env.action_space
-    env.close()
+    action_space = task.action_space()
     planned = [plan(task, spec, action_space) for spec in request.specs]
     for p in planned:
         mode.check_recognizer(p)

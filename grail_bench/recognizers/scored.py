@@ -121,11 +121,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         """
         self._refuse_without_noop(getattr(task.spec, "noop_action", None), f"domain {task.domain!r}")
         if self.action_box == "clip":
-            env = task.make_env()
-            try:
-                self._check_action_box(env.action_space)
-            finally:
-                env.close()
+            self._check_action_box(task.action_space())
 
     def _check_action_box(self, action_space: Any) -> None:
         """Refuse ``action_box='clip'`` on actions that are not a bounded box.

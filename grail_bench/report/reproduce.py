@@ -37,7 +37,6 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.paths import cache_dir
 from grail_bench.core.seeding import seed_list
 from grail_bench.harness.diagnostics import FitRow
-from grail_bench.harness.api import task_action_space
 from grail_bench.harness.executors import Executor
 from grail_bench.harness.modes import MODES, Row, get_mode
 from grail_bench.harness.planning import Planned, RecognizerSpec
@@ -130,7 +129,7 @@ class Section:
                 specs = tuple(RecognizerSpec(r, c, self.scorers) for r, c in configs)
                 observation = ObservationSpec.resolve(
                     self.protocol or task.protocol, self.rounding or task.rounding, levels, noise=self.noise,
-                    channel=self.channel, action_space=task_action_space(task) if self.noise else None)
+                    channel=self.channel, action_space=task.action_space() if self.noise else None)
                 out.append(Request(task.id, specs, tuple(seed_list(self.seeds or seeds)), observation, params, self.mode,
                                    task=task))
         return out

@@ -288,6 +288,14 @@ class GRTask:
         env.unwrapped.task = self
         return env
 
+    def action_space(self) -> gym.spaces.Space:
+        """The domain env's action space (an env is built to read it, then closed)."""
+        env = self.make_env()
+        try:
+            return env.action_space
+        finally:
+            env.close()
+
     def env_factory(self) -> EnvFactory:
         """``factory(goal) -> env`` building this task's goal envs."""
         return functools.partial(_make_env, self)
