@@ -31,3 +31,6 @@ cd "$(dirname "$0")/.."
 #   reproduce --profile breadth --no-run --out leaderboard/breadth
 # (each with --store leaderboard/results.sqlite --workers 2 --no-progress --no-site; the running ones with
 # --out <a scratch folder>).
+# Not run yet (the profile plans them; `--no-run` counts them as missing): DRACO on gr_libs' PandaReach sets
+# (panda-grlibs-rl, panda-grlibs-rl-prefix: 9 PPO agents a seed, about 18 min a seed on 2 workers) and GC-DRACO's
+# parking budget (budget-gc-draco-parking: 100 000 and 200 000 SAC steps, about 75 min for 3 seeds).

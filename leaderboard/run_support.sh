@@ -39,12 +39,16 @@ PANDA="--only panda-trust --only panda-stay --only panda-uniform --only panda-au
   # DRACO and GAIL under the variants, 3 seeds (DRACO from a worktree at commit de0c254, the rest at 4c67657, which
   # lists GAIL and AIRL in the PandaReach sections and adds action_box; both retrain their models: the cache keys of
   # continuous PPO carry the numpy update), and their means clipped to the action box (scoring only, the same
-  # models). DRACO's seeds 3-9 and AIRL are not run yet.
+  # models).
   CLIP="--only panda-clip --only panda-clip-stay"
   $RUN $PANDA -r draco --seeds 3 --out /tmp/support-panda-draco
   $RUN $CLIP -r draco --seeds 3 --out /tmp/support-panda-clip
   $RUN $PANDA -r gail --seeds 3 --out /tmp/support-panda-gail    # --seeds 2, then 3
   $RUN $CLIP -r gail --seeds 3 --out /tmp/support-panda-clip     # --seeds 2, then 3
+  # DRACO's further seeds and AIRL (3 seeds), with the clipped means, one seed at a time from a worktree at commit
+  # c02f4e2 (AIRL retrains its generators for the same reason).
+  for n in 4 5 6 7 8; do $RUN $PANDA $CLIP -r draco --seeds $n --out /tmp/support-panda-draco; done
+  for n in 1 2 3; do $RUN $PANDA $CLIP -r airl --seeds $n --out /tmp/support-panda-airl; done
   $GB reproduce --profile support $PANDA $CLIP --no-run --store $S --no-progress --no-site \
       --out leaderboard/support/panda-rl
 }
