@@ -45,9 +45,9 @@ PANDA="--only panda-trust --only panda-stay --only panda-uniform --only panda-au
   $RUN $CLIP -r draco --seeds 3 --out /tmp/support-panda-clip
   $RUN $PANDA -r gail --seeds 3 --out /tmp/support-panda-gail    # --seeds 2, then 3
   $RUN $CLIP -r gail --seeds 3 --out /tmp/support-panda-clip     # --seeds 2, then 3
-  # DRACO's further seeds and AIRL (3 seeds), with the clipped means, one seed at a time from a worktree at commit
-  # c02f4e2 (AIRL retrains its generators for the same reason).
-  for n in 4 5 6 7 8; do $RUN $PANDA $CLIP -r draco --seeds $n --out /tmp/support-panda-draco; done
+  # DRACO to 10 seeds and AIRL at 3, with the clipped means, one seed at a time from a worktree at commit c02f4e2
+  # (DRACO's seed 3, then AIRL's three, then DRACO's seeds 4-9; AIRL retrains its generators for the same reason).
+  for n in 4 5 6 7 8 9 10; do $RUN $PANDA $CLIP -r draco --seeds $n --out /tmp/support-panda-draco; done
   for n in 1 2 3; do $RUN $PANDA $CLIP -r airl --seeds $n --out /tmp/support-panda-airl; done
   $GB reproduce --profile support $PANDA $CLIP --no-run --store $S --no-progress --no-site \
       --out leaderboard/support/panda-rl

@@ -137,6 +137,14 @@ def test_budget_curves_are_typed_and_stay_flat_json():
     assert "percentile bootstrap" in text
 
 
+def test_a_budget_study_with_one_measured_value_names_no_plateau():
+    curve = BudgetCurve("budget-gc-draco", "sac_steps", TASK, "gc-draco", "subset", 0.3,
+                        (BudgetPoint(30000, 3, 0.2, 0.1, 0.3, 40.0),))
+    text = budgets_markdown([curve], "breadth")
+    assert "Plateau: not determined (only one value has rows)." in text
+    assert "| 30000 | 3 | 0.20 | [0.10, 0.30] | 40.00 |" in text and "(plateau)" not in text
+
+
 def test_the_leaderboard_says_how_its_intervals_are_made_only_where_it_shows_them():
     from grail_bench.report.tables import runs_markdown
 

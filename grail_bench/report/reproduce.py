@@ -415,7 +415,8 @@ class BudgetCurve:
         recognizer, protocol, observability: What the points are of.
         points: The studied values, in increasing order.
         scaling: Whether it is a scaling study (then ``exponent``, else ``plateau``).
-        plateau: The smallest value whose mean F1 reaches the best value's interval (:func:`plateau`).
+        plateau: The smallest value whose mean F1 reaches the best value's interval (:func:`plateau`); None
+            while fewer than two values have rows.
         exponent: The fit-cost exponent against the goal count (None with a single goal count).
     """
 
@@ -466,7 +467,8 @@ def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Req
                                                 if len(set(sizes)) > 1 else None)
                 else:
                     curve = dataclasses.replace(curve, plateau=plateau([(v, r.f1.mean, r.f1.ci95[0])
-                                                                        for v, r in points]))
+                                                                        for v, r in points])
+                                                if len(points) > 1 else None)
                 out.append(curve)
     return out
 

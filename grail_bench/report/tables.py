@@ -217,7 +217,8 @@ def budgets_markdown(curves: Sequence[BudgetCurve], title: str) -> str:
         if c.scaling:
             lines += [f"Fit cost exponent: b = {_num(c.exponent)}.", ""]
         else:
-            lines += [f"Plateau: {c.param} = {c.plateau}.", ""]
+            lines += [f"Plateau: {c.param} = {c.plateau}." if c.plateau is not None
+                      else "Plateau: not determined (only one value has rows).", ""]
         lines += [f"| {c.param} | seeds | F1 | 95 % interval | fit s/goal |", "|---|---|---|---|---|"]
         for p in c.points:
             mark = " (plateau)" if p.value == c.plateau else ""
