@@ -94,6 +94,13 @@ def test_the_cli_run_path_builds_the_task_once(monkeypatch, tmp_path):
     assert len(tasks) == 1
 
 
+def test_planning_a_clipped_run_reads_the_action_space_from_one_env(monkeypatch):
+    task = make_task("GRAIL/PointMaze-Optimal-v0")
+    envs = _count_calls(monkeypatch, GRTask, "make_env")
+    plan(task, RecognizerSpec("draco", {"action_box": "clip"}), task.action_space())  # check_task reads it again
+    assert len(envs) == 1
+
+
 def test_task_overrides_round_trip_through_the_store(tmp_path):
     task_id, asked = "GRAIL/MiniGrid-Suboptimal-v0", {"turn_prob": 0.5}
     card = make_task(task_id)

@@ -329,7 +329,8 @@ def test_cli_writes_the_page(tmp_path):
     assert result.exit_code == 0, result.output
     assert (out / "index.html").stat().st_size > 0 and list((out / "figures").glob("s*.svg"))
     assert sorted(p.name for p in out.glob("*.html")) == ["index.html", "minigrid.html", "panda_reach.html"]
-    assert len(json.loads((out / "records.json").read_text())) == n_records(rows(seeds=2))
+    records = (out / "records.json").read_text()
+    assert len(json.loads(records)) == n_records(rows(seeds=2)) == len(records.splitlines()) - 2  # a record a line
     # Written again without PandaReach's rows: its stale page goes, a page the site did not write stays.
     (out / "notes.html").write_text("<p>my own page</p>")
     with ResultsStore(tmp_path / "minigrid.sqlite") as store:

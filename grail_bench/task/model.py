@@ -289,7 +289,11 @@ class GRTask:
         return env
 
     def action_space(self) -> gym.spaces.Space:
-        """The domain env's action space (an env is built to read it, then closed)."""
+        """The domain env's action space (an env is built to read it, then closed, once per task object)."""
+        return self._action_space
+
+    @functools.cached_property
+    def _action_space(self) -> gym.spaces.Space:
         env = self.make_env()
         try:
             return env.action_space
