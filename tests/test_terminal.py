@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 import grail_bench
 from grail_bench.cli import app
 from grail_bench.harness.modes import MODES
-from grail_bench.report.reproduce import BudgetCurve, BudgetPoint
+from grail_bench.report.rows import BudgetCurve, BudgetPoint
 from grail_bench.report.rows import TimingRow, timing_rows
 from grail_bench.report.tables import budgets_markdown, diagnostics_table, mode_table, tasks_table, timing_table
 from grail_bench.task import make_task

@@ -46,7 +46,7 @@ from grail_bench.report import leaderboard, plots
 from grail_bench.report.boards import own_scorer_records, short_name
 from grail_bench.report.html import write_site
 from grail_bench.report.reference import paper_reference_path, read_reference
-from grail_bench.report.rows import calibration_rows
+from grail_bench.report.rows import BudgetCurve, BudgetPoint, calibration_rows
 from grail_bench.report.summary import domain_summaries, profile_figure_data, profiles_markdown
 from grail_bench.report.tables import budgets_markdown, calibration_markdown, mode_markdown
 from grail_bench.report.text import markdown
@@ -389,54 +389,6 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     (out / "manifest.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
     written.append(out / "manifest.json")
     return written
-
-
-@dataclass(frozen=True)
-class BudgetPoint:
-    """One studied value of a budget curve: F1 over seeds (mean and 95 % bootstrap interval, inside [0, 1]) and
-    the fit's seconds per goal."""
-
-    value: Any
-    n_seeds: int
-    f1_mean: float
-    f1_ci95_low: float
-    f1_ci95_high: float
-    fit_seconds_per_goal: float
-
-
-@dataclass(frozen=True)
-class BudgetCurve:
-    """One recognizer's budget (or scaling) study on one task, protocol and level.
-
-    Attributes:
-        section: The profile section.
-        param: The studied parameter (``n_goals`` for a scaling study).
-        task: The task (a scaling study: the range of its tasks).
-        recognizer, protocol, observability: What the points are of.
-        points: The studied values, in increasing order.
-        scaling: Whether it is a scaling study (then ``exponent``, else ``plateau``).
-        plateau: The smallest value whose mean F1 reaches the best value's interval (:func:`plateau`); None
-            while fewer than two values have rows.
-        exponent: The fit-cost exponent against the goal count (None with a single goal count).
-    """
-
-    section: str
-    param: str
-    task: str
-    recognizer: str
-    protocol: str
-    observability: float
-    points: tuple[BudgetPoint, ...]
-    scaling: bool = False
-    plateau: Any = None
-    exponent: float | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        """As ``budgets.json`` holds it: flat JSON-able data, with the plateau of a budget study or the exponent
-        of a scaling study."""
-        data = dataclasses.asdict(self)
-        del data["scaling"], data["plateau" if self.scaling else "exponent"]
-        return data
 
 
 def budget_points(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Request]]],

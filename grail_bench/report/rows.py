@@ -1,12 +1,13 @@
 """Per-configuration tables beside the boards: runs and timings, the scorer ablation, calibration.
 
 Each is computed once from the offline records, as frozen rows (:class:`TimingRow`, :class:`AblationRow`,
-:class:`CalibrationRow`), and drawn by the terminal, Markdown and web renderers. Configurations are named as
-the leaderboard names them (:func:`grail_bench.report.configs.configuration`).
+:class:`CalibrationRow`, a budget study's :class:`BudgetCurve`), and drawn by the terminal, Markdown and web
+renderers. Configurations are named as the leaderboard names them (:func:`grail_bench.report.configs.configuration`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any, Sequence
@@ -177,3 +178,51 @@ def calibration_rows(records: Sequence[OfflineRecord]) -> list[CalibrationRow]:
         out.append(CalibrationRow(domain, label, len(group), _level_mean([r.brier_mean for r in group]),
                                   _level_mean([r.nll_mean for r in group]), expected_calibration_error(bins), bins))
     return out
+
+
+@dataclass(frozen=True)
+class BudgetPoint:
+    """One studied value of a budget curve: F1 over seeds (mean and 95 % bootstrap interval, inside [0, 1]) and
+    the fit's seconds per goal."""
+
+    value: Any
+    n_seeds: int
+    f1_mean: float
+    f1_ci95_low: float
+    f1_ci95_high: float
+    fit_seconds_per_goal: float
+
+
+@dataclass(frozen=True)
+class BudgetCurve:
+    """One recognizer's budget (or scaling) study on one task, protocol and level.
+
+    Attributes:
+        section: The profile section.
+        param: The studied parameter (``n_goals`` for a scaling study).
+        task: The task (a scaling study: the range of its tasks).
+        recognizer, protocol, observability: What the points are of.
+        points: The studied values, in increasing order.
+        scaling: Whether it is a scaling study (then ``exponent``, else ``plateau``).
+        plateau: The smallest value whose mean F1 reaches the best value's interval (:func:`grail_bench.stats.verdict.plateau`); None
+            while fewer than two values have rows.
+        exponent: The fit-cost exponent against the goal count (None with a single goal count).
+    """
+
+    section: str
+    param: str
+    task: str
+    recognizer: str
+    protocol: str
+    observability: float
+    points: tuple[BudgetPoint, ...]
+    scaling: bool = False
+    plateau: Any = None
+    exponent: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """As ``budgets.json`` holds it: flat JSON-able data, with the plateau of a budget study or the exponent
+        of a scaling study."""
+        data = dataclasses.asdict(self)
+        del data["scaling"], data["plateau" if self.scaling else "exponent"]
+        return data

@@ -12,18 +12,15 @@ from __future__ import annotations
 
 import html
 import textwrap
-from typing import TYPE_CHECKING, Any, Sequence
+from typing import Any, Sequence
 
 from rich.table import Table
 from rich.text import Text
 
 from grail_bench.harness.modes import Mode
 from grail_bench.report.layout import Fitted, grid_table, stacked
-from grail_bench.report.rows import AblationRow, CalibrationRow, timing_rows
+from grail_bench.report.rows import AblationRow, BudgetCurve, CalibrationRow, timing_rows
 from grail_bench.task.observation import level_text
-
-if TYPE_CHECKING:
-    from grail_bench.report.reproduce import BudgetCurve
 
 TASK_PREFIX = "GRAIL/"
 

@@ -10,6 +10,8 @@ leaves the state unchanged. The episode terminates when the goal holds (reward
 
 from __future__ import annotations
 
+from functools import lru_cache
+from pathlib import Path
 from typing import Any, Sequence
 
 import gymnasium as gym
@@ -18,7 +20,27 @@ from gymnasium import spaces
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.tabular import TabularDynamics
-from grail_bench.domains.symbolic.problem import GRProblem, load
+from grail_bench.domains.symbolic.dataset import load_problem
+from grail_bench.domains.symbolic.generator import BUILTIN, builtin_problem
+from grail_bench.domains.symbolic.problem import GRProblem
+
+
+def load(spec: str) -> GRProblem:
+    """The problem an env parameter names: a built-in name or the path of an archive or folder, loaded once
+    per process (and again when the file changes), so every goal env of a task shares one grounded model.
+
+    Raises:
+        UserError: For an unknown name, a missing path or a malformed archive.
+    """
+    if spec in BUILTIN:
+        return _load(spec, 0.0)
+    path = Path(spec)
+    return _load(str(path.resolve()), path.stat().st_mtime if path.exists() else 0.0)
+
+
+@lru_cache(maxsize=32)
+def _load(spec: str, mtime: float) -> GRProblem:
+    return builtin_problem(spec) if spec in BUILTIN else load_problem(spec)
 
 
 class SymbolicEnv(gym.Env):

@@ -8,7 +8,7 @@ observed actions) and grounds it once, for every candidate goal at once.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
+from functools import cached_property
 
 from grail_bench.core.errors import UserError
 from grail_bench.domains.symbolic.pddl_text import Atom, atom_text
@@ -89,28 +89,3 @@ class GRProblem:
             UserError: For an observed action that is no reachable ground operator.
         """
         return [self.model.operator_index(a) for a in self.observations]
-
-
-def load(spec: str) -> GRProblem:
-    """The problem an env parameter names: a built-in name or the path of an archive or folder, loaded once
-    per process (and again when the file changes), so every goal env of a task shares one grounded model.
-
-    Raises:
-        UserError: For an unknown name, a missing path or a malformed archive.
-    """
-    from pathlib import Path
-
-    from grail_bench.domains.symbolic.generator import BUILTIN
-
-    if spec in BUILTIN:
-        return _load(spec, 0.0)
-    path = Path(spec)
-    return _load(str(path.resolve()), path.stat().st_mtime if path.exists() else 0.0)
-
-
-@lru_cache(maxsize=32)
-def _load(spec: str, mtime: float) -> GRProblem:
-    from grail_bench.domains.symbolic.dataset import load_problem
-    from grail_bench.domains.symbolic.generator import BUILTIN, builtin_problem
-
-    return builtin_problem(spec) if spec in BUILTIN else load_problem(spec)
