@@ -28,9 +28,13 @@ cd "$(dirname "$0")/.."
 #   reproduce --profile breadth --only panda-grlibs-gc-prefix                                 (79f7f79)
 #   reproduce --profile breadth --only panda-grlibs --only panda-grlibs-prefix --seeds N
 #                                                       (4c67657: BC and GRAML, both protocols; N = 5, 7, 10)
+#   reproduce --profile breadth --only panda-grlibs-rl --only panda-grlibs-rl-prefix --seeds N
+#                                          (013729c: DRACO, both protocols; N = 1, ..., 10: seed by seed)
+#   reproduce --profile breadth --only budget-gc-draco-parking --seeds 2                      (013729c)
 #   reproduce --profile breadth --no-run --out leaderboard/breadth
 # (each with --store leaderboard/results.sqlite --workers 2 --no-progress --no-site; the running ones with
 # --out <a scratch folder>).
-# Not run yet (the profile plans them; `--no-run` counts them as missing): DRACO on gr_libs' PandaReach sets
-# (panda-grlibs-rl, panda-grlibs-rl-prefix: 9 PPO agents a seed, about 18 min a seed on 2 workers) and GC-DRACO's
-# parking budget (budget-gc-draco-parking: 100 000 and 200 000 SAC steps, about 75 min for 3 seeds).
+# Not run yet (the profile plans them; `--no-run` counts them as missing): GC-DRACO's parking budget at its third
+# seed (budget-gc-draco-parking: 100 000 and 200 000 SAC steps, about 35 min a seed on 2 workers). GC-DRACO and
+# GC-GRAML on gr_libs' PandaReach sets (panda-grlibs-gc, panda-grlibs-gc-prefix) are planned at 3 seeds (`seeds = 3`
+# in the profile); 10 would take about 19 min a seed more.
