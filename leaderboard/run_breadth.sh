@@ -9,8 +9,8 @@ cd "$(dirname "$0")/.."
 .venv/bin/grail-bench reproduce --profile breadth --store leaderboard/results.sqlite --out leaderboard/breadth \
     --workers 2 --no-progress --no-site
 # The RL baselines and the later sections were added section by section from worktrees at commits 6300a0e,
-# 836951d, c2f4270, cf23443, aad8842, fd16f77, 4dadf1c, 79f7f79 and 4c67657 (each command resumes from the store; the
-# tables and figures were then written from it with --no-run):
+# 836951d, c2f4270, cf23443, aad8842, fd16f77, 4dadf1c, 79f7f79, 4c67657, 013729c and 63e8dbf (each command
+# resumes from the store; the tables and figures were then written from it with --no-run):
 #   reproduce --profile breadth --only parking-rl-subset --only parking-rl-prefix            (seeds 4-9)
 #   reproduce --profile breadth --only crossing-rl-subset --only crossing-rl-prefix -r draco --seeds 3
 #   reproduce --profile breadth --only maze-rl-prefix --only maze-rl-subset -r gc-draco --seeds 3
@@ -30,7 +30,8 @@ cd "$(dirname "$0")/.."
 #                                                       (4c67657: BC and GRAML, both protocols; N = 5, 7, 10)
 #   reproduce --profile breadth --only panda-grlibs-rl --only panda-grlibs-rl-prefix --seeds N
 #                                          (013729c: DRACO, both protocols; N = 1, ..., 10: seed by seed)
-#   reproduce --profile breadth --only budget-gc-draco-parking --seeds 2                      (013729c)
+#   reproduce --profile breadth --only panda-grlibs-rl-clip --only panda-grlibs-rl-clip-prefix (63e8dbf)
+#   reproduce --profile breadth --only budget-gc-draco-parking --seeds 2                      (63e8dbf)
 #   reproduce --profile breadth --no-run --out leaderboard/breadth
 # (each with --store leaderboard/results.sqlite --workers 2 --no-progress --no-site; the running ones with
 # --out <a scratch folder>).
