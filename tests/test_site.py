@@ -19,7 +19,7 @@ from grail_bench.harness.store import OnlineRow, OpenSetRow, ResultRow, ResultsS
 from grail_bench.recognizers.contract import FitDiagnostics
 from grail_bench.report import leaderboard
 from grail_bench.report.html import MAX_PAGE_BYTES, build_page, json_for_script, render, write_site
-from grail_bench.report.summary import common_strata
+from grail_bench.report.summary import common_strata, comparison_groups
 from grail_bench.task import make_task
 from grail_bench.report.reference import paper_reference_path as reference_path
 from grail_bench.report.reference import read_reference
@@ -200,6 +200,16 @@ def test_summaries_compare_methods_on_the_strata_they_share_and_name_the_gaps():
               "r": {("T3", "prefix", x): [0.5] for x in (0.1, 0.3, 0.5, 0.7, 1.0)},
               "s": {("T3", "prefix", x): [0.5] for x in (0.1, 0.3, 0.5, 0.7, 1.0)}}
     assert common_strata(levels) == (["p", "q"], set(levels["p"]), ["r", "s"])
+
+
+def test_methods_the_largest_comparison_leaves_out_are_ranked_in_one_of_their_own():
+    # The paper's four methods on its task (stratum 1); five methods, two of them the paper's, on another suite's.
+    strata = {"bc": {1: [0.5], 2: [0.5], 3: [0.5]}, "draco": {1: [0.5], 2: [0.5], 3: [0.5]},
+              "gail": {1: [0.5]}, "airl": {1: [0.5]},
+              "graml": {2: [0.5], 3: [0.5]}, "gc-draco": {2: [0.5], 3: [0.5]}, "gc-graml": {2: [0.5], 3: [0.5]}}
+    assert comparison_groups(strata) == [(["bc", "draco", "gc-draco", "gc-graml", "graml"], {2, 3}),
+                                         (["airl", "bc", "draco", "gail"], {1})]
+    assert comparison_groups({"a": {1: [0.5]}, "b": {1: [0.5]}}) == [(["a", "b"], {1})]  # one group: one summary
     # A method run on more strata is aggregated over the shared ones only, and the others' gap is named.
     task = "GRAIL/MiniGrid-Optimal-6Goals-v0"
     config_json, hashed = stored_config(task, "bc")
@@ -662,7 +672,9 @@ def test_the_published_page_reads_as_a_ranking(browser):
     assert {"BC-GRAIL", "GAIL-GRAIL", "AIRL-GRAIL", "GRAQL", "DRACO"} <= methods
     assert not any("·" in m or "archived" in m for m in methods)  # canonical configurations only
     claims = page.locator("#claims table").first
-    assert claims.bounding_box()["y"] < 2 * height and "verdict" in claims.locator("thead").inner_text()
+    # Below the summaries: a domain's methods that share no stratum with all the others get a comparison of their
+    # own (8 comparisons for 5 domains), and the "Claims" link is on the first screen.
+    assert claims.bounding_box()["y"] < 3 * height and "verdict" in claims.locator("thead").inner_text()
     assert errors == []
     page.context.close()
     for path in domain_pages(PUBLISHED):

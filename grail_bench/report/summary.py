@@ -3,8 +3,9 @@
 For each domain, every canonical method (references such as the demonstrator excluded) is compared over the
 (task, protocol, level) strata that all of them ran (common ground: a method run on more strata is not
 aggregated over more work). A method lacking strata another ran is not dropped silently: the summary names
-the strata it lacks (a gap in the data); only when no stratum is shared by all are methods left out (and
-named): the largest set of methods sharing a stratum is compared. Per method:
+the strata it lacks (a gap in the data). When no stratum is shared by all, the largest set of methods sharing
+a stratum is compared, and the methods it leaves out get a summary of their own with the methods they share
+most with (:func:`comparison_groups`), so that every method is ranked somewhere. Per method:
 
 * the interquartile mean of F1 over every seed of those strata, with a 95 %
   bootstrap interval stratified by stratum, and the plain mean;
@@ -50,6 +51,7 @@ class DomainSummary:
 
     Attributes:
         domain: The domain.
+        title: How the summary is headed: the domain, numbered when the domain has more than one.
         names: The methods compared (their labels).
         iqm: Per method, the IQM of F1 over the shared strata with its 95 % interval.
         mean: Per method, the plain mean over the same runs.
@@ -58,11 +60,13 @@ class DomainSummary:
         shared: The strata every compared method ran, sorted.
         all_strata: Per method, how many strata it ran in the domain.
         missing: Per compared method, the strata another method ran and it did not (empty when none).
-        left_out: Methods sharing no stratum with the others, left out of the comparison.
+        left_out: The domain's other methods, which share no stratum with all of these: per method, the title of
+            the summary that compares it.
         recognizer: Per method, its recognizer's registered name.
     """
 
     domain: str
+    title: str
     names: list[str]
     iqm: dict[str, Interval]
     mean: dict[str, float]
@@ -71,7 +75,7 @@ class DomainSummary:
     shared: list[Stratum]
     all_strata: dict[str, int]
     missing: dict[str, list[Stratum]]
-    left_out: list[str]
+    left_out: dict[str, str]
     recognizer: dict[str, str]
     profile_strata: int = 0
     profiles: dict[str, tuple[list[float], list[float], list[float]]] = field(default_factory=dict)
@@ -86,6 +90,14 @@ class DomainSummary:
     def strata_text(self) -> list[str]:
         """The shared strata, per task and protocol (:func:`describe_strata`)."""
         return describe_strata(self.shared)
+
+    @property
+    def ranked_elsewhere(self) -> dict[str, list[str]]:
+        """The methods left out, per title of the summary that ranks them."""
+        out: dict[str, list[str]] = defaultdict(list)
+        for name, title in self.left_out.items():
+            out[title].append(name)
+        return dict(out)
 
     @property
     def gaps_text(self) -> dict[str, str]:
@@ -108,13 +120,15 @@ def describe_strata(strata: Sequence[Stratum]) -> list[str]:
     return out
 
 
-def common_strata(strata: dict[str, dict[Any, list[float]]]) -> tuple[list[str], set, list[str]]:
+def common_strata(strata: dict[str, dict[Any, list[float]]],
+                  among: set[str] | None = None) -> tuple[list[str], set, list[str]]:
     """The methods a domain summary compares, the strata they all ran, and the methods left out.
 
     Every compared method is aggregated over the same strata (common ground). The compared methods are the
-    largest set that shares a stratum; among sets as large, the one sharing the most tasks (a stratum's first
-    field; more observation levels of the same tasks say less than more tasks do), then the most strata, then
-    the first by name. A method run on few strata thus leaves itself out, never the methods it does not overlap.
+    largest set that shares a stratum (with ``among``: that holds one of those methods); among sets as large, the
+    one sharing the most tasks (a stratum's first field; more observation levels of the same tasks say less than
+    more tasks do), then the most strata, then the first by name. A method run on few strata thus leaves itself
+    out, never the methods it does not overlap.
     """
     ran: dict[Any, frozenset[str]] = defaultdict(frozenset)
     for name, per_stratum in strata.items():
@@ -129,8 +143,21 @@ def common_strata(strata: dict[str, dict[Any, list[float]]]) -> tuple[list[str],
     def tasks(group: frozenset[str]) -> int:
         return len({k[0] if isinstance(k, tuple) else k for k in shared_by(group)})
 
-    best = min(set(ran.values()), key=lambda g: (-len(g), -tasks(g), -len(shared_by(g)), sorted(g)))
+    candidates = {g for g in ran.values() if among is None or g & among}
+    best = min(candidates, key=lambda g: (-len(g), -tasks(g), -len(shared_by(g)), sorted(g)))
     return sorted(best), shared_by(best), sorted(set(strata) - best)
+
+
+def comparison_groups(strata: dict[str, dict[Any, list[float]]]) -> list[tuple[list[str], set]]:
+    """The comparisons that rank every method of a domain: :func:`common_strata`'s, then, while methods are left
+    out, the best set holding one of them (``[(methods, shared strata), ...]``, the first the largest)."""
+    groups: list[tuple[list[str], set]] = []
+    left = {n for n, per_stratum in strata.items() if per_stratum}
+    while left:
+        names, shared, _ = common_strata(strata, among=left if groups else None)
+        groups.append((names, shared))
+        left -= set(names)
+    return groups
 
 
 def domain_summaries(boards: Sequence[Board], reps: int = 2000, seed: int = 0) -> list[DomainSummary]:
@@ -151,18 +178,25 @@ def domain_summaries(boards: Sequence[Board], reps: int = 2000, seed: int = 0) -
             if ceiling is not None and normalised(0.0, ceiling.accuracy, ceiling.chance) is not None:
                 normal[board.domain][label][row.stratum] = [normalised(v, ceiling.accuracy, ceiling.chance)
                                                             for v in record.f1.values]
-    return [_summary(d, strata[d], normal[d], recognizer[d], reps, seed) for d in sorted(strata)]
+    out = []
+    for d in sorted(strata):
+        groups = comparison_groups(strata[d])
+        titles = [d if len(groups) == 1 else f"{d} ({k + 1} of {len(groups)})" for k in range(len(groups))]
+        compared_in = {n: title for (names, _), title in reversed(list(zip(groups, titles))) for n in names}
+        for (names, shared), title in zip(groups, titles):
+            left_out = {n: t for n, t in sorted(compared_in.items()) if n not in names}
+            out.append(_summary(d, title, names, shared, left_out, strata[d], normal[d], recognizer[d], reps, seed))
+    return out
 
 
-def _summary(domain: str, strata: dict[str, dict[Stratum, list[float]]],
-             normal: dict[str, dict[Stratum, list[float]]], recognizer: dict[str, str], reps: int,
-             seed: int) -> DomainSummary:
-    names, shared, left_out = common_strata(strata)
+def _summary(domain: str, title: str, names: list[str], shared: set, left_out: dict[str, str],
+             strata: dict[str, dict[Stratum, list[float]]], normal: dict[str, dict[Stratum, list[float]]],
+             recognizer: dict[str, str], reps: int, seed: int) -> DomainSummary:
     everything = set().union(*(set(strata[n]) for n in names)) if names else set()
     common = {n: {k: v for k, v in strata[n].items() if k in shared} for n in names}
     iqms = {n: stratified_bootstrap(common[n], pooled_iqm, reps=reps, seed=seed) for n in names}
     out = DomainSummary(
-        domain=domain, names=names, iqm=iqms, mean={n: pooled_mean(common[n]) for n in names}, best=tied_best(iqms),
+        domain=domain, title=title, names=names, iqm=iqms, mean={n: pooled_mean(common[n]) for n in names}, best=tied_best(iqms),
         poi={(a, b): probability_of_improvement_ci(common[a], common[b], reps=reps, seed=seed)
              for a in names for b in names if a != b},
         shared=sorted(shared), all_strata={n: len(strata[n]) for n in [*names, *left_out]},
@@ -195,7 +229,7 @@ def profiles_markdown(summaries: Sequence[DomainSummary]) -> str:
     for s in shown:
         taus = [0.25, 0.5, 0.75, 0.9]
         index = [int(np.argmin(np.abs(TAUS - t))) for t in taus]
-        lines += [f"## {s.domain} ({s.profile_strata} strata)", "",
+        lines += [f"## {s.title} ({s.profile_strata} strata)", "",
                   "| method | optimality gap | " + " | ".join(f"share > {t:.2f}" for t in taus) + " |",
                   "|---|---|" + "---|" * len(taus)]
         for n in s.names:
@@ -209,5 +243,5 @@ def profiles_markdown(summaries: Sequence[DomainSummary]) -> str:
 
 def profile_figure_data(summaries: Sequence[DomainSummary]) -> list[dict[str, Any]]:
     """What :func:`grail_bench.report.plots.profiles` draws: per domain with profiles, the curves and bands."""
-    return [{"domain": s.domain, "strata": s.profile_strata, "taus": TAUS.tolist(), "curves": s.profiles}
+    return [{"domain": s.title, "strata": s.profile_strata, "taus": TAUS.tolist(), "curves": s.profiles}
             for s in summaries if s.profiles]

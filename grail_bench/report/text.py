@@ -142,9 +142,10 @@ def summaries_markdown(summaries: Sequence[DomainSummary]) -> list[str]:
              "Per domain, every method in its canonical configuration (references such as the demonstrator apart)",
              "over the (task, protocol, level) strata all of them ran: interquartile mean (IQM) of F1 over every",
              "seed with a 95 % bootstrap interval stratified by stratum, and the plain mean. Bold: every method",
-             "whose interval overlaps the best one's.", ""]
+             "whose interval overlaps the best one's. A domain whose methods do not all share a stratum gets one",
+             "summary per group that does, numbered, so that every method is ranked in one.", ""]
     for s in summaries:
-        lines += [f"### {md(s.domain)}", "",
+        lines += [f"### {md(s.title)}", "",
                   f"Over the {s.strata} strata all {len(s.names)} methods ran: "
                   + "; ".join(md(t) for t in s.strata_text) + ".", "",
                   "| method | IQM | 95 % interval | mean | strata run |", "|---|---|---|---|---|"]
@@ -155,7 +156,8 @@ def summaries_markdown(summaries: Sequence[DomainSummary]) -> list[str]:
         lines.append("")
         notes = [f"- {md(n)} lacks strata other methods ran (a gap in the published data): {md(text)}."
                  for n, text in s.gaps_text.items()]
-        notes += [f"- {md(n)} is left out: it shares no stratum with the others." for n in s.left_out]
+        notes += [f"- Ranked in {md(t)} (no stratum shared with all of these): {md(', '.join(names))}."
+                  for t, names in s.ranked_elsewhere.items()]
         lines += notes + ([""] if notes else [])
     return lines
 
