@@ -204,8 +204,8 @@ class BudgetCurve:
         recognizer, protocol, observability: What the points are of.
         points: The studied values, in increasing order.
         scaling: Whether it is a scaling study (then ``exponent``, else ``plateau``).
-        plateau: The smallest value whose mean F1 reaches the best value's interval (:func:`grail_bench.stats.verdict.plateau`); None
-            while fewer than two values have rows.
+        plateau: The smallest value whose mean F1 reaches the best value's interval
+            (:func:`grail_bench.stats.verdict.plateau`); None while fewer than two values have rows.
         exponent: The fit-cost exponent against the goal count (None with a single goal count).
     """
 

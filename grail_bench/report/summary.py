@@ -196,7 +196,8 @@ def _summary(domain: str, title: str, names: list[str], shared: set, left_out: d
     common = {n: {k: v for k, v in strata[n].items() if k in shared} for n in names}
     iqms = {n: stratified_bootstrap(common[n], pooled_iqm, reps=reps, seed=seed) for n in names}
     out = DomainSummary(
-        domain=domain, title=title, names=names, iqm=iqms, mean={n: pooled_mean(common[n]) for n in names}, best=tied_best(iqms),
+        domain=domain, title=title, names=names, iqm=iqms, mean={n: pooled_mean(common[n]) for n in names},
+        best=tied_best(iqms),
         poi={(a, b): probability_of_improvement_ci(common[a], common[b], reps=reps, seed=seed)
              for a in names for b in names if a != b},
         shared=sorted(shared), all_strata={n: len(strata[n]) for n in [*names, *left_out]},
