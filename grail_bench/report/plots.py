@@ -369,7 +369,7 @@ def budgets(curves: Sequence[Any]) -> Any:
 
 
 def profiles(data: Sequence[dict[str, Any]]) -> Any:
-    """Performance profiles: per domain a panel, per recognizer the share of runs above each normalised-F1
+    """Performance profiles: per domain summary a panel, per recognizer the share of runs above each normalised-F1
     threshold with its 95 % stratified bootstrap band (a figure)."""
     plt = pyplot()
     fig, axes = plt.subplots(1, len(data), figsize=(4.4 * len(data), 3.4), squeeze=False)
@@ -377,7 +377,7 @@ def profiles(data: Sequence[dict[str, Any]]) -> Any:
         for i, (name, (point, low, high)) in enumerate(sorted(d["curves"].items())):
             ax.plot(d["taus"], point, color=f"C{i % 10}", label=name)
             ax.fill_between(d["taus"], low, high, color=f"C{i % 10}", alpha=0.2)
-        ax.set_title(f"{d['domain']} ({d['strata']} strata)", fontsize=9)
+        ax.set_title(f"{d['title']} ({d['strata']} strata)", fontsize=9)
         ax.set_xlabel("normalised F1 threshold τ")
         ax.set_ylabel("share of runs > τ")
         ax.set_ylim(0, 1.05)

@@ -182,7 +182,10 @@ def domain_summaries(boards: Sequence[Board], reps: int = 2000, seed: int = 0) -
     for d in sorted(strata):
         groups = comparison_groups(strata[d])
         titles = [d if len(groups) == 1 else f"{d} ({k + 1} of {len(groups)})" for k in range(len(groups))]
-        compared_in = {n: title for (names, _), title in reversed(list(zip(groups, titles))) for n in names}
+        compared_in: dict[str, str] = {}  # each method's first summary
+        for (names, _), title in zip(groups, titles):
+            for n in names:
+                compared_in.setdefault(n, title)
         for (names, shared), title in zip(groups, titles):
             left_out = {n: t for n, t in sorted(compared_in.items()) if n not in names}
             out.append(_summary(d, title, names, shared, left_out, strata[d], normal[d], recognizer[d], reps, seed))
@@ -243,6 +246,7 @@ def profiles_markdown(summaries: Sequence[DomainSummary]) -> str:
 
 
 def profile_figure_data(summaries: Sequence[DomainSummary]) -> list[dict[str, Any]]:
-    """What :func:`grail_bench.report.plots.profiles` draws: per domain with profiles, the curves and bands."""
-    return [{"domain": s.title, "strata": s.profile_strata, "taus": TAUS.tolist(), "curves": s.profiles}
+    """What :func:`grail_bench.report.plots.profiles` draws: per summary with profiles, its title, curves and
+    bands."""
+    return [{"title": s.title, "strata": s.profile_strata, "taus": TAUS.tolist(), "curves": s.profiles}
             for s in summaries if s.profiles]
