@@ -309,10 +309,11 @@ GOALS_UNITS = 5 * 3 * 5 + 5 * 2 * 5 + 3 * 10
 # gr_libs' problems, both its protocols: 5 crossings, 8 maze and 3 parking tasks x (4, 2 and 2 methods, GC-DRACO
 # and DRACO), x 10 seeds; its levels L1-L4, both protocols: 20 crossings x 3 methods, 32 maze tasks x 3 and 12 parking
 # (subset only) x 2, x 10 seeds, 10 PandaReach tasks x (BC, GRAML, DRACO and DRACO clipped) x 10 seeds and
-# 5 x (GC-DRACO and GC-GRAML) x 10, both; symbolic: 8 tasks x 5 methods x 10 seeds missing and noisy, x 2 planners
-# actions only, and the demonstrator on the 5 optimal and biased tasks; GC-DRACO's parking budget, 3 values x 3 seeds.
+# 5 x (GC-DRACO and GC-GRAML) x 10, both; DRACO clipped on the 8 maze tasks x 10 seeds, both; symbolic: 8 tasks x
+# 5 methods x 10 seeds missing and noisy, x 2 planners actions only, and the demonstrator on the 5 optimal and
+# biased tasks; GC-DRACO's parking budget, 3 values x 3 seeds.
 BREADTH_UNITS = (2 * (5 * 6 + 8 * 4 + 3 * 4) * 10 + 2 * (20 * 3 + 32 * 3) * 10 + 12 * 2 * 10 + 2 * 10 * 4 * 10
-                 + 2 * 5 * 2 * 10 + 2 * 8 * 5 * 10 + 8 * 2 * 10 + 5 * 10 + 3 * 3)
+                 + 2 * 5 * 2 * 10 + 2 * 8 * 10 + 2 * 8 * 5 * 10 + 8 * 2 * 10 + 5 * 10 + 3 * 3)
 
 
 @pytest.mark.parametrize("name, units", [("quick", 7 * 4 * 2 + 10 * 4 * 2 + 4 * 2 + 4 * 2 + 2),
