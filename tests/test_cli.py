@@ -80,6 +80,17 @@ def test_rerun_reuses_stored_seeds(tmp_path):
     assert n == 2 * 3
 
 
+def test_run_takes_several_tasks(tmp_path):
+    site = install_plugin(tmp_path / "site")
+    tasks = ["GRAIL/MiniGrid-Biased-v0", "GRAIL/MiniGrid-Optimal-v0"]
+    out = cli(["run", "-r", "toy", "-t", tasks[0], "-t", tasks[1], "--seeds", "1", "--no-progress", "--json",
+               str(tmp_path / "r.json")], tmp_path, PYTHONPATH=str(site))
+    assert out.returncode == 0, out.stderr
+    records = json.loads((tmp_path / "r.json").read_text())
+    assert {r["task"] for r in records} == set(tasks)
+    assert {(r["task"], r["protocol"]) for r in records} == {(tasks[0], "prefix"), (tasks[1], "subset")}  # their own
+
+
 def test_internal_errors_show_their_traceback(tmp_path):
     site = install_plugin(tmp_path / "site")
     out = cli(["run", "-r", "toy", "--set", "toy.bug=true", "--seeds", "1", "--no-progress"], tmp_path,

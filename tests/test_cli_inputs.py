@@ -65,6 +65,25 @@ def results(path: Path) -> Path:
     return path
 
 
+# --- options ----------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("args, message", [
+    (["run", "--seeds", "1", "--seeds=2"], "--seeds/-s given more than once (1, 2); run takes one"),
+    (["reproduce", "--profile", "quick", "--profile", "paper", "--out", "OUT"],
+     "--profile given more than once (quick, paper); reproduce takes one"),
+    (["leaderboard", "--markdown", "OUT/a.md", "--workers", "1", "--markdown", "OUT/b.md"],
+     "--markdown given more than once (OUT/a.md, OUT/b.md); leaderboard takes one"),
+])
+def test_an_option_given_twice_is_refused_not_overridden(tmp_path, args, message):
+    """Click keeps the last of a repeated single-valued option; here it is refused before any work."""
+    store = results(tmp_path / "r.sqlite")
+    before = snapshot(tmp_path)
+    out = str(tmp_path / "out")
+    refused([a.replace("OUT", out) for a in args], store, message.replace("OUT", out))
+    assert snapshot(tmp_path) == before
+
+
 # --- seeds ------------------------------------------------------------------------------------------------------
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import List, Optional
 
 import typer
+from typer.core import TyperGroup
 
 from grail_bench.cli.inputs import (
     check_store,
@@ -19,6 +20,7 @@ from grail_bench.cli.inputs import (
     one_line_warnings,
     open_store,
     outputs,
+    refuse_repeated_options,
     say,
     write_text,
 )
@@ -27,7 +29,20 @@ from grail_bench.cli.inputs import params as parse_params
 from grail_bench.cli.inputs import settings as parse_settings
 from grail_bench.task.observation import level_text
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+
+
+class _Commands(TyperGroup):
+    """The command group: an option that takes one value, given twice, is refused instead of the last kept."""
+
+    def parse_args(self, ctx: typer.Context, args: list[str]) -> list[str]:
+        name = next((a for a in args if not a.startswith("-")), None)
+        command = self.get_command(ctx, name) if name is not None else None
+        if command is not None:
+            refuse_repeated_options(command, args[args.index(name) + 1:])
+        return super().parse_args(ctx, args)
+
+
+app = typer.Typer(cls=_Commands, add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="grail-bench: goal-recognition benchmarks on gymnasium.")
 
 DEFAULT_TASK = "GRAIL/MiniGrid-Biased-v0"
@@ -85,7 +100,8 @@ def list_(what: str = typer.Argument("all", help="tasks, recognizers, scorers or
 
 @app.command()
 def run(
-    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
+    task: Optional[List[str]] = typer.Option(
+        None, "--task", "-t", help=f"A GRAIL/ task ID; repeat for several (default: {DEFAULT_TASK})."),
     recognizer: Optional[List[str]] = typer.Option(None, "--recognizer", "-r",
                                                    help="Recognizer name; repeat for several (default: bc, graql)."),
     seeds: int = typer.Option(3, "--seeds", "-s", help="Seeds 0..N-1 (the paper uses 10)."),
@@ -121,7 +137,7 @@ def run(
                                   "measure answering 'none of these' (tasks with 3 or more goals)."),
     mode_: Optional[str] = typer.Option(None, "--mode", "-m", help=MODE_HELP),
 ) -> None:
-    """Benchmark recognizers on one task; finished seeds in the store are reused."""
+    """Benchmark recognizers on one task or several; finished seeds in the store are reused."""
     from grail_bench.harness.api import collect, request
     from grail_bench.harness.modes import MODES
     from grail_bench.harness.planning import RecognizerSpec
@@ -143,13 +159,14 @@ def run(
         scorers = tuple(dict.fromkeys(scorer or []))
         setups = _observations(observation, observability, canonical_name(sampling) if sampling else protocol,
                                rounding)
-        reqs = [request(task, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
+        tasks = list(dict.fromkeys(task or [DEFAULT_TASK]))
+        reqs = [request(t, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
                         observability=levels, protocol=chosen_protocol, rounding=chosen_rounding,
                         task_params=parse_params(params or []) | ({"demos": demos} if demos else {}), mode=mode,
                         noise=noise, channel=channel)
-                for levels, chosen_protocol, chosen_rounding in setups]
+                for t in tasks for levels, chosen_protocol, chosen_rounding in setups]
         with open_store(store_path) as store, make_executor(executor, workers, address) as chosen:
-            summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{reqs[0].task_id} ({mode})")
+            summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{tasks[0] if len(tasks) == 1 else f'{len(tasks)} tasks'} ({mode})")
             records = [r for req, planned in summary.planned for r in collect(req, store, planned)]
             where = store.path
             _show(records, MODES[mode], chosen)

@@ -91,6 +91,31 @@ def write_text(path: Path, text: str, what: str) -> None:
     say(f"{what} written to {path}")
 
 
+def refuse_repeated_options(command: Any, args: Sequence[str]) -> None:
+    """Refuse an option of ``command`` (a Click command) that takes one value but is given more than once in
+    ``args`` (its arguments, after its name): Click would keep the last silently.
+
+    Raises:
+        typer.Exit: For the first such option.
+    """
+    single = {name: param for param in command.params
+              if param.param_type_name == "option" and not (param.multiple or param.is_flag or param.count)
+              for name in param.opts}
+    seen: dict[str, list[str]] = {}
+    it = iter(args)
+    for arg in it:
+        if arg == "--":
+            break
+        name, sep, given = arg.partition("=") if arg.startswith("--") else (arg, "", "")
+        if name not in single:
+            continue
+        param = single[name]
+        seen.setdefault(param.name, []).append(given if sep else next(it, ""))
+        if len(seen[param.name]) > 1:
+            raise fail(f"{'/'.join(param.opts)} given more than once ({', '.join(seen[param.name])}); "
+                       f"{command.name} takes one")
+
+
 def mode_name(mode: Optional[str], *shortcuts: tuple[str, bool]) -> str:
     """The mode a command runs or reports: ``--mode NAME`` or one of its shortcut flags (``--online``, ...).
 
