@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 .venv/bin/grail-bench reproduce --profile breadth --store leaderboard/results.sqlite --out leaderboard/breadth \
     --workers 2 --no-progress --no-site
 # The RL baselines and the later sections were added section by section from worktrees at commits 6300a0e,
-# 836951d, c2f4270, cf23443, aad8842, fd16f77, 4dadf1c, 79f7f79, 4c67657, 013729c and 63e8dbf (each command
+# 836951d, c2f4270, cf23443, aad8842, fd16f77, 4dadf1c, 79f7f79, 4c67657, 013729c, 63e8dbf and 8684c23 (each command
 # resumes from the store; the tables and figures were then written from it with --no-run):
 #   reproduce --profile breadth --only parking-rl-subset --only parking-rl-prefix            (seeds 4-9)
 #   reproduce --profile breadth --only crossing-rl-subset --only crossing-rl-prefix -r draco --seeds 3
@@ -32,10 +32,10 @@ cd "$(dirname "$0")/.."
 #                                          (013729c: DRACO, both protocols; N = 1, ..., 10: seed by seed)
 #   reproduce --profile breadth --only panda-grlibs-rl-clip --only panda-grlibs-rl-clip-prefix (63e8dbf)
 #   reproduce --profile breadth --only budget-gc-draco-parking --seeds 2                      (63e8dbf)
+#   reproduce --profile breadth --only panda-grlibs-gc --only panda-grlibs-gc-prefix --seeds N
+#                                                         (63e8dbf: GC-DRACO, GC-GRAML; N = 4, ..., 10: seed by seed)
+#   reproduce --profile breadth --only maze-rl-clip --only maze-rl-clip-prefix                (8684c23)
+#   reproduce --profile breadth --only budget-gc-draco-parking                                (8684c23)
 #   reproduce --profile breadth --no-run --out leaderboard/breadth
 # (each with --store leaderboard/results.sqlite --workers 2 --no-progress --no-site; the running ones with
 # --out <a scratch folder>).
-# Not run yet (the profile plans them; `--no-run` counts them as missing): GC-DRACO's parking budget at its third
-# seed (budget-gc-draco-parking: 100 000 and 200 000 SAC steps, about 35 min a seed on 2 workers). GC-DRACO and
-# GC-GRAML on gr_libs' PandaReach sets (panda-grlibs-gc, panda-grlibs-gc-prefix) are planned at 3 seeds (`seeds = 3`
-# in the profile); 10 would take about 19 min a seed more.

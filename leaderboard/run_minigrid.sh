@@ -9,6 +9,11 @@ GB=".venv/bin/grail-bench"
 # whole store).
 $GB reproduce --profile paper --only minigrid --workers 2 --store leaderboard/results.sqlite --out leaderboard/paper --no-site \
     --no-progress
+# Beyond the paper, which runs DRACO on PandaReach only: DRACO on the same tasks (one PPO agent per goal, shared
+# by the regimes), for MiniGrid's summary; its rows reach the boards through publish.sh, its tables go to a scratch
+# folder (run from a worktree at 8684c23: 70 units in 304 s on 2 workers, 60 agents trained).
+$GB reproduce --profile paper --only minigrid-draco --workers 2 --store leaderboard/results.sqlite \
+    --out /tmp/paper-minigrid-draco --no-site --no-progress
 # The stricter prefix variant, BC and GRAQL (published with ceil rounding).
 SCORERS="--scorer mse --scorer kl --scorer wasserstein --scorer loglik"
 for t in Optimal Optimal-4Goals Optimal-6Goals Suboptimal Suboptimal-4Goals Suboptimal-6Goals Biased; do
