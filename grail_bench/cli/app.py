@@ -30,7 +30,6 @@ from grail_bench.cli.inputs import settings as parse_settings
 from grail_bench.task.observation import level_text
 
 
-
 class _Commands(TyperGroup):
     """The command group: an option that takes one value, given twice, is refused instead of the last kept."""
 
@@ -166,7 +165,8 @@ def run(
                         noise=noise, channel=channel)
                 for t in tasks for levels, chosen_protocol, chosen_rounding in setups]
         with open_store(store_path) as store, make_executor(executor, workers, address) as chosen:
-            summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{tasks[0] if len(tasks) == 1 else f'{len(tasks)} tasks'} ({mode})")
+            what = tasks[0] if len(tasks) == 1 else f"{len(tasks)} tasks"
+            summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{what} ({mode})")
             records = [r for req, planned in summary.planned for r in collect(req, store, planned)]
             where = store.path
             _show(records, MODES[mode], chosen)
