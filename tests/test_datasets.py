@@ -209,7 +209,8 @@ def test_run_refuses_what_does_not_fit_in_one_line_and_leaves_the_store_alone(ex
         (["-t", "GRAIL/Nope-v0"], "unknown task 'GRAIL/Nope-v0'"),
         (["-t", TASK.id, "--param", "max_steps=-1"], "env.max_steps: expected a positive integer, got -1"),
     ):
-        result = cli("run", "-r", "bc", "--seeds", "1", "--no-progress", "--store", str(store), *args)
+        seeds = [] if "--seeds" in args else ["--seeds", "1"]
+        result = cli("run", "-r", "bc", *seeds, "--no-progress", "--store", str(store), *args)
         one_error_line(result, message)
     assert contents(store.parent) == before
 

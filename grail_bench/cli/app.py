@@ -99,8 +99,8 @@ def list_(what: str = typer.Argument("all", help="tasks, recognizers, scorers or
 
 @app.command()
 def run(
-    task: Optional[List[str]] = typer.Option(
-        None, "--task", "-t", help=f"A GRAIL/ task ID; repeat for several (default: {DEFAULT_TASK})."),
+    task: Optional[List[str]] = typer.Option(None, "--task", "-t",
+                                             help=f"A GRAIL/ task ID; repeat for several. Default: {DEFAULT_TASK}"),
     recognizer: Optional[List[str]] = typer.Option(None, "--recognizer", "-r",
                                                    help="Recognizer name; repeat for several (default: bc, graql)."),
     seeds: int = typer.Option(3, "--seeds", "-s", help="Seeds 0..N-1 (the paper uses 10)."),
