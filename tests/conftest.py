@@ -29,7 +29,7 @@ def chmod_stops_writes() -> bool:
 
 @pytest.fixture
 def rng() -> np.random.Generator:
-    """A seeded generator, as imitation's tests use."""
+    """A seeded generator."""
     return np.random.default_rng(0)
 
 

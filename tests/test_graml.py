@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from gymnasium import spaces
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 
 import grail_bench
 from grail_bench.contrib.graml import GRAMLRecognizer

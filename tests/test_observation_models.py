@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from gymnasium import spaces
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 from typer.testing import CliRunner
 
 import grail_bench

@@ -265,7 +265,7 @@ def test_leaderboard_computes_online_ceiling_curves_on_its_executor(tmp_path, mo
 
 
 def test_a_prefix_of_a_states_only_observation_hides_its_last_state_as_an_offline_one_does():
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     from grail_bench.harness.modes.online import head
 

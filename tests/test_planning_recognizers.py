@@ -8,7 +8,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 
 import grail_bench
 from grail_bench import GRTask

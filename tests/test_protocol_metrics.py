@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import seed_list

@@ -9,7 +9,7 @@ from dataclasses import asdict
 import numpy as np
 import pytest
 from conftest import run_mode
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 
 import grail_bench
 from grail_bench.core.seeding import cell_rng, goal_seed

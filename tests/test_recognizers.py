@@ -12,7 +12,7 @@ import pytest
 import torch
 from conftest import FAST
 from gymnasium import spaces
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 import grail_bench

@@ -188,4 +188,4 @@ def test_end_to_end_adversarial_beats_chance_on_biased_task(name, tmp_path, monk
     budget = {"total_timesteps": 8192, "n_envs": 8, "n_steps": 64}
     records = evaluate(TASK_ID, [(name, budget)], seeds=2)
     assert np.mean([r.f1.mean for r in records]) > 0.6, records  # chance is 0.5
-    assert list(tmp_path.iterdir()) == [], "imitation and SB3 must not leave logs behind"
+    assert list(tmp_path.iterdir()) == [], "SB3 must not leave logs behind"

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 from typer.testing import CliRunner
 
 from grail_bench import UserError
@@ -143,11 +143,10 @@ class _Mine(PolicyRecognizer):
     Config = _MineConfig
 
     def new_policy(self, goal: Any, env_factory: Any) -> Any:
-        from imitation.policies.base import FeedForward32Policy
+        from grail_bench.core.bc_update import bc_policy
 
         observation_space, action_space = spaces_of(env_factory, goal)
-        return FeedForward32Policy(observation_space=observation_space, action_space=action_space,
-                                   lr_schedule=lambda _: 1e-3)
+        return bc_policy(observation_space, action_space, 1e-3)
 
     def train_policy(self, goal: Any, demos: Any, env_factory: Any, seed: int) -> Any:
         return self.new_policy(goal, env_factory), {}
@@ -176,9 +175,9 @@ def test_augment_adds_exactly_the_other_goals_off_support_states_once_each(monke
     seen: list[tuple[np.ndarray, np.ndarray]] = []
     original = bc.train_bc
 
-    def spy(policy: Any, transitions: Any, seed: int, **kwargs: Any) -> Any:
-        seen.append((np.asarray(transitions.obs), np.asarray(transitions.acts)))
-        return original(policy, transitions, seed, **kwargs)
+    def spy(policy: Any, obs: np.ndarray, acts: np.ndarray, **kwargs: Any) -> Any:
+        seen.append((np.asarray(obs), np.asarray(acts)))
+        return original(policy, obs, acts, **kwargs)
 
     monkeypatch.setattr(bc, "train_bc", spy)
     task, train, _ = _minigrid()

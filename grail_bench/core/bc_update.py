@@ -1,16 +1,20 @@
-"""imitation's behavioural cloning loop in numpy, for the small MLP policies the suite clones.
+"""Behavioural cloning as imitation 1.0.1's ``bc.BC`` trains (the paper's BC-GRAIL), in torch and in numpy.
+
+The loop: the batches in the order imitation's data loader draws them (the
+same torch generator calls), its loss (negative log-likelihood of the
+demonstrated action, minus ``ent_weight`` times the policy's entropy) and
+torch's Adam with its settings, on its default policy (:func:`bc_policy`).
+:func:`train_bc_torch` is that loop in torch, for any SB3 actor-critic
+policy; it reproduces ``bc.BC``'s trained weights (tested against weights
+imitation trained, recorded in ``tests/fixtures/bc``).
 
 BC-GRAIL takes one Adam step per 8 demonstrated pairs (the paper's batch), so
-a PandaReach goal with 150 demonstrations is ~100 000 steps. imitation's
-``bc.BC`` spends ~1.5 ms on each (data loader, torch forward, backward and
-Adam on a ~2 500-weight network), nearly all of it framework overhead.
-:func:`train_bc` runs the same loop on one flat float32 vector: the batches in
-the order imitation's data loader draws them (the same torch generator
-calls), imitation's loss (negative log-likelihood of the demonstrated action,
-minus ``ent_weight`` times the policy's entropy) and torch's Adam with
-imitation's settings. It agrees with ``bc.BC`` to float32 rounding (tested on
-discrete and continuous actions). :func:`mirrorable` says which policies it
-can run; others go through imitation's own loop.
+a PandaReach goal with 150 demonstrations is ~100 000 steps, and torch spends
+~1.5 ms on each (forward, backward and Adam on a ~2 500-weight network),
+nearly all of it framework overhead. :func:`train_bc` runs the same loop on
+one flat float32 vector and agrees with the torch loop to float32 rounding
+(tested on discrete and continuous actions). :func:`mirrorable` says which
+policies it can run; others go through the torch loop.
 """
 
 from __future__ import annotations
@@ -31,6 +35,12 @@ from grail_bench.core.flat_mlp import Adam, FlatMLPs
 from grail_bench.core.spaces import preprocess
 
 _HALF_LOG_2PI = 0.5 * math.log(2 * math.pi)
+
+
+def bc_policy(observation_space: spaces.Space, action_space: spaces.Space, learning_rate: float) -> ActorCriticPolicy:
+    """imitation's default BC policy (its ``FeedForward32Policy``): SB3's actor-critic MLP with two hidden layers
+    of 32 tanh units, built in the same order, so the same torch seed gives the same initial weights."""
+    return ActorCriticPolicy(observation_space, action_space, lambda _: learning_rate, net_arch=[32, 32])
 
 
 def mirrorable(policy: ActorCriticPolicy) -> bool:
@@ -106,6 +116,25 @@ def train_bc(policy: ActorCriticPolicy, obs: np.ndarray, acts: np.ndarray, *, ba
         net.backward(layers, inputs, d_out)
         adam.step(net.flat, net.grad, learning_rate)
     net.write_back()
+    return losses
+
+
+def train_bc_torch(policy: ActorCriticPolicy, obs: np.ndarray, acts: np.ndarray, *, batch_size: int,
+                   learning_rate: float, ent_weight: float, n_epochs: int | None = None, n_batches: int | None = None,
+                   log_interval: int = 1) -> list[float]:
+    """:func:`train_bc`'s loop in torch, for any SB3 actor-critic ``policy`` (arguments and result as there)."""
+    if (n_epochs is None) == (n_batches is None):
+        raise ValueError("train_bc needs exactly one of n_epochs and n_batches")
+    optimizer = torch.optim.Adam(policy.parameters(), lr=learning_rate)
+    losses = []
+    for step, idx in enumerate(batch_indices(len(obs), batch_size, n_epochs, n_batches)):
+        _, log_prob, entropy = policy.evaluate_actions(torch.as_tensor(obs[idx]), torch.as_tensor(acts[idx]))
+        loss = -log_prob.mean() - ent_weight * (entropy.mean() if entropy is not None else 0.0)
+        if step % log_interval == 0:
+            losses.append(float(loss.item()))
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
     return losses
 
 

@@ -26,6 +26,7 @@ import numpy as np
 import torch
 from gymnasium import spaces
 from stable_baselines3 import PPO
+from stable_baselines3.common.buffers import RolloutBuffer
 from stable_baselines3.common.distributions import CategoricalDistribution, DiagGaussianDistribution
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.torch_layers import FlattenExtractor
@@ -54,8 +55,32 @@ def mirrorable(model: PPO) -> bool:
             and FlatMLPs.mirrors(layers))
 
 
+class GAEBuffer(RolloutBuffer):
+    """SB3's rollout buffer, its returns and advantages computed as every SB3 2.x before 2.3 did.
+
+    SB3 2.3 turned the last step's ``1 - done`` into float32, and with it the whole backward GAE recursion, which
+    had run in float64 (stored as float32 at each step). Every published PPO model was trained with the float64
+    recursion; this buffer keeps it on every SB3 version, so the same seed trains the same weights.
+    """
+
+    def compute_returns_and_advantage(self, last_values: torch.Tensor, dones: np.ndarray) -> None:
+        next_values = last_values.clone().cpu().numpy().flatten()
+        next_non_terminal = 1.0 - np.asarray(dones, dtype=np.float64)
+        last_gae_lam: Any = 0
+        for step in reversed(range(self.buffer_size)):
+            if step < self.buffer_size - 1:
+                next_non_terminal = 1.0 - self.episode_starts[step + 1]
+                next_values = self.values[step + 1]
+            delta = self.rewards[step] + self.gamma * next_values * next_non_terminal - self.values[step]
+            last_gae_lam = delta + self.gamma * self.gae_lambda * next_non_terminal * last_gae_lam
+            self.advantages[step] = last_gae_lam
+        self.returns = self.advantages + self.values
+
+
 class NumpyPPO(PPO):
     """SB3's PPO whose update (:meth:`train`) runs in numpy when the policy allows (:func:`mirrorable`).
+
+    Its rollouts go to a :class:`GAEBuffer` unless another buffer class is given.
 
     Args:
         gaussian: Mirror continuous actions too (SB3's update runs them otherwise).
@@ -67,6 +92,7 @@ class NumpyPPO(PPO):
 
     def __init__(self, *args: Any, gaussian: bool = False, **kwargs: Any) -> None:
         self.gaussian = gaussian
+        kwargs.setdefault("rollout_buffer_class", GAEBuffer)
         super().__init__(*args, **kwargs)
 
     def train(self) -> None:

@@ -62,8 +62,16 @@ def stamp(argv: Sequence[str] | None = None) -> str:
     return json.dumps({"command": command, "git_commit": git_commit(), **machine(), "date": now()}, sort_keys=True)
 
 
-def package_versions(names: Sequence[str] = ("grail-bench", "gymnasium", "stable-baselines3", "imitation",
-                                              "minigrid", "torch", "numpy")) -> str:
+def model_versions() -> list[str]:
+    """The versions of the packages a trained model depends on, for cache keys: a model cached under other versions
+    of SB3 (its policies, rollouts and PPO) or torch is trained again."""
+    from importlib.metadata import version
+
+    return [version("stable-baselines3"), version("torch")]
+
+
+def package_versions(names: Sequence[str] = ("grail-bench", "gymnasium", "stable-baselines3", "minigrid", "torch",
+                                              "numpy")) -> str:
     """JSON of the installed versions of the packages that shape a result."""
     from importlib.metadata import PackageNotFoundError, version
 

@@ -1,39 +1,16 @@
-"""Small torch and imitation helpers shared by the learning recognizers."""
+"""Small torch helpers shared by the learning recognizers."""
 
 from __future__ import annotations
 
 import contextlib
 import os
-from typing import Any, Iterator
+from typing import Iterator
 
 import torch
-from imitation.util.logger import HierarchicalLogger
-from stable_baselines3.common.logger import KVWriter, Logger
 
 from grail_bench.core.paths import cache_dir
 
 _INDUCTOR_CACHE = "TORCHINDUCTOR_CACHE_DIR"
-
-
-class _Recorder(KVWriter):
-    """Keeps every logged value in memory, by key, in the order it was dumped."""
-
-    def __init__(self) -> None:
-        self.values: dict[str, list[float]] = {}
-
-    def write(self, key_values: dict[str, Any], key_excluded: dict[str, Any], step: int = 0) -> None:
-        for key, value in key_values.items():
-            if isinstance(value, (int, float)) and not isinstance(value, bool):
-                self.values.setdefault(key, []).append(float(value))
-
-    def close(self) -> None:
-        pass
-
-
-def recording_logger() -> tuple[HierarchicalLogger, dict[str, list[float]]]:
-    """An imitation logger that writes no file, and the values it was given (by key, one per dump)."""
-    recorder = _Recorder()
-    return HierarchicalLogger(Logger(folder=None, output_formats=[recorder]), format_strs=[]), recorder.values
 
 
 @contextlib.contextmanager
@@ -71,17 +48,3 @@ def unchecked_distributions() -> Iterator[None]:
         yield
     finally:
         torch.distributions.Distribution.set_default_validate_args(before)
-
-
-@contextlib.contextmanager
-def scratch_logger() -> Iterator[HierarchicalLogger]:
-    """A silent logger for imitation's adversarial trainers.
-
-    Their ``accumulate_means`` insists on a folder; it lives in a temporary
-    directory removed on exit, so nothing is left in the working directory
-    or ``$TMPDIR``.
-    """
-    import tempfile
-
-    with tempfile.TemporaryDirectory(prefix="grail-bench-") as folder:
-        yield HierarchicalLogger(Logger(folder=folder, output_formats=[]), format_strs=[])

@@ -1,23 +1,82 @@
 """Trajectories: the types every module shares, where a demonstration reaches its goal, and one rollout helper.
 
-Demonstrations are ``imitation`` :class:`~imitation.data.types.Trajectory`
-objects: ``T`` actions, ``T + 1`` observations and one ``info`` dict per action
-whose ``"is_success"`` says whether the goal has been reached. Domains run a
-fixed horizon, so a demonstration goes on after its goal (the agent stays
-there); :func:`goal_horizon` says where the behaviour ends.
+Demonstrations are :class:`Trajectory` objects: ``T`` actions, ``T + 1``
+observations and one ``info`` dict per action whose ``"is_success"`` says
+whether the goal has been reached. Domains run a fixed horizon, so a
+demonstration goes on after its goal (the agent stays there);
+:func:`goal_horizon` says where the behaviour ends. The fields are those of
+``imitation``'s ``Trajectory``, so one of those (or any object with the same
+fields) is accepted wherever a trajectory is read, and :meth:`Trajectory.of`
+converts it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
-
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Protocol, Sequence
 
 import numpy as np
 
 if TYPE_CHECKING:
     import gymnasium as gym
-    from imitation.data.types import Trajectory
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Trajectory:
+    """One episode: ``T + 1`` observations, ``T >= 1`` actions and (optionally) one info dict per action.
+
+    Attributes:
+        obs: Observations, ``(T + 1, *observation_shape)``: the state before every action and the last state.
+        acts: Actions, ``(T, *action_shape)``.
+        infos: ``T`` info dicts (``"is_success"``: the goal has been reached), or None.
+        terminal: Whether the episode ended by itself (rather than being cut).
+    """
+
+    obs: np.ndarray
+    acts: np.ndarray
+    infos: np.ndarray | None = None
+    terminal: bool = True
+
+    def __post_init__(self) -> None:
+        if len(self.acts) == 0:
+            raise ValueError("a trajectory needs at least one action")
+        if len(self.obs) != len(self.acts) + 1:
+            raise ValueError(f"a trajectory has one observation more than actions, got {len(self.obs)} observations"
+                             f" and {len(self.acts)} actions")
+        if self.infos is not None and len(self.infos) != len(self.acts):
+            raise ValueError(f"a trajectory has one info per action, got {len(self.infos)} infos and "
+                             f"{len(self.acts)} actions")
+
+    def __len__(self) -> int:
+        return len(self.acts)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Trajectory):
+            return NotImplemented
+        infos = (self.infos is None and other.infos is None) or (
+            self.infos is not None and other.infos is not None and list(self.infos) == list(other.infos))
+        return (self.terminal == other.terminal and infos and np.array_equal(self.obs, other.obs)
+                and np.array_equal(self.acts, other.acts))
+
+    __hash__ = None  # type: ignore[assignment]  # mutable arrays inside
+
+    @classmethod
+    def of(cls, traj: Any) -> Trajectory:
+        """``traj`` as a :class:`Trajectory`: itself, or a copy of the fields of any object that has them
+        (``imitation``'s ``Trajectory`` among them)."""
+        if isinstance(traj, cls):
+            return traj
+        return cls(obs=traj.obs, acts=traj.acts, infos=getattr(traj, "infos", None),
+                   terminal=bool(getattr(traj, "terminal", True)))
+
+
+def flatten(trajectories: Sequence[Trajectory]) -> tuple[np.ndarray, np.ndarray]:
+    """Every trajectory's (observation, action) pairs in order, as two arrays (the last observations dropped)."""
+    obs = np.concatenate([np.asarray(t.obs)[:-1] for t in trajectories])
+    acts = np.concatenate([np.asarray(t.acts) for t in trajectories])
+    return obs, acts
+
 
 Goal = tuple[float, ...]
 Demos = Mapping[Goal, Sequence["Trajectory"]]
@@ -44,8 +103,6 @@ def goal_horizon(traj: Trajectory) -> int:
 
 def until_success(traj: Trajectory) -> Trajectory:
     """The demonstration cut after the action that reached the goal (unchanged if it never says so)."""
-    from imitation.data.types import Trajectory
-
     t = goal_horizon(traj)
     if t == len(traj.acts):
         return traj
@@ -68,8 +125,6 @@ def rollout(env: gym.Env, policy: Policy, *, seed: int = 0, require_success: boo
     Raises:
         RuntimeError: With ``require_success``, if the goal was not reached.
     """
-    from imitation.data.types import Trajectory
-
     obs, _ = env.reset(seed=seed)
     observations, acts, infos = [obs], [], []
     done = False

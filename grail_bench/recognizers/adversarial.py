@@ -1,15 +1,16 @@
 """GAIL-GRAIL and AIRL-GRAIL: adversarial imitation, one PPO generator per goal.
 
-Both use imitation's trainers with an SB3 PPO generator (``MlpPolicy``) and the
-paper's hyperparameters: PPO batch 32, gamma 0.95, learning rate 3e-4; 8
+Both train after imitation 1.0.1's algorithms (:mod:`grail_bench.core.adversarial`:
+the same seed trains the same weights) with an SB3 PPO generator (``MlpPolicy``)
+and the paper's hyperparameters: PPO batch 32, gamma 0.95, learning rate 3e-4; 8
 discriminator updates per round, generator replay buffer 512, demo batch 16.
 Rollouts run in the goal's own env with a fixed horizon (no early
 termination; 8 copies, vectorised where the domain offers it); the
-demonstrations are used whole, absorbed tail included, as imitation requires
+demonstrations are used whole, absorbed tail included, as the trainers require
 equal-length episodes. Scoring uses the trained generator policy, exactly as
 BC-GRAIL uses its cloned policy. Two things make a fit ~3.4x faster than
-imitation's loop on SB3's PPO while training the same model: PPO's update in
-numpy (:mod:`grail_bench.core.ppo_update`, equal to SB3's to float32
+imitation 1.0.1's loop on SB3's PPO while training the same model: PPO's update
+in numpy (:mod:`grail_bench.core.ppo_update`, equal to SB3's to float32
 rounding) and a rollout's learned rewards computed in one call at its end
 (bit for bit the same weights).
 """
@@ -23,20 +24,15 @@ from typing import Any, Callable, Literal, Sequence
 import numpy as np
 import torch
 from gymnasium import spaces
-from imitation.algorithms.adversarial.airl import AIRL
-from imitation.algorithms.adversarial.gail import GAIL
-from imitation.data.types import Trajectory
-from imitation.rewards.reward_nets import BasicRewardNet, BasicShapedRewardNet
-from imitation.util.networks import RunningNorm
 from stable_baselines3 import PPO
-from stable_baselines3.common.buffers import RolloutBuffer
 from stable_baselines3.common.policies import ActorCriticPolicy
 
+from grail_bench.core.adversarial import AIRL, GAIL, BasicRewardNet, BasicShapedRewardNet, RunningNorm
 from grail_bench.core.errors import UserError
-from grail_bench.core.ppo_update import NumpyPPO
+from grail_bench.core.ppo_update import GAEBuffer, NumpyPPO
 from grail_bench.core.rl import empty_policy, vec_env
-from grail_bench.core.torchutil import scratch_logger, unchecked_distributions
-from grail_bench.core.trajectory import EnvFactory, Goal
+from grail_bench.core.torchutil import unchecked_distributions
+from grail_bench.core.trajectory import EnvFactory, Goal, Trajectory
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.recognizers.evidence import OffSupport, off_support_setting
 from grail_bench.recognizers.scored import ActionBox, action_box_setting
@@ -54,7 +50,7 @@ UPDATES: dict[str, type[PPO]] = {"numpy": NumpyPPO, "torch": PPO}
 class _RolloutRewards:
     """The learned rewards of a whole rollout from one batched call, not one call per environment step.
 
-    imitation's reward wrapper asks the discriminator for the reward of every step as it is taken (a torch
+    The trainer's reward wrapper asks the discriminator for the reward of every step as it is taken (a torch
     forward pass per step, a fifth of a fit). PPO reads those rewards only when it computes advantages at the
     end of the rollout, and the discriminator does not change during a rollout. So the wrapper is given zeros
     and the transitions are kept; the rollout buffer adds their rewards, computed at once, before it computes
@@ -79,8 +75,9 @@ class _RolloutRewards:
         return np.asarray(self.reward_fn(*flat), dtype=np.float32).reshape(n_steps, n_envs)
 
 
-class _RewardedRolloutBuffer(RolloutBuffer):
-    """SB3's rollout buffer that adds a rollout's learned rewards (:class:`_RolloutRewards`) before advantages."""
+class _RewardedRolloutBuffer(GAEBuffer):
+    """The rollout buffer (SB3 2.2's GAE on every SB3) that adds a rollout's learned rewards
+    (:class:`_RolloutRewards`) before advantages."""
 
     rollout_rewards: _RolloutRewards | None = None
 
@@ -163,7 +160,7 @@ class AIRLConfig(AdversarialConfig):
         shaping_discount: The discount of the reward's potential shaping. AIRL's shaping
             ``g(s, a) + discount * h(s') - h(s)`` leaves the optimal policy unchanged only when its
             discount is the generator's (Fu et al. 2018; Ng et al. 1999), so it defaults to ``gamma``
-            (imitation's own default, 0.99, would differ from the paper's 0.95).
+            (imitation 1.0.1's default, 0.99, would differ from the paper's 0.95).
     """
 
     total_timesteps: int = 40_000
@@ -217,18 +214,18 @@ class AdversarialRecognizer(PolicyRecognizer):
         reward_net = self.reward_net_cls(venv.observation_space, venv.action_space,
                                          normalize_input_layer=RunningNorm, **self.reward_net_kwargs())
         demo_batch = min(cfg.demo_batch_size, sum(len(t.acts) for t in demos))
-        with scratch_logger() as logger, unchecked_distributions(), warnings.catch_warnings():
+        with unchecked_distributions(), warnings.catch_warnings():
             warnings.filterwarnings("ignore", category=UserWarning, module="stable_baselines3")
             trainer = self.trainer_cls(
                 demonstrations=list(demos), demo_batch_size=demo_batch, venv=venv, gen_algo=generator,
                 reward_net=reward_net, n_disc_updates_per_round=cfg.n_disc_updates_per_round,
-                gen_replay_buffer_capacity=cfg.gen_replay_buffer_capacity, custom_logger=logger,
-                allow_variable_horizon=False, disc_opt_kwargs=_ADAM,
+                gen_replay_buffer_capacity=cfg.gen_replay_buffer_capacity, allow_variable_horizon=False,
+                disc_opt_kwargs=_ADAM,
             )
             rewards = _RolloutRewards(trainer.venv_wrapped.reward_fn)
             trainer.venv_wrapped.reward_fn = rewards
             generator.rollout_buffer.rollout_rewards = rewards
-            # imitation's train() draws its own progress bar; run its rounds directly.
+            # The rounds of imitation 1.0.1's train(): a generator round, then the discriminator's updates.
             rounds = max(1, cfg.total_timesteps // trainer.gen_train_timesteps)
             disc_acc, gen_return = [], []
             for _ in range(rounds):
@@ -250,7 +247,8 @@ class AdversarialRecognizer(PolicyRecognizer):
 
 
 class GAILRecognizer(AdversarialRecognizer):
-    """GAIL-GRAIL (imitation's ``GAIL``, a ``BasicRewardNet`` discriminator; settings: :class:`AdversarialConfig`)."""
+    """GAIL-GRAIL (GAIL after imitation 1.0.1's algorithm, a ``BasicRewardNet`` discriminator; settings:
+    :class:`AdversarialConfig`)."""
 
     name = "gail"
     paper_name = "GAIL-GRAIL"
@@ -259,8 +257,8 @@ class GAILRecognizer(AdversarialRecognizer):
 
 
 class AIRLRecognizer(AdversarialRecognizer):
-    """AIRL-GRAIL (imitation's ``AIRL``, a ``BasicShapedRewardNet`` with a state potential; settings:
-    :class:`AIRLConfig`)."""
+    """AIRL-GRAIL (AIRL after imitation 1.0.1's algorithm, a ``BasicShapedRewardNet`` with a state potential;
+    settings: :class:`AIRLConfig`)."""
 
     name = "airl"
     paper_name = "AIRL-GRAIL"

@@ -1,23 +1,17 @@
-"""BC-GRAIL: one behavioural-cloning policy per goal (imitation's ``bc.BC``)."""
+"""BC-GRAIL: one behavioural-cloning policy per goal (imitation 1.0.1's ``bc.BC`` loop, :mod:`grail_bench.core.bc_update`)."""
 
 from __future__ import annotations
 
 import hashlib
-import warnings
 from dataclasses import dataclass, field
 from typing import Any, Literal, Sequence
 
 import numpy as np
-from imitation.algorithms import bc
-from imitation.data import rollout
-from imitation.data.types import Trajectory, Transitions, TransitionsMinimal
-from imitation.policies.base import FeedForward32Policy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 from grail_bench.core import bc_update
 from grail_bench.core.errors import UserError
-from grail_bench.core.torchutil import recording_logger
-from grail_bench.core.trajectory import EnvFactory, Goal, until_success
+from grail_bench.core.trajectory import EnvFactory, Goal, Trajectory, flatten, until_success
 from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
 from grail_bench.recognizers.evidence import OffSupport, off_support_setting
 from grail_bench.recognizers.scored import ActionBox, action_box_setting
@@ -65,7 +59,7 @@ class BCConfig:
 class BCRecognizer(PolicyRecognizer):
     """BC-GRAIL with the paper's hyperparameters (settings: :class:`BCConfig`).
 
-    Each goal's policy is imitation's default BC policy (an SB3 actor-critic
+    Each goal's policy is imitation 1.0.1's default BC policy (an SB3 actor-critic
     MLP with two hidden layers of 32 tanh units) trained by supervised
     learning on that goal's demonstrations, cut after the goal is reached
     (with ``augment="stay"``, plus the no-op at the other goals' states off its
@@ -79,8 +73,7 @@ class BCRecognizer(PolicyRecognizer):
 
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
         observation_space, action_space = spaces_of(env_factory, goal)
-        return FeedForward32Policy(observation_space=observation_space, action_space=action_space,
-                                   lr_schedule=lambda _: self.config.learning_rate)
+        return bc_update.bc_policy(observation_space, action_space, self.config.learning_rate)
 
     def noop_settings(self) -> list[str]:
         return super().noop_settings() + (["augment='stay'"] if self.config.augment == "stay" else [])
@@ -100,58 +93,42 @@ class BCRecognizer(PolicyRecognizer):
 
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
-        transitions = rollout.flatten_trajectories([until_success(t) for t in demos])
+        obs, acts = flatten([until_success(t) for t in demos])
         extra = self.augmented_states(goal)
         if len(extra):
-            acts = np.asarray(transitions.acts)
             noop = np.broadcast_to(np.asarray(self.evidence.noop, dtype=acts.dtype), (len(extra), *acts.shape[1:]))
-            obs = np.concatenate([np.asarray(transitions.obs), extra.astype(np.asarray(transitions.obs).dtype)])
-            # BC reads observations and actions only; imitation's batching wants the other fields present.
-            transitions = Transitions(obs=obs, acts=np.concatenate([acts, noop]), infos=np.array([{}] * len(obs)),
-                                      next_obs=obs, dones=np.zeros(len(obs), dtype=bool))
+            obs, acts = np.concatenate([obs, extra.astype(obs.dtype)]), np.concatenate([acts, noop])
         policy = self.new_policy(goal, env_factory)
         cfg = self.config
-        return train_bc(policy, transitions, seed, batch_size=cfg.batch_size, learning_rate=cfg.learning_rate,
+        return train_bc(policy, obs, acts, batch_size=cfg.batch_size, learning_rate=cfg.learning_rate,
                         ent_weight=cfg.ent_weight, n_epochs=cfg.n_epochs)
 
 
-def train_bc(policy: ActorCriticPolicy, transitions: TransitionsMinimal, seed: int, *, batch_size: int,
+def train_bc(policy: ActorCriticPolicy, obs: np.ndarray, acts: np.ndarray, *, batch_size: int,
              learning_rate: float, ent_weight: float, n_epochs: int | None = None,
              n_batches: int | None = None, numpy: bool = True) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
-    """Train ``policy`` by behavioural cloning (imitation's ``bc.BC``) on ``transitions``.
+    """Train ``policy`` by behavioural cloning (imitation 1.0.1's ``bc.BC`` loop) on ``(obs, acts)`` pairs.
 
     The loop runs in numpy where :func:`~grail_bench.core.bc_update.mirrorable` allows (the same batches,
     loss and Adam steps to float32 rounding, and the same stored results; 8-13x faster in ``make bench``),
-    else in imitation.
+    else in torch. Torch's global generator orders the batches (the caller seeds it).
 
     Args:
-        policy: The policy to train, built for ``transitions``' observation space.
-        transitions: The (observation, action) pairs.
-        seed: Seeds imitation's random generator (torch's global seed orders the batches; the caller sets it).
-        batch_size: Capped at the number of transitions.
+        policy: The policy to train, built for ``obs``' observation space.
+        obs: Observations, ``(N, *observation_shape)``.
+        acts: The actions taken there, ``(N, *action_shape)``.
+        batch_size: Capped at the number of pairs.
         n_epochs, n_batches: The budget: passes over the data, or gradient steps (exactly one of them).
-        numpy: False runs imitation's own loop whatever the policy (to compare the two).
+        numpy: False runs the torch loop whatever the policy (to compare the two).
 
     Returns:
         The trained policy and its loss curve (``{"loss": [...]}``, one point per epoch or per 1 % of the
         steps, thinned).
     """
-    batch_size = min(batch_size, len(transitions))
+    batch_size = min(batch_size, len(obs))
     # One logged batch per epoch (the loader drops the last, incomplete batch), or per 1 % of the steps.
-    interval = max(1, len(transitions) // batch_size) if n_batches is None else max(1, n_batches // 100)
-    if numpy and bc_update.mirrorable(policy):
-        losses = bc_update.train_bc(policy, transitions.obs, transitions.acts, batch_size=batch_size,
-                                    learning_rate=learning_rate, ent_weight=ent_weight, n_epochs=n_epochs,
-                                    n_batches=n_batches, log_interval=interval)
-        return policy, {"loss": thin(losses)}
-    logger, logged = recording_logger()
-    trainer = bc.BC(
-        observation_space=policy.observation_space, action_space=policy.action_space, demonstrations=transitions,
-        rng=np.random.default_rng(seed), policy=policy, batch_size=batch_size,
-        optimizer_kwargs={"lr": learning_rate}, ent_weight=ent_weight, device="cpu", custom_logger=logger,
-    )
-    with warnings.catch_warnings():
-        # imitation 1.0.1 logs a tensor that still requires grad on every batch.
-        warnings.filterwarnings("ignore", message="Converting a tensor with requires_grad", category=UserWarning)
-        trainer.train(n_epochs=n_epochs, n_batches=n_batches, progress_bar=False, log_interval=interval)
-    return trainer.policy, {"loss": thin(logged.get("bc/loss", []))}
+    interval = max(1, len(obs) // batch_size) if n_batches is None else max(1, n_batches // 100)
+    loop = bc_update.train_bc if numpy and bc_update.mirrorable(policy) else bc_update.train_bc_torch
+    losses = loop(policy, obs, acts, batch_size=batch_size, learning_rate=learning_rate, ent_weight=ent_weight,
+                  n_epochs=n_epochs, n_batches=n_batches, log_interval=interval)
+    return policy, {"loss": thin(losses)}

@@ -60,7 +60,7 @@ from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.task.observation import CHANNELS, observed_channel
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
 #: The label of a recognizer's own scoring, when it serves no registered scorer.
 OWN_SCORING = "default"

@@ -15,7 +15,7 @@ from typing import Any, Literal, Mapping, Sequence
 
 import numpy as np
 from gymnasium import spaces
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.spaces import state_index

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal, Sequence
 
 from gymnasium import spaces
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 

@@ -26,7 +26,7 @@ from grail_bench.core.trajectory import Demos, Goal, until_success
 from grail_bench.recognizers.scoring import PolicyOutput
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
 #: What a goal's policy outputs at a state off its goal's support (see :class:`Evidence`): ``"trust"`` its own
 #: output (GRAIL's method), ``"stay"`` the domain's no-op, ``"uniform"`` no preference among actions.

@@ -22,21 +22,19 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from importlib.metadata import version
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 import torch
 from gymnasium import spaces
-from imitation.data import rollout
-from imitation.data.types import Trajectory, Transitions
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 from grail_bench.core.cache import cached
+from grail_bench.core.provenance import model_versions
 from grail_bench.core.errors import UserError
 from grail_bench.core.scaling import scale_of
 from grail_bench.core.torchutil import single_thread
-from grail_bench.core.trajectory import Demos, EnvFactory, Goal, demos_digest, until_success
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal, Trajectory, demos_digest, flatten, until_success
 from grail_bench.recognizers.bc import train_bc
 from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy import spaces_of
@@ -179,7 +177,7 @@ class GCBCConfig:
 
 
 class GCBCRecognizer(ScoredRecognizer):
-    """GC-BC: one goal-conditioned BC policy (imitation's ``bc.BC``) trained on every goal's demonstrations.
+    """GC-BC: one goal-conditioned BC policy (imitation 1.0.1's ``bc.BC`` loop) trained on every goal's demonstrations.
 
     Settings: :class:`GCBCConfig`. Its ``scorer`` defaults to ``"mse"`` (as BC-GRAIL); any scorer the
     policy can serve.
@@ -218,8 +216,8 @@ class GCBCRecognizer(ScoredRecognizer):
 
         def train() -> tuple[dict[str, Any], dict[str, Any]]:
             torch.manual_seed(seed)
-            policy, curves = train_bc(self._new_policy(encoder, action_space), self._transitions(encoder, demos, ordered),
-                                      seed, batch_size=self.config.batch_size,
+            policy, curves = train_bc(self._new_policy(encoder, action_space), *self._pairs(encoder, demos, ordered),
+                                      batch_size=self.config.batch_size,
                                       learning_rate=self.config.learning_rate, ent_weight=self.config.ent_weight,
                                       n_batches=self.config.n_batches)
             trained["policy"] = policy
@@ -236,7 +234,7 @@ class GCBCRecognizer(ScoredRecognizer):
                        "inputs": "state+goal+relative",
                        "env": cache_key, "seed": seed,
                        "goals": [list(g) for g in ordered], "demos": [demos_digest(demos[g]) for g in ordered],
-                       "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}
+                       "versions": model_versions()}
                 entry = cached(f"policy-{self.name}", key, train)
                 seconds, reused, extra = entry.seconds, entry.reused, entry.extra
                 if reused:
@@ -249,18 +247,15 @@ class GCBCRecognizer(ScoredRecognizer):
         return FitReport(train_seconds=seconds, trained=0 if reused else 1, reused=int(reused))
 
     @staticmethod
-    def _transitions(encoder: GoalEncoder, demos: Mapping[Goal, Sequence[Trajectory]],
-                     ordered: Sequence[Goal]) -> Transitions:
+    def _pairs(encoder: GoalEncoder, demos: Mapping[Goal, Sequence[Trajectory]],
+               ordered: Sequence[Goal]) -> tuple[np.ndarray, np.ndarray]:
         """Every goal's (features, action) pairs, cut after the goal is reached, in goal order."""
         obs, acts = [], []
         for goal in ordered:
-            flat = rollout.flatten_trajectories([until_success(t) for t in demos[goal]])
-            obs.append(encoder.encode(np.asarray(flat.obs), [goal])[0])
-            acts.append(np.asarray(flat.acts))
-        obs_all, acts_all = np.concatenate(obs), np.concatenate(acts)
-        # BC reads observations and actions only; imitation's batching wants the other fields present.
-        return Transitions(obs=obs_all, acts=acts_all, infos=np.array([{}] * len(obs_all)), next_obs=obs_all,
-                           dones=np.zeros(len(obs_all), dtype=bool))
+            goal_obs, goal_acts = flatten([until_success(t) for t in demos[goal]])
+            obs.append(encoder.encode(goal_obs, [goal])[0])
+            acts.append(goal_acts)
+        return np.concatenate(obs), np.concatenate(acts)
 
     def set_goals(self, goals: Sequence[Goal]) -> None:
         """Score these candidate goals from now on, whether or not they had demonstrations (zero-shot).

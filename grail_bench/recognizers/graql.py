@@ -8,7 +8,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 from gymnasium import spaces
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 from scipy.special import softmax
 
 from grail_bench.core.cache import cached

@@ -4,20 +4,19 @@ from __future__ import annotations
 
 import abc
 import time
-from importlib.metadata import version
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 import torch
 from gymnasium import spaces
-from imitation.data.types import Trajectory
 from stable_baselines3.common.policies import BasePolicy
 
 from grail_bench.core.cache import Busy, cached
 from grail_bench.core.errors import UserError
+from grail_bench.core.provenance import model_versions
 from grail_bench.core.seeding import goal_seed
 from grail_bench.core.torchutil import single_thread
-from grail_bench.core.trajectory import EnvFactory, Goal, demos_digest
+from grail_bench.core.trajectory import EnvFactory, Goal, Trajectory, demos_digest
 from grail_bench.recognizers.contract import FitReport, settings_key
 from grail_bench.recognizers.policy_bank import PolicyBank
 from grail_bench.recognizers.scored import ScoredRecognizer
@@ -108,7 +107,7 @@ class PolicyRecognizer(ScoredRecognizer):
             return policy, time.perf_counter() - start, False, curves
         key = {"recognizer": self.name, "config": settings_key(self.config, models=True), "env": cache_key,
                "goal": list(goal), "seed": seed,
-               "versions": [version("stable-baselines3"), version("imitation"), version("torch")]}
+               "versions": model_versions()}
         if self.uses_demos:
             key["demos"] = demos_digest(demos)
         key.update(self.model_key(goal))

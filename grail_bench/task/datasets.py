@@ -263,7 +263,7 @@ def _check_episode(source: str, index: int, obs: np.ndarray, acts: np.ndarray, s
 
 def _labelled(task: GRTask, source: str, labels: list[dict], episodes: list[dict], spaces: tuple[Any, Any],
               seed: int | None) -> Loaded:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     goals = {tuple(float(c) for c in g): g for g in task.goals}
     parts: dict[Goal, dict[str, list[Any]]] = {g: {"train": [], "test": []} for g in task.goals}

@@ -28,7 +28,7 @@ from grail_bench.core.provenance import package_versions
 from grail_bench.core.trajectory import Goal
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     from grail_bench.task.domain import Domain, TaskView
 
@@ -90,7 +90,7 @@ def pack(demos: Sequence[Trajectory], domain: str = "the domain") -> dict[str, n
 
 def unpack(arrays: dict[str, np.ndarray]) -> list[Trajectory]:
     """The trajectories :func:`pack` packed."""
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     out, obs_at, act_at = [], 0, 0
     for length in arrays["lengths"].tolist():

@@ -25,7 +25,7 @@ from grail_bench.core.trajectory import Demos, Goal
 from grail_bench.task.model import DemoSource, GRTask, TaskFieldError, install_demo_source
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
 
 def generate_demos(task: GRTask, seed: int, n_demos: int | None = None) -> Demos:

@@ -23,7 +23,7 @@ from grail_bench.core.trajectory import Goal
 if TYPE_CHECKING:
     import gymnasium as gym
     import numpy as np
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
 GROUP = "grail_bench.domains"
 

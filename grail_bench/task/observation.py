@@ -26,7 +26,7 @@ Two observation models apply on top of any protocol, in every domain, with no do
   states that follow are untouched: a spurious step is a wrong observation, not
   another trajectory. Draws come from the cell's stream, after the protocol's.
 * **channel** (:func:`project`): ``pairs`` (states and actions, the default),
-  ``states`` or ``actions``. A recognizer still gets an imitation ``Trajectory``
+  ``states`` or ``actions``. A recognizer still gets a ``Trajectory``
   of ``k`` actions and ``k + 1`` states, so every shape and index it knows keeps
   its meaning; the hidden channel is NaN (as floats): ``states`` keeps
   ``obs[:k]``, the states the observed steps were taken in, and blanks the
@@ -58,17 +58,14 @@ import itertools
 import math
 import warnings
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Hashable, Iterable, Iterator, NamedTuple, Protocol, Sequence, runtime_checkable
+from typing import Any, Hashable, Iterable, Iterator, NamedTuple, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
 from grail_bench.core.registry import Registry
 from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import cell_rng
-from grail_bench.core.trajectory import goal_horizon
-
-if TYPE_CHECKING:  # imitation imports torch; task registration reads this module and must stay light
-    from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory, goal_horizon
 
 GROUP = "grail_bench.protocols"
 ROUNDINGS = ("ceil", "floor")
@@ -590,7 +587,6 @@ def observe(traj: Trajectory, fraction: float, protocol: str | ProtocolLike = "p
     idx = np.asarray(chosen.select(traj, fraction, rng, rounding), dtype=np.int64)
     if idx.ndim != 1 or len(idx) == 0 or np.any(np.diff(idx) <= 0) or idx[0] < 0 or idx[-1] >= len(traj.acts):
         raise UserError(f"protocol {chosen.name!r} selected invalid indices {idx.tolist()}")
-    from imitation.data.types import Trajectory
 
     states = np.concatenate([traj.obs[idx], traj.obs[idx[-1] + 1][None]])
     return Trajectory(obs=states, acts=traj.acts[idx], infos=None, terminal=False)

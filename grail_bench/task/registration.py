@@ -1,8 +1,13 @@
 """The one place that registers GRAIL/ tasks with gymnasium, and looks them up by ID.
 
-Registration runs on ``import gymnasium`` (through the ``gymnasium.envs``
-entry-point group) and on ``import grail_bench``; both paths are idempotent
-and import nothing heavier than the task cards.
+Registration runs on ``import grail_bench``, which is what each of
+gymnasium 1.x's ways to reach a third-party env does:
+``gym.make("grail_bench:GRAIL/...")`` imports the package first,
+``gym.register_envs(grail_bench)`` names it, and an ``import grail_bench``
+anywhere before ``gym.make("GRAIL/...")`` does the same. Gymnasium 1.x loads
+no plugins on ``import gymnasium``, so a bare ``gym.make("GRAIL/...")`` with no
+import of ``grail_bench`` finds no ``GRAIL`` namespace. Registration is
+idempotent and imports nothing heavier than the task cards.
 """
 
 from __future__ import annotations
@@ -32,9 +37,7 @@ def register_envs() -> list[GRTask]:
     Returns:
         The tasks, registered or already present.
     """
-    # Imported here: gymnasium's plugin loader imports this module while
-    # gymnasium itself is initialising, and `import grail_bench` imports
-    # gymnasium through this function.
+    # Imported here: `import grail_bench` imports gymnasium through this function only.
     from gymnasium.envs.registration import register, registry
 
     tasks = load_cards()

@@ -15,7 +15,7 @@ import dataclasses
 from typing import Any
 
 import pytest
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 
 import grail_bench
 from grail_bench.recognizers import make_recognizer

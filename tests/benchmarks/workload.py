@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from imitation.data.types import Trajectory
+from grail_bench.core.trajectory import Trajectory
 
 import grail_bench
 

@@ -47,7 +47,7 @@ from grail_bench.domains.minigrid.grid import (
 from grail_bench.domains.routes import ranking
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     from grail_bench.core.trajectory import Goal
     from grail_bench.task.model import GRTask

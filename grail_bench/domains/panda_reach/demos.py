@@ -23,7 +23,7 @@ from grail_bench.core.seeding import EXPERT, goal_seed
 from grail_bench.core.trajectory import rollout
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     from grail_bench.core.trajectory import Goal
     from grail_bench.task.model import GRTask

@@ -23,7 +23,7 @@ from grail_bench.core.trajectory import rollout
 from grail_bench.domains.parking.path import Pose, expert_path
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     from grail_bench.core.trajectory import Goal
     from grail_bench.task.model import GRTask

@@ -30,7 +30,7 @@ from grail_bench.core.trajectory import rollout
 from grail_bench.domains.point_maze.maze import Cell, Maze, biased_route, shortest_routes
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     from grail_bench.core.trajectory import Goal
     from grail_bench.task.model import GRTask

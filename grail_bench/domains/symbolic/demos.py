@@ -27,7 +27,7 @@ from grail_bench.domains.symbolic.planner import PlanGraph, optimal_plan_graph
 from grail_bench.domains.symbolic.strips import StripsModel
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     from grail_bench.core.trajectory import Goal
     from grail_bench.task.model import GRTask

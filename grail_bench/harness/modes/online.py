@@ -56,7 +56,7 @@ from grail_bench.stats import metrics
 from grail_bench.task.observation import observed_channel
 
 if TYPE_CHECKING:
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
 #: Observed fractions the stored curves are sampled at.
 GRID = tuple(round(0.05 * i, 2) for i in range(1, 21))
@@ -115,7 +115,7 @@ class OnlineRecord(Record):
 def head(observed: Trajectory, k: int) -> Trajectory:
     """The first ``k`` pairs of an observation and the state after the ``k``-th, which a ``states`` channel hides
     as it hides an offline observation's last state (it would give the ``k``-th action away)."""
-    from imitation.data.types import Trajectory
+    from grail_bench.core.trajectory import Trajectory
 
     obs = observed.obs[: k + 1]
     if observed_channel(observed) == "states":
