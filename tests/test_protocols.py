@@ -9,10 +9,11 @@ from dataclasses import asdict
 import numpy as np
 import pytest
 from conftest import run_mode
-from grail_bench.core.trajectory import Trajectory
 
 import grail_bench
+from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import cell_rng, goal_seed
+from grail_bench.core.trajectory import Trajectory
 from grail_bench.harness.planning import RecognizerSpec, plan
 from grail_bench.harness.store import SCHEMA_VERSION, ResultsStore
 from grail_bench.task.observation import BUILTIN, get_protocol, n_observed, observe, parse_label, protocol_label
@@ -163,3 +164,10 @@ def test_a_goal_gets_the_same_trained_policy_in_every_goal_set():
         observed = see(test[(7, 3)][0], 1.0, "prefix")
         fits[task_id] = rec.score(observed, "loglik")[(7, 3)]
     assert len(set(fits.values())) == 1, fits
+
+
+@pytest.mark.parametrize("level", [0, 2, -0.5, 1.0001, float("nan"), "0.5", True])
+def test_a_level_outside_zero_to_one_is_refused_in_one_line(level):
+    traj = Trajectory(obs=np.zeros((11, 3), dtype=np.int64), acts=np.zeros(10, dtype=np.int64))
+    with pytest.raises(UserError, match=r"^observability level must be a number in \(0, 1\], got "):
+        observe(traj, level)

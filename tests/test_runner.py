@@ -118,7 +118,9 @@ def test_interrupted_run_keeps_finished_seeds_and_resumes(spy, tmp_path):
 
 @pytest.mark.parametrize("bad, message", [({(7, 1): 1.0}, "one score per candidate goal"),
                                           ({(7, 1): 1.0, (7, 7): float("nan")}, "non-finite"),
-                                          ([1.0, 2.0], "one score per candidate goal")])
+                                          ([1.0, 2.0], "one score per candidate goal"),
+                                          ({(7, 1): "0.9", (7, 7): 0.1}, "must return numbers as scores, got float, str"),
+                                          ({(7, 1): True, (7, 7): 0.1}, "must return numbers as scores")])
 def test_protocol_violations_are_reported(spy, bad, message):
     spy.bad_scores = bad
     with pytest.raises(RecognizerError, match=message):

@@ -159,6 +159,8 @@ def test_two_processes_asking_for_one_model_train_it_once(tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["--executor", "threads"], "unknown executor 'threads'"),
     (["--workers", "0"], "--workers must be at least 1"),
+    (["--workers", "100000"], "--workers 100000 is more processes than this machine's"),
+    (["--executor", "ray", "--workers", "100000"], "--workers 100000 is more processes than this machine's"),
     (["--executor", "ray", "--address", "127.0.0.1:1"], "cannot reach a Ray cluster at 127.0.0.1:1"),
     (["--executor", "serial", "--workers", "2"], "the serial executor runs one unit at a time"),
     (["--address", "127.0.0.1:1", "--executor", "local"], "--address names a Ray cluster"),

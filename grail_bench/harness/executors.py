@@ -233,6 +233,10 @@ def _in_one_thread(fn: Callable[[Any], Any], item: Any) -> Any:
     return fn(item)
 
 
+#: The most worker processes (or local Ray CPUs) one machine is asked to run per core: each runs torch on one thread.
+WORKERS_PER_CORE = 4
+
+
 def make_executor(name: str | None = None, workers: int | None = None, address: str | None = None) -> Executor:
     """The executor the command line asked for.
 
@@ -244,11 +248,15 @@ def make_executor(name: str | None = None, workers: int | None = None, address: 
         address: A Ray cluster (``auto`` or ``host:port``); only with ``ray``.
 
     Raises:
-        UserError: For an unknown executor, ``workers`` < 1, an address
+        UserError: For an unknown executor, ``workers`` < 1 or above :data:`WORKERS_PER_CORE` per core, an address
             without Ray, or a cluster that cannot be reached.
     """
     if workers is not None and workers < 1:
         raise UserError(f"--workers must be at least 1, got {workers}")
+    cores = os.cpu_count() or 1
+    if workers is not None and workers > WORKERS_PER_CORE * cores:
+        raise UserError(f"--workers {workers} is more processes than this machine's {cores} cores can run (at most "
+                        f"{WORKERS_PER_CORE * cores}, {WORKERS_PER_CORE} per core)")
     if name is None:
         name = "ray" if address is not None else "local" if (workers or 1) > 1 else "serial"
     if name not in EXECUTORS:

@@ -157,7 +157,11 @@ def check_scores(name: str, scores: Any, goals: Sequence[Goal]) -> np.ndarray:
     """
     if not isinstance(scores, Mapping) or {tuple(g) for g in scores} != set(goals):
         raise RecognizerError(f"recognizer {name!r} must return one score per candidate goal {list(goals)}")
-    out = np.array([float(scores[g]) for g in goals])
+    values = [scores[g] for g in goals]
+    if not all(np.ndim(v) == 0 and np.asarray(v).dtype.kind in "iuf" for v in values):  # no text, no flags
+        raise RecognizerError(f"recognizer {name!r} must return numbers as scores, got "
+                              f"{', '.join(sorted({type(v).__name__ for v in values}))}")
+    out = np.array(values, dtype=np.float64)
     if not np.all(np.isfinite(out)):
         raise RecognizerError(f"recognizer {name!r} returned a non-finite score: {out.tolist()}")
     return out

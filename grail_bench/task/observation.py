@@ -578,7 +578,13 @@ def observe(traj: Trajectory, fraction: float, protocol: str | ProtocolLike = "p
     Returns:
         A trajectory with ``k`` actions and ``k + 1`` states; ``acts[i]`` was
         taken in ``obs[i]`` (for subsets ``obs[k]`` follows the last pair).
+
+    Raises:
+        UserError: For a level outside (0, 1].
     """
+    if isinstance(fraction, bool) or not isinstance(fraction, (int, float, np.integer, np.floating)) or not (
+            0 < fraction <= 1):
+        raise UserError(f"observability level must be a number in (0, 1], got {fraction!r}")
     chosen = get_protocol(protocol) if isinstance(protocol, str) else protocol
     if rng is None:
         if getattr(chosen, "random_subset", True):
