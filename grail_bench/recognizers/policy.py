@@ -106,8 +106,9 @@ class PolicyRecognizer(ScoredRecognizer):
         fitted: dict[Goal, tuple[BasePolicy, float, bool, Curves]] = {}
         seeds = {g: goal_seed(seed, g) for g in demos}  # keyed by the goal, not its position in the task
         with single_thread():
-            todo = [g for g in demos if cache_key is None or needs_training(
-                f"policy-{self.name}", self._cache_key(g, demos[g], seeds[g], cache_key))]
+            together = type(self).train_policies is not PolicyRecognizer.train_policies  # else skip the look
+            todo = [g for g in demos if together and (cache_key is None or needs_training(
+                f"policy-{self.name}", self._cache_key(g, demos[g], seeds[g], cache_key)))]
             self._ahead = self.train_policies({g: (demos[g], seeds[g]) for g in todo}, env_factory) if todo else {}
             try:
                 # A goal whose model another process is training now is left for later, so parallel
