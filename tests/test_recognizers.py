@@ -249,10 +249,17 @@ def test_trained_policies_are_cached_and_reloaded(name, monkeypatch, tmp_path):
     observed = observe(TEST[(7, 1)][0], 0.3)
     expected = first.score(observed)
 
-    calls = []
+    calls = []  # one per goal trained, alone or with others
     second = make_recognizer(name, **FAST[name])
-    original = second.train_policy
+    original, together = second.train_policy, second.train_policies
     monkeypatch.setattr(second, "train_policy", lambda *a, **k: calls.append(1) or original(*a, **k))
+
+    def train_together(*args):
+        got = together(*args)
+        calls.extend([1] * len(got))
+        return got
+
+    monkeypatch.setattr(second, "train_policies", train_together)
     report = second.fit(TRAIN, factory, seed=4, cache_key=TASK.env_key)
     assert calls == [] and second.score(observed) == expected
     assert (report.trained, report.reused) == (0, 2)

@@ -100,16 +100,21 @@ class Cached:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
-def _cached(kind: str, key: dict[str, Any], train: Callable[[], Any], suffix: str,
-            save: Callable[[dict[str, Any], Path], None], load: Callable[[Path], dict[str, Any]],
-            root: Path | None, wait: bool = True) -> Cached:
-    from filelock import FileLock, Timeout
-
+def _paths(kind: str, key: dict[str, Any], suffix: str, root: Path | None) -> tuple[Path, Path, Path]:
+    """An entry's model file, sidecar and lock file (its folder created)."""
     folder = (root or cache_dir()) / kind
     folder.mkdir(parents=True, exist_ok=True)
     digest = key_digest(key)
-    model, meta = folder / f"{digest}{suffix}", folder / f"{digest}.json"
-    lock = FileLock(str(folder / f"{digest}.lock"))
+    return folder / f"{digest}{suffix}", folder / f"{digest}.json", folder / f"{digest}.lock"
+
+
+def _cached(kind: str, key: dict[str, Any], train: Callable[[], Any], suffix: str,
+            save: Callable[[dict[str, Any], Path], None], load: Callable[[Path], dict[str, Any]],
+            root: Path | None, wait: bool = True, spent: float = 0.0) -> Cached:
+    from filelock import FileLock, Timeout
+
+    model, meta, lock_file = _paths(kind, key, suffix, root)
+    lock = FileLock(str(lock_file))
     try:
         lock.acquire(timeout=-1 if wait else 0)
     except Timeout:
@@ -131,7 +136,7 @@ def _cached(kind: str, key: dict[str, Any], train: Callable[[], Any], suffix: st
             warnings.warn(f"cached model {model} is unusable: {problem}; retraining", CacheWarning, stacklevel=3)
         start = time.perf_counter()
         state, extra = _split(train())
-        seconds = time.perf_counter() - start
+        seconds = spent + time.perf_counter() - start
         _write_atomic(model, lambda tmp: save(state, tmp))
         sidecar = json.dumps({"key": key, "sha256": _sha256(model), "train_seconds": seconds, "extra": extra},
                              sort_keys=True, default=str)
@@ -150,7 +155,7 @@ def _split(trained: Any) -> tuple[dict[str, Any], dict[str, Any]]:
 
 
 def cached(kind: str, key: dict[str, Any], train: Callable[[], Any], *, arrays: bool = False,
-           root: Path | None = None, wait: bool = True) -> Cached:
+           root: Path | None = None, wait: bool = True, spent: float = 0.0) -> Cached:
     """Load a cached model for ``key`` or train, save and return a new one, with what training returned beside it.
 
     Args:
@@ -161,10 +166,35 @@ def cached(kind: str, key: dict[str, Any], train: Callable[[], Any], *, arrays: 
         arrays: Named numpy arrays (``.npz``) rather than a ``state_dict`` (``.pt``).
         root: Cache root (default :func:`grail_bench.core.paths.cache_dir`).
         wait: When another process is training this model, wait for it (default) or raise :class:`Busy`.
+        spent: Seconds already spent training this model before the call (e.g. its share of a batch of
+            models trained together), recorded with what ``train`` takes when it runs.
     """
     if arrays:
-        return _cached(kind, key, train, ".npz", _save_arrays, _load_arrays, root, wait)
-    return _cached(kind, key, train, ".pt", _save_torch, _load_torch, root, wait)
+        return _cached(kind, key, train, ".npz", _save_arrays, _load_arrays, root, wait, spent)
+    return _cached(kind, key, train, ".pt", _save_torch, _load_torch, root, wait, spent)
+
+
+def needs_training(kind: str, key: dict[str, Any], *, arrays: bool = False, root: Path | None = None) -> bool:
+    """Whether :func:`cached` would train ``key``'s model now: no entry for ``key`` is stored and no other
+    process is training it. A quick look (the sidecar's key, not the checksum; the lock taken for an instant):
+    :func:`cached` still decides."""
+    from filelock import FileLock, Timeout
+
+    model, meta, lock_file = _paths(kind, key, ".npz" if arrays else ".pt", root)
+    if model.exists() and meta.exists():
+        try:
+            if json.loads(meta.read_text(encoding="utf-8")).get("key") == json.loads(
+                    json.dumps(key, sort_keys=True, default=str)):
+                return False
+        except (OSError, ValueError):
+            pass
+    lock = FileLock(str(lock_file))
+    try:
+        lock.acquire(timeout=0)
+    except Timeout:
+        return False  # another process is training it
+    lock.release()
+    return True
 
 
 def cached_state_dict(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]],

@@ -4,11 +4,15 @@ The suite's policies are small (a few thousand weights), so a torch forward,
 backward and optimiser step cost ~1 ms of framework overhead per minibatch for
 a few microseconds of arithmetic. The numpy updates (:mod:`~grail_bench.core.ppo_update`,
 :mod:`~grail_bench.core.bc_update`) read a policy's weights into one flat
-vector, train it in place and copy it back.
+vector, train it in place and copy it back. :class:`StackedMLPs` holds K
+copies of one architecture (one per goal) as rows of one ``(K, P)`` array, so
+one batched ``matmul`` per layer trains them all; each copy's arithmetic is
+the one :class:`FlatMLPs` does on it alone.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any, Iterator, Sequence
 
 import numpy as np
@@ -96,24 +100,102 @@ class FlatMLPs:
                 start += n
 
 
-class Adam:
-    """torch's Adam update rule (bias-corrected, no weight decay or AMSGrad) on one flat vector.
+class StackedMLPs:
+    """K chains of the same shapes (one per policy) as ``(K, ...)`` views into one ``(K, P)`` float32 array.
+
+    Row ``i`` of :attr:`flat` is laid out as :class:`FlatMLPs` lays out copy ``i`` alone, and the batched
+    ``matmul`` runs the same BLAS call on each row's slice, so each copy trains bit for bit as it would alone.
+    :meth:`forward` and :meth:`backward` take ``k``: only the first ``k`` copies take part (the others keep
+    their values and gradients).
 
     Args:
-        size: Length of the parameter vector.
+        chains: One module sequence per copy (as :class:`FlatMLPs`' chains), all of the same shapes.
+        extras: Per copy, parameters used outside its chain (a Gaussian policy's ``log_std``), stacked in
+            :attr:`extra` and :attr:`extra_grad`.
+    """
+
+    def __init__(self, chains: Sequence[Sequence[nn.Module]], extras: Sequence[Sequence[nn.Parameter]] = ()) -> None:
+        extras = list(extras) or [[] for _ in chains]
+        self.params = [[p for m in chain for p in m.parameters()] + list(extra) for chain, extra in zip(chains, extras)]
+        shapes = [tuple(p.shape) for p in self.params[0]]
+        if any([tuple(p.shape) for p in params] != shapes for params in self.params):
+            raise ValueError("StackedMLPs needs chains of the same shapes")
+        copies, sizes = len(chains), [math.prod(shape) for shape in shapes]
+        self.flat = np.zeros((copies, sum(sizes)), dtype=np.float32)
+        self.grad = np.zeros_like(self.flat)
+        pairs, start = [], 0
+        for shape, n in zip(shapes, sizes):
+            pairs.append((self.flat[:, start:start + n].reshape(copies, *shape),
+                          self.grad[:, start:start + n].reshape(copies, *shape)))
+            start += n
+        assert all(np.shares_memory(v, self.flat) and np.shares_memory(g, self.grad) for v, g in pairs)
+        pairs_iter = iter(pairs)
+        self.layers = FlatMLPs._layers(list(chains[0]), pairs_iter)
+        extra = list(pairs_iter)
+        self.extra, self.extra_grad = [v for v, _ in extra], [g for _, g in extra]
+
+    def forward(self, x: np.ndarray, k: int) -> tuple[np.ndarray, list[np.ndarray]]:
+        """The first ``k`` copies' outputs on ``x`` (``(k, batch, in)``: a batch per copy) and every layer's input."""
+        inputs = []
+        for w, b, _, _, act in self.layers:
+            inputs.append(x)
+            x = np.matmul(x, w[:k].transpose(0, 2, 1)) + b[:k, None, :]
+            if act is not None:
+                x = act[0](x)
+        return x, inputs
+
+    def backward(self, inputs: list[np.ndarray], grad_out: np.ndarray, k: int) -> None:
+        """Write the gradients of ``sum(grad_out * output)`` into the first ``k`` rows of :attr:`grad`."""
+        layers = self.layers
+        for depth in reversed(range(len(layers))):
+            w, _, gw, gb, act = layers[depth]
+            if act is not None:  # this layer's activated output is the next layer's input
+                grad_out = grad_out * act[1](inputs[depth + 1])
+            np.matmul(grad_out.transpose(0, 2, 1), inputs[depth], out=gw[:k])
+            np.sum(grad_out, axis=1, out=gb[:k])
+            if depth:
+                grad_out = np.matmul(grad_out, w[:k])
+
+    def read(self) -> None:
+        """Copy every copy's torch parameters into its row."""
+        for row, params in zip(self.flat, self.params):
+            row[:] = np.concatenate([p.detach().numpy().reshape(-1) for p in params])
+
+    def write_back(self) -> None:
+        """Copy every row into its copy's torch parameters."""
+        with torch.no_grad():
+            for row, params in zip(self.flat, self.params):
+                start = 0
+                for p in params:
+                    n = p.numel()
+                    p.copy_(torch.from_numpy(row[start:start + n].reshape(p.shape)))
+                    start += n
+
+
+class Adam:
+    """torch's Adam update rule (bias-corrected, no weight decay or AMSGrad) on one flat vector, or on the rows of
+    a ``(K, P)`` array (K vectors stepped together).
+
+    Args:
+        size: Length of the parameter vector, or ``(K, P)``.
         betas: torch's ``betas``.
         eps: torch's ``eps``.
     """
 
-    def __init__(self, size: int, betas: tuple[float, float] = (0.9, 0.999), eps: float = 1e-8) -> None:
+    def __init__(self, size: int | tuple[int, int], betas: tuple[float, float] = (0.9, 0.999),
+                 eps: float = 1e-8) -> None:
         self.m, self.v = np.zeros(size, dtype=np.float32), np.zeros(size, dtype=np.float32)
         self.beta1, self.beta2 = betas
         self.eps = eps
         self.steps = 0
 
-    def step(self, params: np.ndarray, grad: np.ndarray, lr: float) -> None:
-        """One step of ``params`` (in place) along ``grad`` at learning rate ``lr``."""
-        m, v, beta1, beta2 = self.m, self.v, self.beta1, self.beta2
+    def step(self, params: np.ndarray, grad: np.ndarray, lr: float, rows: int | None = None) -> None:
+        """One step of ``params`` (in place) along ``grad`` at learning rate ``lr``.
+
+        With ``rows``, only the first ``rows`` vectors of a ``(K, P)`` state step (``params`` and ``grad`` are
+        those rows); the step count is shared, so a row that stops stepping stays stopped.
+        """
+        m, v, beta1, beta2 = self.m[:rows], self.v[:rows], self.beta1, self.beta2
         self.steps += 1
         m *= beta1
         m += (1 - beta1) * grad

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import hashlib
+import time
 from dataclasses import dataclass, field
-from typing import Any, Literal, Sequence
+from typing import Any, Literal, Mapping, Sequence
 
 import numpy as np
+import torch
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 from grail_bench.core import bc_update
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import EnvFactory, Goal, Trajectory, flatten, until_success
-from grail_bench.recognizers.policy import PolicyRecognizer, spaces_of
+from grail_bench.recognizers.policy import PolicyRecognizer, Trained, spaces_of
 from grail_bench.recognizers.evidence import OffSupport, off_support_setting
 from grail_bench.recognizers.scored import ActionBox, action_box_setting
 from grail_bench.stats.metrics import thin
@@ -70,6 +72,9 @@ class BCRecognizer(PolicyRecognizer):
     paper_name = "BC-GRAIL"
     Config = BCConfig
     config: BCConfig
+    #: Train the goals a fit needs together (:meth:`train_policies`); False trains them one by one (the same
+    #: weights, slower).
+    stacked: bool = True
 
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
         observation_space, action_space = spaces_of(env_factory, goal)
@@ -91,17 +96,56 @@ class BCRecognizer(PolicyRecognizer):
         digest = hashlib.sha256(states.tobytes() + repr((states.dtype.str, states.shape)).encode()).hexdigest()
         return {"augmented": digest, "noop": np.asarray(self.evidence.noop).tolist()}
 
-    def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
-                     seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
+    def pairs(self, goal: Goal, demos: Sequence[Trajectory]) -> tuple[np.ndarray, np.ndarray]:
+        """The ``(obs, acts)`` pairs ``goal``'s policy learns: its demonstrations cut at success, plus the
+        :meth:`augmented_states` with the no-op."""
         obs, acts = flatten([until_success(t) for t in demos])
         extra = self.augmented_states(goal)
         if len(extra):
             noop = np.broadcast_to(np.asarray(self.evidence.noop, dtype=acts.dtype), (len(extra), *acts.shape[1:]))
             obs, acts = np.concatenate([obs, extra.astype(obs.dtype)]), np.concatenate([acts, noop])
+        return obs, acts
+
+    def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
+                     seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
+        obs, acts = self.pairs(goal, demos)
         policy = self.new_policy(goal, env_factory)
         cfg = self.config
         return train_bc(policy, obs, acts, batch_size=cfg.batch_size, learning_rate=cfg.learning_rate,
                         ent_weight=cfg.ent_weight, n_epochs=cfg.n_epochs)
+
+    def train_policies(self, jobs: Mapping[Goal, tuple[Sequence[Trajectory], int]],
+                       env_factory: EnvFactory) -> dict[Goal, Trained]:
+        """The goals' policies trained together (:func:`~grail_bench.core.bc_update.train_bc_stacked`), the same
+        weights and curves as :meth:`train_policy` gives each alone. Goals whose policy the numpy loop cannot
+        run are left to :meth:`train_policy`."""
+        if not self.stacked:
+            return {}
+        cfg = self.config
+        groups: dict[Any, list[Goal]] = {}
+        ready = {}
+        for goal, (demos, seed) in jobs.items():
+            start = time.perf_counter()
+            torch.manual_seed(seed)  # as fit seeds it before train_policy: the same draws, in the same order
+            obs, acts = self.pairs(goal, demos)
+            policy = self.new_policy(goal, env_factory)
+            batch_size = min(cfg.batch_size, len(obs))
+            key = bc_update.stack_key(policy)
+            if key is None or not batch_size:
+                continue
+            order = bc_update.batch_order(len(obs), batch_size, cfg.n_epochs, None)
+            ready[goal] = (policy, (obs, acts), order, torch.get_rng_state(), time.perf_counter() - start)
+            groups.setdefault((key, batch_size), []).append(goal)
+        trained = {}
+        for (_, batch_size), goals in groups.items():
+            policies, data, orders, states, prep = zip(*(ready[g] for g in goals))
+            run = bc_update.train_bc_stacked(policies, data, orders, learning_rate=cfg.learning_rate,
+                                             ent_weight=cfg.ent_weight,
+                                             log_intervals=[log_interval(len(obs), batch_size, None) for obs, _ in data])
+            for i, goal in enumerate(goals):  # each its own preparation and its share of the stacked run
+                trained[goal] = Trained(policies[i], {"loss": thin(run.losses[i])}, prep[i] + run.seconds[i],
+                                        states[i])
+        return trained
 
 
 def train_bc(policy: ActorCriticPolicy, obs: np.ndarray, acts: np.ndarray, *, batch_size: int,
@@ -126,9 +170,14 @@ def train_bc(policy: ActorCriticPolicy, obs: np.ndarray, acts: np.ndarray, *, ba
         steps, thinned).
     """
     batch_size = min(batch_size, len(obs))
-    # One logged batch per epoch (the loader drops the last, incomplete batch), or per 1 % of the steps.
-    interval = max(1, len(obs) // batch_size) if n_batches is None else max(1, n_batches // 100)
+    interval = log_interval(len(obs), batch_size, n_batches)
     loop = bc_update.train_bc if numpy and bc_update.mirrorable(policy) else bc_update.train_bc_torch
     losses = loop(policy, obs, acts, batch_size=batch_size, learning_rate=learning_rate, ent_weight=ent_weight,
                   n_epochs=n_epochs, n_batches=n_batches, log_interval=interval)
     return policy, {"loss": thin(losses)}
+
+
+def log_interval(pairs: int, batch_size: int, n_batches: int | None) -> int:
+    """Steps between logged losses: one per epoch (the loader drops the last, incomplete batch), or one per 1 %
+    of the steps when the budget is ``n_batches``."""
+    return max(1, pairs // batch_size) if n_batches is None else max(1, n_batches // 100)

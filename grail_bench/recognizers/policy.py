@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import abc
 import time
+from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -11,7 +12,7 @@ import torch
 from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
 
-from grail_bench.core.cache import Busy, cached
+from grail_bench.core.cache import Busy, cached, needs_training
 from grail_bench.core.errors import UserError
 from grail_bench.core.provenance import model_versions
 from grail_bench.core.seeding import goal_seed
@@ -23,6 +24,24 @@ from grail_bench.recognizers.scored import ScoredRecognizer
 from grail_bench.recognizers.scoring import PolicyOutput
 
 Curves = dict[str, list[float]]  # a training curve per name, e.g. {"loss": [...]}
+
+
+@dataclass(frozen=True)
+class Trained:
+    """A policy :meth:`PolicyRecognizer.train_policies` trained before its goal's turn in its fit.
+
+    Attributes:
+        policy: The trained policy.
+        curves: Its training curves.
+        seconds: Its share of the training time.
+        rng_state: torch's global generator state after the draws its training made, restored when the goal's
+            turn comes, so later draws are those of training it then.
+    """
+
+    policy: BasePolicy
+    curves: Curves
+    seconds: float
+    rng_state: torch.Tensor
 
 
 class PolicyRecognizer(ScoredRecognizer):
@@ -46,6 +65,7 @@ class PolicyRecognizer(ScoredRecognizer):
     def __init__(self, scorer: str | None = None, **settings: Any) -> None:
         super().__init__(scorer=scorer, **settings)
         self.bank: PolicyBank | None = None
+        self._ahead: dict[Goal, Trained] = {}  # policies train_policies trained during the current fit
 
     @abc.abstractmethod
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> BasePolicy:
@@ -55,6 +75,18 @@ class PolicyRecognizer(ScoredRecognizer):
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[BasePolicy, Curves]:
         """Train the policy of one goal; return it and the training curves its learner logged (kept short)."""
+
+    def train_policies(self, jobs: Mapping[Goal, tuple[Sequence[Trajectory], int]],
+                       env_factory: EnvFactory) -> dict[Goal, Trained]:
+        """Train several goals' policies at once, where that is cheaper than one by one.
+
+        :meth:`fit` calls it, before its per-goal loop, with the goals whose policies it will train (not
+        cached, not being trained by another process): ``{goal: (demos, seed)}``, where :meth:`train_policy`
+        would be called with torch seeded by ``seed``. Each returned policy must be the one
+        :meth:`train_policy` trains for its goal; goals left out train one by one in :meth:`train_policy`, as
+        all do by default.
+        """
+        return {}
 
     def model_key(self, goal: Goal) -> dict[str, Any]:
         """What else a goal's trained policy depends on, beyond its settings, env, seed and own demonstrations
@@ -72,17 +104,24 @@ class PolicyRecognizer(ScoredRecognizer):
             raise UserError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
         self.learn_evidence(demos, env_factory)  # before training: a setting the domain cannot serve fails first
         fitted: dict[Goal, tuple[BasePolicy, float, bool, Curves]] = {}
+        seeds = {g: goal_seed(seed, g) for g in demos}  # keyed by the goal, not its position in the task
         with single_thread():
-            # A goal whose model another process is training now is left for later, so parallel
-            # fits of overlapping goal sets share the work rather than wait for each other.
-            for wait in (False, True):
-                for goal in [g for g in demos if g not in fitted]:
-                    own_seed = goal_seed(seed, goal)  # keyed by the goal, not its position in the task
-                    torch.manual_seed(own_seed)
-                    try:
-                        fitted[goal] = self._policy(goal, demos[goal], env_factory, own_seed, cache_key, wait)
-                    except Busy:
-                        continue
+            together = type(self).train_policies is not PolicyRecognizer.train_policies  # else skip the look
+            todo = [g for g in demos if together and (cache_key is None or needs_training(
+                f"policy-{self.name}", self._cache_key(g, demos[g], seeds[g], cache_key)))]
+            self._ahead = self.train_policies({g: (demos[g], seeds[g]) for g in todo}, env_factory) if todo else {}
+            try:
+                # A goal whose model another process is training now is left for later, so parallel
+                # fits of overlapping goal sets share the work rather than wait for each other.
+                for wait in (False, True):
+                    for goal in [g for g in demos if g not in fitted]:
+                        torch.manual_seed(seeds[goal])
+                        try:
+                            fitted[goal] = self._policy(goal, demos[goal], env_factory, seeds[goal], cache_key, wait)
+                        except Busy:
+                            continue
+            finally:
+                self._ahead = {}
         self.goals = list(demos)
         self.bank = PolicyBank([fitted[g][0] for g in self.goals])
         self.observation_space, self.action_space = self.bank.observation_space, self.bank.action_space
@@ -101,29 +140,43 @@ class PolicyRecognizer(ScoredRecognizer):
         Raises:
             grail_bench.core.cache.Busy: With ``wait=False``, when another process is training it.
         """
+        ahead = self._ahead.get(goal)
+        spent = ahead.seconds if ahead is not None else 0.0
+
+        def train_now() -> tuple[BasePolicy, Curves]:
+            if ahead is None:
+                return self.train_policy(goal, demos, env_factory, seed)
+            torch.set_rng_state(ahead.rng_state)
+            return ahead.policy, ahead.curves
+
         if cache_key is None:
             start = time.perf_counter()
-            policy, curves = self.train_policy(goal, demos, env_factory, seed)
-            return policy, time.perf_counter() - start, False, curves
-        key = {"recognizer": self.name, "config": settings_key(self.config, models=True), "env": cache_key,
-               "goal": list(goal), "seed": seed,
-               "versions": model_versions()}
-        if self.uses_demos:
-            key["demos"] = demos_digest(demos)
-        key.update(self.model_key(goal))
+            policy, curves = train_now()
+            return policy, spent + time.perf_counter() - start, False, curves
         trained: dict[str, BasePolicy] = {}
 
         def train() -> tuple[dict[str, Any], dict[str, Any]]:
-            trained["policy"], curves = self.train_policy(goal, demos, env_factory, seed)
+            trained["policy"], curves = train_now()
             return trained["policy"].state_dict(), {"curves": curves}
 
-        entry = cached(f"policy-{self.name}", key, train, wait=wait)
+        entry = cached(f"policy-{self.name}", self._cache_key(goal, demos, seed, cache_key), train, wait=wait,
+                       spent=spent)
         curves = dict(entry.extra.get("curves") or {})
         if "policy" in trained:
             return trained["policy"], entry.seconds, False, curves
         policy = self.new_policy(goal, env_factory)
         policy.load_state_dict(entry.state)
         return policy, entry.seconds, True, curves
+
+    def _cache_key(self, goal: Goal, demos: Sequence[Trajectory], seed: int, cache_key: str) -> dict[str, Any]:
+        """The cache key of a goal's trained policy."""
+        key = {"recognizer": self.name, "config": settings_key(self.config, models=True), "env": cache_key,
+               "goal": list(goal), "seed": seed,
+               "versions": model_versions()}
+        if self.uses_demos:
+            key["demos"] = demos_digest(demos)
+        key.update(self.model_key(goal))
+        return key
 
     def exposes(self, action_space: Any) -> frozenset[str]:
         """Action probabilities (discrete actions) or mean and std (continuous ones), and every goal's state
