@@ -6,8 +6,7 @@ whether the goal has been reached. Domains run a fixed horizon, so a
 demonstration goes on after its goal (the agent stays there);
 :func:`goal_horizon` says where the behaviour ends. The fields are those of
 ``imitation``'s ``Trajectory``, so one of those (or any object with the same
-fields) is accepted wherever a trajectory is read, and :meth:`Trajectory.of`
-converts it.
+fields) is accepted wherever a trajectory is read.
 """
 
 from __future__ import annotations
@@ -60,15 +59,6 @@ class Trajectory:
                 and np.array_equal(self.acts, other.acts))
 
     __hash__ = None  # type: ignore[assignment]  # mutable arrays inside
-
-    @classmethod
-    def of(cls, traj: Any) -> Trajectory:
-        """``traj`` as a :class:`Trajectory`: itself, or a copy of the fields of any object that has them
-        (``imitation``'s ``Trajectory`` among them)."""
-        if isinstance(traj, cls):
-            return traj
-        return cls(obs=traj.obs, acts=traj.acts, infos=getattr(traj, "infos", None),
-                   terminal=bool(getattr(traj, "terminal", True)))
 
 
 def flatten(trajectories: Sequence[Trajectory]) -> tuple[np.ndarray, np.ndarray]:
