@@ -15,6 +15,8 @@ measures and which rows it stores.
 
 from __future__ import annotations
 
+import contextlib
+
 import json
 import time
 from dataclasses import dataclass, field, replace
@@ -274,6 +276,7 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
         grail_bench.harness.executors.WorkerLost: When a worker process dies.
         Interrupted: On Ctrl-C, with the count of units kept.
     """
+    from rich.console import Console
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -290,8 +293,12 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
                TextColumn("eta"), TimeRemainingColumn())
     start = time.perf_counter()
     try:
-        with Progress(*columns, disable=not progress, transient=False) as bar:
-            job = bar.add_task(f"{description} ({executor.name}, {executor.workers} worker(s))", total=len(units))
+        # On stderr, so stdout holds what a command prints alone; not built at all when hidden (a disabled bar
+        # still writes a line break when it stops, on some rich releases).
+        bar = Progress(*columns, console=Console(stderr=True), transient=False) if progress else None
+        with bar or contextlib.nullcontext():
+            job = bar.add_task(f"{description} ({executor.name}, {executor.workers} worker(s))",
+                               total=len(units)) if bar else None
             for _, result in executor.map_unordered(run_unit, units):
                 stored = [replace(r, provenance=origin) for r in result.rows]
                 summary.rows += store.add(r for r in stored if not isinstance(r, FitRow))
@@ -299,7 +306,8 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
                 summary.done += 1
                 summary.trained += result.trained
                 summary.reused += result.reused
-                bar.advance(job)
+                if bar:
+                    bar.advance(job)
     except KeyboardInterrupt:
         summary.seconds = time.perf_counter() - start
         raise Interrupted(summary) from None

@@ -70,9 +70,10 @@ def _progress(enabled: bool, total: int) -> tuple[Any, Any]:
     """A progress bar over the ceiling levels (a Monte Carlo one takes seconds) and the callback advancing it."""
     if not enabled or not total:
         return nullcontext(), None
+    from rich.console import Console
     from rich.progress import Progress
 
-    bar = Progress(transient=True)
+    bar = Progress(transient=True, console=Console(stderr=True))  # stdout holds the boards alone
     job = bar.add_task("Bayes and pairs-only ceilings (computed once, then cached)", total=total)
     return bar, lambda: bar.advance(job)
 

@@ -93,8 +93,10 @@ def read(path: Path, where: dict[str, Any]) -> Side:
 
 
 def judge(key: Key, rerun: dict[int, float], published: dict[int, float]) -> Cell:
-    """A cell's verdict: few seeds (< 2 on a side), identical (no spread, equal means), consistent (Welch
-    p >= ALPHA) or differs (p < ALPHA, or no spread on either side and different means)."""
+    """A cell's verdict: identical (the same value at every seed, on the same seeds), few seeds (< 2 on a side),
+    consistent (Welch p >= ALPHA) or differs (p < ALPHA, or no spread on either side and different means)."""
+    if rerun == published:
+        return Cell(key, rerun, published, "identical", None)
     a, b = np.array([rerun[s] for s in sorted(rerun)]), np.array([published[s] for s in sorted(published)])
     if len(a) < 2 or len(b) < 2:
         return Cell(key, rerun, published, "few seeds", None)
