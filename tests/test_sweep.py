@@ -170,6 +170,7 @@ def test_bad_executor_options_are_one_line_errors(tmp_path, args, message):
     assert out.returncode == 2
     assert out.stderr.strip().splitlines() == [f"error: {out.stderr.strip().removeprefix('error: ')}"]
     assert message in out.stderr
+    assert not (tmp_path / "store.sqlite").exists(), "a refused run leaves no store behind"
 
 
 def test_make_executor_defaults():

@@ -164,7 +164,8 @@ def run(
                         task_params=parse_params(params or []) | ({"demos": demos} if demos else {}), mode=mode,
                         noise=noise, channel=channel)
                 for t in tasks for levels, chosen_protocol, chosen_rounding in setups]
-        with open_store(store_path) as store, make_executor(executor, workers, address) as chosen:
+        # The executor first: one refused (a bad --workers or --address) leaves no store behind.
+        with make_executor(executor, workers, address) as chosen, open_store(store_path) as store:
             what = tasks[0] if len(tasks) == 1 else f"{len(tasks)} tasks"
             summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{what} ({mode})")
             records = [r for req, planned in summary.planned for r in collect(req, store, planned)]
@@ -366,8 +367,8 @@ def reproduce(
             seed_list(seeds)  # bounded before the profile builds its seeds
         chosen_profile = load_profile(profile)
         requests = chosen_profile.requests(only or (), recognizer or (), seeds)
-        with open_store(store_path or out / "results.sqlite") as store, \
-                make_executor(executor, workers, address) as chosen:
+        with make_executor(executor, workers, address) as chosen, \
+                open_store(store_path or out / "results.sqlite") as store:
             if run:
                 summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
             else:
