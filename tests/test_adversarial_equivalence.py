@@ -19,7 +19,7 @@ import pytest
 import torch
 
 import grail_bench
-from grail_bench.core.trajectory import Trajectory, flatten
+from grail_bench.core.trajectory import flatten
 from grail_bench.recognizers import make_recognizer
 
 FIXTURES = Path(__file__).with_name("fixtures") / "adversarial"
@@ -42,7 +42,7 @@ PROBES = 64  # demonstration states the trained generator is evaluated on
 def fingerprint(policy: Any, reward_net: torch.nn.Module, disc: Sequence[Sequence[float]],
                 demos: Sequence[Any], full: bool) -> dict[str, np.ndarray]:
     """What a fit is compared by: see the module docstring (``full``: the generator's weights too)."""
-    obs, acts = flatten([Trajectory.of(t) for t in demos])
+    obs, acts = flatten(demos)  # imitation's trajectories or the suite's: the same fields
     with torch.no_grad():
         values, log_prob, _ = policy.evaluate_actions(torch.as_tensor(obs[:PROBES]), torch.as_tensor(acts[:PROBES]))
     weights = {k: v.detach().cpu().numpy() for k, v in policy.state_dict().items()}
