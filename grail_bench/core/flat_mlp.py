@@ -88,16 +88,26 @@ class FlatMLPs:
 
     def read(self) -> None:
         """Copy the torch parameters into the flat vector (in place: the views stay valid)."""
-        self.flat[:] = np.concatenate([p.detach().numpy().reshape(-1) for p in self.params])
+        _read(self.params, self.flat)
 
     def write_back(self) -> None:
         """Copy the flat parameters into the torch parameters."""
-        start = 0
-        with torch.no_grad():
-            for p in self.params:
-                n = p.numel()
-                p.copy_(torch.from_numpy(self.flat[start:start + n].reshape(p.shape)))
-                start += n
+        _write_back(self.flat, self.params)
+
+
+def _read(params: Sequence[nn.Parameter], flat: np.ndarray) -> None:
+    """Copy ``params`` into ``flat``, one after another (in place: views of ``flat`` stay valid)."""
+    flat[:] = np.concatenate([p.detach().numpy().reshape(-1) for p in params])
+
+
+def _write_back(flat: np.ndarray, params: Sequence[nn.Parameter]) -> None:
+    """Copy ``flat`` into ``params``, laid out as :func:`_read` lays them."""
+    start = 0
+    with torch.no_grad():
+        for p in params:
+            n = p.numel()
+            p.copy_(torch.from_numpy(flat[start:start + n].reshape(p.shape)))
+            start += n
 
 
 class StackedMLPs:
@@ -159,17 +169,12 @@ class StackedMLPs:
     def read(self) -> None:
         """Copy every copy's torch parameters into its row."""
         for row, params in zip(self.flat, self.params):
-            row[:] = np.concatenate([p.detach().numpy().reshape(-1) for p in params])
+            _read(params, row)
 
     def write_back(self) -> None:
         """Copy every row into its copy's torch parameters."""
-        with torch.no_grad():
-            for row, params in zip(self.flat, self.params):
-                start = 0
-                for p in params:
-                    n = p.numel()
-                    p.copy_(torch.from_numpy(row[start:start + n].reshape(p.shape)))
-                    start += n
+        for row, params in zip(self.flat, self.params):
+            _write_back(row, params)
 
 
 class Adam:
