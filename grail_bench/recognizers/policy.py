@@ -105,10 +105,11 @@ class PolicyRecognizer(ScoredRecognizer):
         self.learn_evidence(demos, env_factory)  # before training: a setting the domain cannot serve fails first
         fitted: dict[Goal, tuple[BasePolicy, float, bool, Curves]] = {}
         seeds = {g: goal_seed(seed, g) for g in demos}  # keyed by the goal, not its position in the task
+        keys = {g: None if cache_key is None else self._cache_key(g, demos[g], seeds[g], cache_key) for g in demos}
         with single_thread():
             together = type(self).train_policies is not PolicyRecognizer.train_policies  # else skip the look
-            todo = [g for g in demos if together and (cache_key is None or needs_training(
-                f"policy-{self.name}", self._cache_key(g, demos[g], seeds[g], cache_key)))]
+            todo = [g for g in demos
+                    if together and (keys[g] is None or needs_training(f"policy-{self.name}", keys[g]))]
             self._ahead = self.train_policies({g: (demos[g], seeds[g]) for g in todo}, env_factory) if todo else {}
             try:
                 # A goal whose model another process is training now is left for later, so parallel
@@ -117,7 +118,7 @@ class PolicyRecognizer(ScoredRecognizer):
                     for goal in [g for g in demos if g not in fitted]:
                         torch.manual_seed(seeds[goal])
                         try:
-                            fitted[goal] = self._policy(goal, demos[goal], env_factory, seeds[goal], cache_key, wait)
+                            fitted[goal] = self._policy(goal, demos[goal], env_factory, seeds[goal], keys[goal], wait)
                         except Busy:
                             continue
             finally:
@@ -131,8 +132,9 @@ class PolicyRecognizer(ScoredRecognizer):
                          reused=reused)
 
     def _policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory, seed: int,
-                cache_key: str | None, wait: bool = True) -> tuple[BasePolicy, float, bool, Curves]:
-        """``(policy, training seconds, reloaded from the cache, training curves)``.
+                key: dict[str, Any] | None, wait: bool = True) -> tuple[BasePolicy, float, bool, Curves]:
+        """``(policy, training seconds, reloaded from the cache, training curves)``; cached under ``key``
+        (:meth:`_cache_key`; None: not cached).
 
         The curves are kept in the cache beside the weights, so a reloaded policy has them too (empty for
         entries cached before they were kept).
@@ -149,7 +151,7 @@ class PolicyRecognizer(ScoredRecognizer):
             torch.set_rng_state(ahead.rng_state)
             return ahead.policy, ahead.curves
 
-        if cache_key is None:
+        if key is None:
             start = time.perf_counter()
             policy, curves = train_now()
             return policy, spent + time.perf_counter() - start, False, curves
@@ -159,8 +161,7 @@ class PolicyRecognizer(ScoredRecognizer):
             trained["policy"], curves = train_now()
             return trained["policy"].state_dict(), {"curves": curves}
 
-        entry = cached(f"policy-{self.name}", self._cache_key(goal, demos, seed, cache_key), train, wait=wait,
-                       spent=spent)
+        entry = cached(f"policy-{self.name}", key, train, wait=wait, spent=spent)
         curves = dict(entry.extra.get("curves") or {})
         if "policy" in trained:
             return trained["policy"], entry.seconds, False, curves
