@@ -16,7 +16,7 @@ PROG = "grail-bench"
 
 
 def _cell(text: str) -> str:
-    return " ".join(text.replace("|", "\\|").split())
+    return " ".join(text.replace("|", "\\|").replace("*", "\\*").split())
 
 
 def _section(command: Any, ctx: Any, level: int) -> list[str]:
