@@ -75,3 +75,16 @@ def test_api_reference_is_rendered_from_docstrings(site: Path):
 def test_changelog_page_includes_changelog_md(site: Path):
     first = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8").split("\n## ")[1].splitlines()[0]
     assert first.strip("[]") in _text(site / "changelog" / "index.html")
+
+
+def test_results_pages_show_the_published_figures(site: Path):
+    pages = [site / "results" / name / "index.html" for name in ("minigrid", "beyond", "breadth")]
+    pages.append(site / "guides" / "budgets" / "index.html")
+    for page in pages:
+        sources = re.findall(r'<img[^>]+src="([^"]+\.png)"', page.read_text(encoding="utf-8"))
+        assert sources, page
+        for src in sources:
+            figure = (page.parent / src).resolve()
+            assert figure.is_file() and figure.stat().st_size > 1000, src
+            published = ROOT / "leaderboard" / figure.relative_to((site / "results" / "figures").resolve())
+            assert figure.read_bytes() == published.read_bytes()
