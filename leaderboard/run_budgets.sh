@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Budget studies (see the main README's "Training budgets"), 5 seeds each, into budgets.sqlite; resumes from the
+# Budget studies (docs/guides/budgets.md), 5 seeds each, into budgets.sqlite; resumes from the
 # store where it stops.
 # - MiniGrid (budgets/): F1 at 30 % observed against BC's epochs, GRAQL's episodes, GAIL's and AIRL's generator
 #   steps and the training demonstrations per goal on the 6-goal tasks.

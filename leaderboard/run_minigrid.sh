@@ -21,7 +21,7 @@ for t in Optimal Optimal-4Goals Optimal-6Goals Suboptimal Suboptimal-4Goals Subo
       --store leaderboard/results.sqlite --json leaderboard/results/MiniGrid-$t-bc-graql-prefix.json
 done
 # The same grid with the other rounding (floor: gr_libs' int(p*T), at least 1; the paper does not say how it
-# rounds, see leaderboard/README.md, "Rounding"). Every model comes from the cache of the run above.
+# rounds, see docs/results/minigrid.md, "Rounding"). Every model comes from the cache of the run above.
 for t in Optimal Optimal-4Goals Optimal-6Goals Suboptimal Suboptimal-4Goals Suboptimal-6Goals; do
   $GB run -t GRAIL/MiniGrid-$t-v0 -r bc -r graql -r gail -r airl $SCORERS --rounding floor --seeds 10 --workers 2 \
       --no-progress --store leaderboard/results.sqlite

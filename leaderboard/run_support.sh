@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Where the per-goal policies have evidence (leaderboard/README.md, "Where the policies have evidence").
+# Where the per-goal policies have evidence (docs/results/support.md).
 # MiniGrid: the support profile's MiniGrid sections (off-support rules, BC with stay pairs, the occupancy scorer,
 # the demonstrator), then the paper profile's MiniGrid, online and open-set sections, which recompute the stored
 # rows that tied under the earlier tie rule and add online and open-set rows at today's defaults (their models

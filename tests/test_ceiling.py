@@ -52,7 +52,7 @@ def test_monte_carlo_agrees_with_the_exact_value(task_id, protocol):
 
 
 @pytest.mark.parametrize("route_choice, prefix_ceiling, subset_ceiling", [
-    # Known values (leaderboard/README.md): the prefix caps any recognizer far below the paper's 0.87-0.92.
+    # Known values (docs/results/boards.md): the prefix caps any recognizer far below the paper's 0.87-0.92.
     ("uniform", [0.44, 0.53, 0.61], [0.80, 0.92, 0.97]),
     # One route per goal, straight ahead (east) first: the first 30 % of every path is the same eastward run.
     ("fixed", [1 / 3, 1 / 3, 1 / 3], [0.72, 0.88, 0.96]),

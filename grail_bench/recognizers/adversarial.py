@@ -93,7 +93,7 @@ class AdversarialConfig:
 
     Attributes:
         total_timesteps: Generator environment steps per goal; each method's default is
-            its budget study's plateau (README "Training budgets").
+            its budget study's plateau (docs/guides/budgets.md).
         n_envs: Parallel copies of the goal env feeding PPO.
         n_steps: PPO rollout length per env and round (``n_envs * n_steps``
             generator steps per round).

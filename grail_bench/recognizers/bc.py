@@ -26,7 +26,7 @@ class BCConfig:
 
     Attributes:
         n_epochs: Passes over the demonstrations (the paper states none). 100 is the plateau of the
-            budget study (README, "Training budgets"): the smallest budget whose F1 reaches the best
+            budget study (docs/guides/budgets.md): the smallest budget whose F1 reaches the best
             budget's 95 % interval on both MiniGrid 6-goal tasks (2-6 s per goal there; 25, the
             earlier default, left MiniGrid-Optimal-6Goals 0.21 F1 lower).
         batch_size: Paper: 8.

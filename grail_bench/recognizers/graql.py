@@ -72,7 +72,7 @@ class GRAQLRecognizer(ScoredRecognizer):
     continuous domain ``fit`` refuses with an error saying so.
 
     The defaults were chosen on MiniGrid. The episodes (the paper states none)
-    are the plateau of the budget study (README, "Training budgets"): 15000 is
+    are the plateau of the budget study (docs/guides/budgets.md): 15000 is
     the smallest budget whose F1 reaches the best budget's 95 % interval on
     both 6-goal tasks (5000, the earlier default, reached it on the optimal
     task only). On MiniGrid, whose env offers its dynamics as tables, 15000

@@ -1,4 +1,4 @@
-"""Speed targets (``make bench``): medians are what the README and notes report.
+"""Speed targets (``make bench``): medians are what the docs' Speed page (docs/speed.md) reports.
 
 Targets (2-core CPU): BC-GRAIL scores a 30-step observation against 6 goals in
 <= 30 us and fits a goal in <= 1 s (its numpy loop >= 10x imitation's; 6 goals within 1.5x of a stacked torch
@@ -326,7 +326,7 @@ def test_sac_expert_action_by_path(benchmark, path):
 
 @pytest.mark.parametrize("algorithm", ["ppo", "sac"])
 def test_draco_fit_one_goal_panda(benchmark, panda, algorithm):
-    """DRACO's fit of one PandaReach goal at its default budget per algorithm (README "Training budgets")."""
+    """DRACO's fit of one PandaReach goal at its default budget per algorithm (docs/guides/budgets.md)."""
     task, train, _ = panda
     rec = make_recognizer("draco", algorithm=algorithm)
     goal = task.goals[0]
