@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Any, Callable, Literal, Sequence
+from typing import Annotated, Any, Callable, Literal, Sequence
 
 import numpy as np
 import torch
@@ -28,6 +28,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 from grail_bench.core.adversarial import AIRL, GAIL, BasicRewardNet, BasicShapedRewardNet, RunningNorm
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.ppo_update import GAEBuffer, NumpyPPO
 from grail_bench.core.rl import empty_policy, vec_env
@@ -118,16 +119,16 @@ class AdversarialConfig:
     """
 
     # budget-gail: 20 000 steps is on the plateau of both 6-goal MiniGrid tasks (5 seeds, 30 % observed)
-    total_timesteps: int = 20_000
-    n_envs: int = 8
-    n_steps: int = 64
-    batch_size: int = 32
+    total_timesteps: Annotated[int, Range(1, 100_000_000)] = 20_000
+    n_envs: Annotated[int, Range(1, 256)] = 8
+    n_steps: Annotated[int, Range(1, 100_000)] = 64
+    batch_size: Annotated[int, Range(1, 1_000_000)] = 32
     gamma: float = 0.95
     learning_rate: float = 3e-4
-    n_epochs: int = 10
-    n_disc_updates_per_round: int = 8
-    gen_replay_buffer_capacity: int = 512
-    demo_batch_size: int = 16
+    n_epochs: Annotated[int, Range(1, 10_000)] = 10
+    n_disc_updates_per_round: Annotated[int, Range(1, 10_000)] = 8
+    gen_replay_buffer_capacity: Annotated[int, Range(1, 10_000_000)] = 512
+    demo_batch_size: Annotated[int, Range(1, 1_000_000)] = 16
     update: Literal["numpy", "torch"] = "numpy"
     off_support: OffSupport = off_support_setting()
     action_box: ActionBox = action_box_setting()
@@ -163,7 +164,7 @@ class AIRLConfig(AdversarialConfig):
             (imitation 1.0.1's default, 0.99, would differ from the paper's 0.95).
     """
 
-    total_timesteps: int = 40_000
+    total_timesteps: Annotated[int, Range(1, 100_000_000)] = 40_000
     shaping_discount: float | None = None
 
     def __post_init__(self) -> None:

@@ -67,6 +67,11 @@ class Domain(Protocol):
     its simulator comes from beyond the suite's own, whose versions key those
     cached demonstrations too.
 
+    A domain may also declare ``bounds``: per regime or env parameter that sizes work (a grid's side, a step
+    count), the :class:`~grail_bench.core.bounds.Range` its values must lie in. A task refuses a value outside
+    it when it is built (from a card, ``--param``, ``make_task`` or ``gym.make``), before any work, naming the
+    parameter, the value and the range.
+
     A domain may also declare ``noop_action``: the action that leaves the agent
     where it is (an action of its env's action space: an integer for discrete
     actions, a sequence of the action box's shape for continuous ones; MiniGrid

@@ -39,6 +39,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 
 if TYPE_CHECKING:
@@ -83,6 +84,7 @@ class Symbolic:
         # of two actions that undo each other.
         "suboptimal": {"detour_prob": 0.3},
     }
+    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000), "detour_prob": Range(0.0, 1.0)}
     ceiling_regimes = frozenset({"optimal", "biased"})
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
