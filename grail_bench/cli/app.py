@@ -73,8 +73,11 @@ def _all_tasks() -> list:
 def tasks() -> None:
     """List every registered GRAIL/ task with its domain, regime, goals and demo counts."""
     from grail_bench.report.tables import tasks_table
+    from grail_bench.task.cards import skipped_cards
 
     console.print(tasks_table(_all_tasks()))
+    for card, why in skipped_cards().items():
+        say(f"skipped the broken task card {card}: {why}")
 
 
 @app.command("list")
