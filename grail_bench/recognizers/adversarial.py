@@ -27,7 +27,14 @@ from gymnasium import spaces
 from stable_baselines3 import PPO
 from stable_baselines3.common.policies import ActorCriticPolicy
 
-from grail_bench.core.adversarial import AIRL, GAIL, BasicRewardNet, BasicShapedRewardNet, RunningNorm
+from grail_bench.core.adversarial import (
+    AIRL,
+    GAIL,
+    BasicRewardNet,
+    BasicShapedRewardNet,
+    RunningNorm,
+    VariableHorizonError,
+)
 from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.ppo_update import GAEBuffer, NumpyPPO
@@ -207,6 +214,23 @@ class AdversarialRecognizer(PolicyRecognizer):
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
         return empty_policy("ppo", *spaces_of(env_factory, goal))
 
+    def check_task(self, task: Any) -> None:
+        """Refuse, where the run is planned, a task whose episodes may end before its horizon (its domain's
+        ``ends_early``), besides :meth:`ScoredRecognizer.check_task`'s refusals.
+
+        Raises:
+            UserError: In one line saying why.
+        """
+        super().check_task(task)
+        ends_early = getattr(task.spec, "ends_early", None)
+        why = ends_early(task.env_params) if callable(ends_early) else None
+        if why:
+            raise UserError(self._variable_horizon(f"{task.id}: {why}"))
+
+    def _variable_horizon(self, what: str) -> str:
+        return (f"recognizer {self.name!r}: {what}, but GAIL and AIRL train on episodes of one fixed length (an "
+                "episode that ends early tells the discriminator whose it is)")
+
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
         cfg = self.config
@@ -230,7 +254,10 @@ class AdversarialRecognizer(PolicyRecognizer):
             rounds = max(1, cfg.total_timesteps // trainer.gen_train_timesteps)
             disc_acc, gen_return = [], []
             for _ in range(rounds):
-                trainer.train_gen(trainer.gen_train_timesteps)
+                try:
+                    trainer.train_gen(trainer.gen_train_timesteps)
+                except VariableHorizonError as exc:  # a domain that does not declare ends_early
+                    raise UserError(self._variable_horizon(f"goal {list(goal)}'s generator {exc}")) from None
                 stats = None
                 for _ in range(cfg.n_disc_updates_per_round):
                     stats = trainer.train_disc()

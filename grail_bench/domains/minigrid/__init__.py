@@ -65,6 +65,10 @@ class MiniGrid:
             if tuple(int(c) for c in goal) not in free:
                 raise UserError(f"goal {list(goal)} is not a free cell of the room (walls and lava excluded)")
 
+    def ends_early(self, env_params: Mapping[str, Any]) -> str | None:
+        """Why episodes may end before ``max_steps``, or None (see :class:`~grail_bench.task.domain.Domain`)."""
+        return None if env_params["fixed_horizon"] else "episodes end at the goal or in lava (fixed_horizon = false)"
+
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.minigrid.env import GRMiniGridEnv
 

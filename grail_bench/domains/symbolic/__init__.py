@@ -98,6 +98,10 @@ class Symbolic:
             if len(goal) != 1 or float(goal[0]) != int(goal[0]) or not 0 <= int(goal[0]) < n:
                 raise UserError(f"goal {list(goal)} must be [i], the index of one of the problem's {n} hypotheses")
 
+    def ends_early(self, env_params: Mapping[str, Any]) -> str | None:
+        """Why episodes may end before ``max_steps`` (see :class:`~grail_bench.task.domain.Domain`)."""
+        return "episodes end when the goal holds"
+
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.symbolic.env import SymbolicEnv
 
