@@ -449,8 +449,8 @@ def export(
     from grail_bench.task.export import export as export_datasets
 
     with errors():
+        gr_task = make_task(task, **parse_params(params or []))  # checked before the folder is made
         outputs(folders=[out])
-        gr_task = make_task(task, **parse_params(params or []))
         with console.status(f"exporting {gr_task.id}"):
             written = export_datasets(gr_task, seed_list(seeds), out)
     for path in written:
