@@ -65,7 +65,7 @@ def unchanged(tmp_path: Path, args: list[str], message: str) -> str:
 @pytest.mark.parametrize("args, message", [
     (["run", "--param", "n_demos=1000000000000"], "n_demos: 1000000000000 is out of range (allowed 2..10,000)"),
     (["run", "--param", "max_steps=1000000000000"], "env.max_steps: 1000000000000 is out of range (allowed 1..10,000)"),
-    (["run", "--param", "size=3000"], "env.size: 3000 is out of range (allowed 3..64)"),
+    (["run", "--param", "size=3000"], "env.size: 3000 is out of range (allowed ..64)"),
     (["run", "--set", "bc.n_epochs=1e12"], "recognizer 'bc': n_epochs=1000000000000 is out of range (allowed 1..100,000)"),
     (["run", "-r", "gail", "--set", "gail.total_timesteps=1e15"], "total_timesteps=1000000000000000 is out of range"),
     (["run", "-r", "draco", "--set", "draco.net_arch=[64, 1000000]"], "net_arch=(64, 1000000) is out of range"),

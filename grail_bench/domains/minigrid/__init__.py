@@ -47,8 +47,7 @@ class MiniGrid:
         "suboptimal": {"route_choice": "uniform", "turn_prob": 1.0, "turn_pattern": "left-right"},
     }
     # Far above every published room (9 and 13 cells a side, at most 200 steps): a mistyped size is refused.
-    bounds: Mapping[str, Range] = {"size": Range(3, 64), "max_steps": Range(1, 10_000), "start_dir": Range(0, 3),
-                                   "turn_prob": Range(0.0, 1.0)}
+    bounds: Mapping[str, Range] = {"size": Range(high=64), "max_steps": Range(1, 10_000)}
     ceiling_regimes = frozenset(regimes)
     noop_action = 3  # grid.STAY: the agent neither turns nor moves
     # Runs stored before route_choice existed drew every demonstration's path uniformly.

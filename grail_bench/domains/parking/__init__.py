@@ -70,8 +70,7 @@ class Parking:
         "optimal": {},
         "noisy": {"sigma": 0.1},
     }
-    bounds: Mapping[str, Range] = {"n_spots": Range(2, MAX_SPOTS), "max_steps": Range(1, 10_000),
-                                   "sigma": Range(0.0, 100.0)}
+    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000)}  # published: 100
     # The scripted expert in a deterministic simulator, plus continuous noise: no likelihood is stated.
     ceiling_regimes: frozenset[str] = frozenset()
     cache_demos = True  # about 1 s per goal and seed: generated once, kept on disk

@@ -84,7 +84,7 @@ class Symbolic:
         # of two actions that undo each other.
         "suboptimal": {"detour_prob": 0.3},
     }
-    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000), "detour_prob": Range(0.0, 1.0)}
+    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000)}  # published: 50
     ceiling_regimes = frozenset({"optimal", "biased"})
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
