@@ -82,12 +82,13 @@ def test_a_size_beyond_its_bound_is_refused_before_any_work(tmp_path, args, mess
     lambda: grail_bench.make_task(TASK, n_demos=10**12),
     lambda: grail_bench.make_task(TASK, size=3000),
     lambda: grail_bench.make_task("GRAIL/PandaReach-Optimal-v0", expert_steps=10**12),
+    lambda: grail_bench.make_task("GRAIL/PointMaze-Biased-v0", maze=["#" * 99] + ["#" + "." * 97 + "#"] * 97 + ["#" * 99]),
     lambda: gym.make(TASK, max_steps=10**12),
     lambda: make_recognizer("bc", n_epochs=10**12),
     lambda: make_recognizer("graql", episodes=1e12),
     lambda: importlib.import_module("grail_bench.recognizers.bc").BCRecognizer(n_epochs=10**9),
     lambda: grail_bench.bayes_ceiling(grail_bench.make_task(TASK), "subset", 0.3, samples=2 * 10**9),
-], ids=["n_demos", "size", "expert_steps", "gym.make", "bc", "graql", "constructor", "ceiling"])
+], ids=["n_demos", "size", "expert_steps", "maze", "gym.make", "bc", "graql", "constructor", "ceiling"])
 def test_the_api_refuses_the_same_sizes_at_once(make):
     start = time.perf_counter()
     with pytest.raises(UserError, match="out of range"):
