@@ -107,10 +107,11 @@ def _declared(factory: Callable[..., Any]) -> tuple[dict[str, inspect.Parameter]
     settings = getattr(factory, "Config", None) if inspect.isclass(factory) else None
     if dataclasses.is_dataclass(settings) and inspect.isclass(settings):
         params, hints, _ = _declared(settings)
+        own = typing.get_type_hints(factory.__init__, include_extras=True)
         for name, param in inspect.signature(factory.__init__).parameters.items():
             if param.kind in (param.POSITIONAL_OR_KEYWORD, param.KEYWORD_ONLY) and name not in params | {"self": 0}:
                 params[name] = param
-                hints[name] = typing.get_type_hints(factory.__init__, include_extras=True).get(name, inspect.Parameter.empty)
+                hints[name] = own.get(name, inspect.Parameter.empty)
         return params, hints, False
     targets = [c.__init__ for c in inspect.getmro(factory) if "__init__" in vars(c)] if inspect.isclass(factory) \
         else [factory]
