@@ -272,11 +272,17 @@ def test_each_broken_card_is_skipped_with_one_warning_naming_it(broken_cards, ca
         sorted(BROKEN_CARDS)
 
 
-def test_grail_bench_tasks_lists_the_skipped_cards(broken_cards, tmp_path):
-    code, output = invoke(["tasks"], tmp_path / "r.sqlite")
+@pytest.mark.parametrize("command", [["tasks"], ["list", "tasks"]])
+def test_grail_bench_tasks_lists_the_skipped_cards(broken_cards, tmp_path, command):
+    code, output = invoke(command, tmp_path / "r.sqlite")
     assert code == 0, output
     for name in BROKEN_CARDS:
         assert f"skipped the broken task card {name}:" in output
+
+
+def test_a_skipped_cards_task_is_unknown_and_the_error_says_why(broken_cards):
+    with pytest.raises(UserError, match=r"unknown task 'GRAIL/Door-Bomb-v0'.*the broken task card\(s\) .*bomb.toml"):
+        grail_bench.make_task("GRAIL/Door-Bomb-v0")
 
 
 def fresh(code: str, folder: Path | None = None, path: Path | None = None) -> subprocess.CompletedProcess:

@@ -73,9 +73,15 @@ def _all_tasks() -> list:
 def tasks() -> None:
     """List every registered GRAIL/ task with its domain, regime, goals and demo counts."""
     from grail_bench.report.tables import tasks_table
-    from grail_bench.task.cards import skipped_cards
 
     console.print(tasks_table(_all_tasks()))
+    _say_skipped_cards()
+
+
+def _say_skipped_cards() -> None:
+    """One line per broken task card that was skipped (its tasks are absent)."""
+    from grail_bench.task.cards import skipped_cards
+
     for card, why in skipped_cards().items():
         say(f"skipped the broken task card {card}: {why}")
 
@@ -92,6 +98,7 @@ def list_(what: str = typer.Argument("all", help="tasks, recognizers, scorers or
     with errors():
         if what in ("all", "tasks"):
             console.print(tasks_table(_all_tasks()))
+            _say_skipped_cards()
         if what in ("all", "recognizers"):
             console.print(names_table("recognizers (entry-point group grail_bench.recognizers)",
                                       list(available_recognizers().items()), "provided by"))
