@@ -165,9 +165,13 @@ def test_an_archive_of_too_many_members_or_too_large_a_stream_is_refused(tmp_pat
 def test_a_problem_past_the_grounding_limit_is_refused(monkeypatch):
     from grail_bench.domains.symbolic import grounding
 
-    monkeypatch.setattr(grounding, "BINDING_LIMIT", 100)
-    with pytest.raises(UserError, match="too large to ground: more than 100 parameter bindings"):
+    monkeypatch.setattr(grounding, "BINDING_LIMIT", 5)
+    with pytest.raises(UserError, match="too large to ground: more than 5 parameter bindings"):
         _ = builtin_problem("grid").model  # a fresh problem: its model is grounded here
+    monkeypatch.setattr(grounding, "BINDING_LIMIT", 10**6)
+    monkeypatch.setattr(grounding, "OPERATOR_LIMIT", 20)
+    with pytest.raises(UserError, match="too large to ground: more than 20 ground operators"):
+        _ = builtin_problem("grid").model
 
 
 def test_a_larger_grid_plans_fast_enough(tmp_path):

@@ -12,7 +12,7 @@ Atoms no kept operator changes become static facts (true) or disappear
 name, so the model is the same for the same text.
 
 Grounding is bounded: at most :data:`BINDING_LIMIT` parameter bindings are tried
-and :data:`OPERATOR_LIMIT` ground operators built (a 30x30 grid tries 810,000 and
+and :data:`OPERATOR_LIMIT` ground operators built (a 30x30 grid tries 4,380 and
 builds 3,480); a larger problem is refused in one line before it fills memory.
 """
 
@@ -73,13 +73,26 @@ def _bindings(action: LiftedAction, by_type: dict[str, list[str]], static_preds:
             continue
         checks[last].append((positive, atom))
 
+    # positive static literals whose last-bound parameter appears once: they pick that parameter's objects out
+    # of an index of the static facts (a grid's move binds ?to among ?from's neighbours, not among every cell)
+    filters = [[(atom, atom.index(names[i])) for positive, atom in checks[i]
+                if positive and atom[0] != "=" and atom[1:].count(names[i]) == 1] for i in range(len(names))]
+    slots = {(atom[0], pos): _slot(static_init, atom[0], pos) for kept in filters for atom, pos in kept}
     binding: dict[str, str] = {}
+
+    def candidates(i: int) -> list[str]:
+        objects = by_type.get(action.parameters[i][1], [])
+        for atom, pos in filters[i]:
+            bound = _bind(atom, binding)
+            allowed = slots[atom[0], pos].get(bound[1:pos] + bound[pos + 1:], set())
+            objects = [obj for obj in objects if obj in allowed]
+        return objects
 
     def extend(i: int) -> Iterator[dict[str, str]]:
         if i == len(names):
             yield dict(binding)
             return
-        for obj in by_type.get(action.parameters[i][1], []):
+        for obj in candidates(i):
             tried[0] += 1
             if tried[0] > BINDING_LIMIT:
                 raise _too_large("parameter bindings", BINDING_LIMIT)
@@ -89,6 +102,15 @@ def _bindings(action: LiftedAction, by_type: dict[str, list[str]], static_preds:
         binding.pop(names[i], None)
 
     yield from extend(0)
+
+
+def _slot(static_init: frozenset[Atom], predicate: str, pos: int) -> dict[tuple[str, ...], set[str]]:
+    """The static facts of ``predicate`` by their other arguments: the objects found at position ``pos``."""
+    out: dict[tuple[str, ...], set[str]] = {}
+    for fact in static_init:
+        if fact[0] == predicate and len(fact) > pos:
+            out.setdefault(fact[1:pos] + fact[pos + 1:], set()).add(fact[pos])
+    return out
 
 
 def _holds(literals: Iterable[Literal], binding: dict[str, str], static_init: frozenset[Atom]) -> bool:
