@@ -71,8 +71,11 @@ def unchanged(tmp_path: Path, args: list[str], message: str) -> str:
     (["run", "-r", "gail", "--set", "gail.total_timesteps=1e15"], "total_timesteps=1000000000000000 is out of range"),
     (["run", "-r", "draco", "--set", "draco.net_arch=[64, 1000000]"], "net_arch=(64, 1000000) is out of range"),
     (["ceiling", "--samples", "2000000000"], "samples=2000000000 is out of range (allowed 2..1,000,000)"),
+    (["ceiling", "--samples", "1"], "samples=1 is out of range (allowed 2..1,000,000)"),
+    (["leaderboard", "--ceiling-samples", "2000000000"], "samples=2000000000 is out of range"),
     (["export", "--param", "size=100000", "--out", "OUT"], "env.size: 100000 is out of range"),
-], ids=["n_demos", "max_steps", "size", "bc-epochs", "gail-steps", "net-arch", "ceiling-samples", "export-size"])
+], ids=["n_demos", "max_steps", "size", "bc-epochs", "gail-steps", "net-arch", "ceiling-samples", "ceiling-one",
+        "leaderboard-samples", "export-size"])
 def test_a_size_beyond_its_bound_is_refused_before_any_work(tmp_path, args, message):
     args = [a.replace("OUT", str(tmp_path / "out")) for a in args]
     unchanged(tmp_path, args, message)

@@ -488,7 +488,7 @@ def ceiling(
                                                 help="Comma-separated fractions (default: the task's)."),
     rounding: Optional[str] = typer.Option(None, help="ceil or floor, as for `run` (default: the task's)."),
     method: str = typer.Option("auto", help="auto (exact where it can enumerate), exact or monte-carlo."),
-    samples: int = typer.Option(2000, min=2, help="Monte Carlo observations."),
+    samples: int = typer.Option(2000, help="Monte Carlo observations (2 to 1,000,000)."),
     seed: int = typer.Option(0, min=0, help="Monte Carlo seed."),
     params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, e.g. turn_pattern=around-and-back."),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Also write the ceilings to this JSON file."),
