@@ -257,10 +257,13 @@ def card_folder(root: Path) -> Path:
 def broken_cards(tmp_path, monkeypatch):
     """The card folder with broken cards, read afresh in this process (and afresh again afterwards)."""
     folder = card_folder(tmp_path / "cards")
+    registered = set(gym.registry)
     monkeypatch.setattr(cards, "files", lambda package: folder)
     cards._shipped_cards.cache_clear()
     yield folder
     cards._shipped_cards.cache_clear()
+    for env_id in set(gym.registry) - registered:  # the extra card's tasks, registered by the commands
+        del gym.registry[env_id]
 
 
 def test_each_broken_card_is_skipped_with_one_warning_naming_it(broken_cards, caplog):
