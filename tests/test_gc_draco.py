@@ -48,7 +48,7 @@ def test_registered_and_written_against_public_names_only():
 
 
 def test_settings_are_checked_and_sac_needs_continuous_actions():
-    with pytest.raises(grail_bench.UserError, match="positive"):
+    with pytest.raises(grail_bench.UserError, match=r"ppo_steps=0 is out of range \(allowed 1\.\."):
         GCDRACORecognizer(ppo_steps=0)
     with pytest.raises(grail_bench.UserError, match="algorithm"):
         GCDRACORecognizer(algorithm="dqn")

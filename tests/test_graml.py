@@ -118,7 +118,7 @@ def test_the_metric_is_cached_and_reloaded(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize(("settings", "message"), [
-    ({"n_pairs": 0}, "must be positive"),
+    ({"n_pairs": 0}, r"n_pairs=0 is out of range \(allowed 1\.\."),
     ({"fractions": [0.5, 1.5]}, "fractions in"),
     ({"inputs": "pixels"}, "inputs expects one of"),
     ({"hiden": 8}, "unexpected keyword argument 'hiden'"),

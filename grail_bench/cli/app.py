@@ -75,6 +75,15 @@ def tasks() -> None:
     from grail_bench.report.tables import tasks_table
 
     console.print(tasks_table(_all_tasks()))
+    _say_skipped_cards()
+
+
+def _say_skipped_cards() -> None:
+    """One line per broken task card that was skipped (its tasks are absent)."""
+    from grail_bench.task.cards import skipped_cards
+
+    for card, why in skipped_cards().items():
+        say(f"skipped the broken task card {card}: {why}")
 
 
 @app.command("list")
@@ -89,6 +98,7 @@ def list_(what: str = typer.Argument("all", help="tasks, recognizers, scorers or
     with errors():
         if what in ("all", "tasks"):
             console.print(tasks_table(_all_tasks()))
+            _say_skipped_cards()
         if what in ("all", "recognizers"):
             console.print(names_table("recognizers (entry-point group grail_bench.recognizers)",
                                       list(available_recognizers().items()), "provided by"))
@@ -446,8 +456,8 @@ def export(
     from grail_bench.task.export import export as export_datasets
 
     with errors():
+        gr_task = make_task(task, **parse_params(params or []))  # checked before the folder is made
         outputs(folders=[out])
-        gr_task = make_task(task, **parse_params(params or []))
         with console.status(f"exporting {gr_task.id}"):
             written = export_datasets(gr_task, seed_list(seeds), out)
     for path in written:
@@ -478,7 +488,7 @@ def ceiling(
                                                 help="Comma-separated fractions (default: the task's)."),
     rounding: Optional[str] = typer.Option(None, help="ceil or floor, as for `run` (default: the task's)."),
     method: str = typer.Option("auto", help="auto (exact where it can enumerate), exact or monte-carlo."),
-    samples: int = typer.Option(2000, min=2, help="Monte Carlo observations."),
+    samples: int = typer.Option(2000, help="Monte Carlo observations (2 to 1,000,000)."),
     seed: int = typer.Option(0, min=0, help="Monte Carlo seed."),
     params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, e.g. turn_pattern=around-and-back."),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Also write the ceilings to this JSON file."),

@@ -142,7 +142,11 @@ def value(raw: str) -> Any:
 
 
 def settings(items: Sequence[str], names: Sequence[str]) -> dict[str, dict[str, Any]]:
-    """``["bc.n_epochs=10"]`` -> ``{"bc": {"n_epochs": 10}}`` (types are checked when the run is planned)."""
+    """``["bc.n_epochs=10"]`` -> ``{"bc": {"n_epochs": 10}}`` (types are checked when the run is planned).
+
+    Raises:
+        UserError: For a malformed item, a recognizer not being run, or a setting given twice.
+    """
     out: dict[str, dict[str, Any]] = {name: {} for name in names}
     for item in items:
         key, sep, raw = item.partition("=")
@@ -151,17 +155,27 @@ def settings(items: Sequence[str], names: Sequence[str]) -> dict[str, dict[str, 
             raise UserError(f"--set expects RECOGNIZER.PARAM=VALUE, got {item!r}")
         if name not in out:
             raise UserError(f"--set {item!r} names recognizer {name!r}, which is not being run")
+        if param in out[name]:
+            raise UserError(f"--set {key} given more than once ({key}={json.dumps(out[name][param])}, {item}); "
+                            "give each setting once")
         out[name][param] = value(raw)
     return out
 
 
 def params(items: Sequence[str]) -> dict[str, Any]:
-    """``["turn_prob=0.5"]`` -> ``{"turn_prob": 0.5}``."""
+    """``["turn_prob=0.5"]`` -> ``{"turn_prob": 0.5}``.
+
+    Raises:
+        UserError: For a malformed item or a parameter given twice.
+    """
     out = {}
     for item in items:
         key, sep, raw = item.partition("=")
         if not sep or not key:
             raise UserError(f"--param expects NAME=VALUE, got {item!r}")
+        if key in out:
+            raise UserError(f"--param {key} given more than once ({key}={json.dumps(out[key])}, {item}); "
+                            "give each parameter once")
         out[key] = value(raw)
     return out
 

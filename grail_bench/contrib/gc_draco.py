@@ -27,7 +27,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from importlib.metadata import version
-from typing import Any, Callable, Literal, Sequence
+from typing import Annotated, Any, Callable, Literal, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -36,6 +36,7 @@ from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
 
 from grail_bench.core.cache import cached
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.rl import empty_policy, learn, make_ppo, make_sac
 from grail_bench.core.spaces import all_states, n_states, state_index
@@ -69,9 +70,9 @@ class GCDRACOConfig:
     """
 
     algorithm: Literal["auto", "ppo", "sac"] = "auto"
-    ppo_steps: int = 100_000
-    sac_steps: int = 30_000
-    net_arch: tuple[int, ...] = (64, 64)
+    ppo_steps: Annotated[int, Range(1, 100_000_000)] = 100_000
+    sac_steps: Annotated[int, Range(1, 100_000_000)] = 30_000
+    net_arch: Annotated[tuple[int, ...], Range(1, 4096)] = (64, 64)
     learning_rate: float = 1e-3
     ent_coef: float = 0.05
     off_support: Literal["trust", "stay", "uniform"] = field(default="trust", metadata={"scoring": True})

@@ -49,7 +49,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from importlib.metadata import version
-from typing import Any, Literal, Mapping, Sequence
+from typing import Annotated, Any, Literal, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -59,6 +59,7 @@ from torch.nn import functional as F
 from torch.nn.utils.rnn import pack_padded_sequence, pad_sequence
 
 from grail_bench.core.cache import cached
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.scaling import scale_of
 from grail_bench.core.seeding import goal_rng, goal_words
@@ -99,10 +100,10 @@ class GRAMLConfig:
             shared across its values.
     """
 
-    hidden: int = 32
-    n_pairs: int = 1000
-    n_epochs: int = 5
-    batch_size: int = 32
+    hidden: Annotated[int, Range(1, 4096)] = 32
+    n_pairs: Annotated[int, Range(1, 10_000_000)] = 1000
+    n_epochs: Annotated[int, Range(1, 100_000)] = 5
+    batch_size: Annotated[int, Range(1, 1_000_000)] = 32
     learning_rate: float = 1e-2
     fractions: tuple[float, ...] = (0.1, 0.3, 0.5, 0.7, 1.0)
     inputs: Literal["states+actions", "states"] = "states+actions"
@@ -126,8 +127,8 @@ class GCGRAMLConfig(GRAMLConfig):
         n_rollouts: Sampled rollouts of the policy per goal, the goal's references (gr_libs: 5).
     """
 
-    gc_batches: int = 1000
-    n_rollouts: int = 5
+    gc_batches: Annotated[int, Range(1, 10_000_000)] = 1000
+    n_rollouts: Annotated[int, Range(1, 100_000)] = 5
 
     def __post_init__(self) -> None:
         super().__post_init__()

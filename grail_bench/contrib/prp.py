@@ -37,11 +37,12 @@ import heapq
 import itertools
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Annotated, Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from grail_bench.contrib.strips_base import StripsRecognizer
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Goal
 from grail_bench.domains.symbolic.planner import NODE_LIMIT, hmax
@@ -63,7 +64,7 @@ class PRPConfig:
     """
 
     beta: float = 1.0
-    node_limit: int = NODE_LIMIT
+    node_limit: Annotated[int, Range(1, 10_000_000)] = NODE_LIMIT
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.beta) and self.beta > 0):

@@ -45,6 +45,10 @@ RewardFn = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray
 # --- Reward networks -------------------------------------------------------------------------------------------
 
 
+class VariableHorizonError(ValueError):
+    """Generator episodes of different lengths, which the trainers refuse unless told to allow them."""
+
+
 class RunningNorm(nn.Module):
     """Normalises its input to mean 0 and variance 1 with statistics of every batch seen in training mode.
 
@@ -557,7 +561,7 @@ class AdversarialTrainer(abc.ABC):
         transitions in the replay buffer.
 
         Raises:
-            ValueError: Generator episodes of different lengths (unless ``allow_variable_horizon``).
+            VariableHorizonError: Generator episodes of different lengths (unless ``allow_variable_horizon``).
         """
         self.gen_algo.learn(total_timesteps=total_timesteps or self.gen_train_timesteps, reset_num_timesteps=False)
         transitions, ep_lens = self.venv_buffering.pop_transitions()
@@ -570,7 +574,7 @@ class AdversarialTrainer(abc.ABC):
             return
         horizons = set(ep_lens) | ({self._horizon} if self._horizon is not None else set())
         if len(horizons) > 1:
-            raise ValueError(f"episodes of different lengths: {sorted(horizons)}")
+            raise VariableHorizonError(f"ran episodes of different lengths: {sorted(int(h) for h in horizons)}")
         if horizons:
             self._horizon = horizons.pop()
 

@@ -6,7 +6,9 @@ the parameter's declared type (``int``, ``float``, ``bool``, ``str``, a
 sequence of those, or ``X | None``) or says, in one line, which parameter
 expects what. A ``float`` setting is a finite number: NaN and infinities,
 which JSON lets through as ``NaN`` and ``Infinity``, are refused for every
-setting alike. Parameters without an annotation it understands pass unchanged.
+setting alike. A parameter whose hint carries a :class:`~grail_bench.core.bounds.Range`
+(``Annotated[int, Range(1, 100_000)]``) is refused outside it, naming the value
+and the range. Parameters without an annotation it understands pass unchanged.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import typing
 from collections.abc import Sequence as AbcSequence
 from typing import Any, Callable, Mapping
 
+from grail_bench.core.bounds import ranges
 from grail_bench.core.errors import UserError
 
 _NAMES = {int: "an integer", float: "a finite number", bool: "true or false", str: "a string"}
@@ -31,6 +34,8 @@ class _Mismatch(Exception):
 def _convert(value: Any, annotation: Any) -> Any:
     """``value`` as ``annotation`` declares it, or :class:`_Mismatch`."""
     origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin is typing.Annotated:
+        return _convert(value, args[0])
     if origin in (typing.Union, types.UnionType):
         for option in args:
             try:
@@ -81,6 +86,8 @@ def _convert(value: Any, annotation: Any) -> Any:
 
 def _describe(annotation: Any) -> str:
     origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin is typing.Annotated:
+        return _describe(args[0])
     if origin in (typing.Union, types.UnionType):
         return " or ".join("null" if a is type(None) else _describe(a) for a in args)
     if origin is typing.Literal:
@@ -100,10 +107,11 @@ def _declared(factory: Callable[..., Any]) -> tuple[dict[str, inspect.Parameter]
     settings = getattr(factory, "Config", None) if inspect.isclass(factory) else None
     if dataclasses.is_dataclass(settings) and inspect.isclass(settings):
         params, hints, _ = _declared(settings)
+        own = typing.get_type_hints(factory.__init__, include_extras=True)
         for name, param in inspect.signature(factory.__init__).parameters.items():
             if param.kind in (param.POSITIONAL_OR_KEYWORD, param.KEYWORD_ONLY) and name not in params | {"self": 0}:
                 params[name] = param
-                hints[name] = typing.get_type_hints(factory.__init__).get(name, inspect.Parameter.empty)
+                hints[name] = own.get(name, inspect.Parameter.empty)
         return params, hints, False
     targets = [c.__init__ for c in inspect.getmro(factory) if "__init__" in vars(c)] if inspect.isclass(factory) \
         else [factory]
@@ -115,7 +123,7 @@ def _declared(factory: Callable[..., Any]) -> tuple[dict[str, inspect.Parameter]
         except (TypeError, ValueError):  # no signature to read (a builtin or C callable)
             return params, hints, True
         try:
-            own_hints = typing.get_type_hints(target)
+            own_hints = typing.get_type_hints(target, include_extras=True)
         except Exception:  # noqa: BLE001 - annotations that do not evaluate: leave the values to the callable
             own_hints = {}
         for name, param in signature.parameters.items():
@@ -156,4 +164,6 @@ def check_kwargs(factory: Callable[..., Any], kwargs: Mapping[str, Any], owner: 
             out[name] = _convert(value, annotation)
         except _Mismatch:
             raise UserError(f"{owner}: {name} expects {_describe(annotation)}, got {value!r}") from None
+        for bound in ranges(annotation):
+            bound.check(name, out[name], owner)
     return out

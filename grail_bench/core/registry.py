@@ -4,13 +4,19 @@ A :class:`Registry` holds built-in entries (objects, or ``"module:attribute"`` t
 use), entries registered in this process, aliases, and an entry-point group through which installed packages
 add their own. Listing names imports nothing; getting one imports it once and checks it. Entry points are
 scanned once per ``sys.path`` (a scan reads every installed distribution's metadata, tens of milliseconds), so
-a package whose folder is put on the path while a process runs is found; a name registered twice (by two
-packages, or by a package and a built-in) is an error naming both.
+a package whose folder is put on the path while a process runs is found.
+
+A plugin never breaks what it does not provide: one that reuses the name of a built-in entry or of one of
+grail-bench's own entry points is ignored with one warning line (the built-in is kept); a name two plugins
+register is withheld, with one warning line, and asking for it is an error naming both; a plugin whose module
+raises on import, or whose entry point names nothing, is one :class:`UserError` naming it when it is asked for,
+and the other entries work.
 """
 
 from __future__ import annotations
 
 import importlib
+import logging
 import sys
 from functools import lru_cache
 from importlib.metadata import entry_points
@@ -21,6 +27,19 @@ from grail_bench.core.errors import UserError
 T = TypeVar("T")
 
 BUILT_IN = "built-in"
+#: The prefix of grail-bench's own entry points' targets (the built-in recognizers and domains are declared as
+#: entry points): a third-party entry point under the same name never replaces one of these.
+OWN = "grail_bench."
+
+logger = logging.getLogger(__name__)
+_warned: set[str] = set()
+
+
+def _warn_once(message: str) -> None:
+    """One warning line per message and process (plugins are rescanned, their problems said once)."""
+    if message not in _warned:
+        _warned.add(message)
+        logger.warning("grail-bench: %s", message)
 
 
 @lru_cache(maxsize=64)
@@ -84,15 +103,36 @@ class Registry(Generic[T]):
         self._local.pop(name, None)
 
     def _plugins(self) -> dict[str, str]:
+        return dict(self._scan()[0])
+
+    def _scan(self) -> tuple[dict[str, str], dict[str, str]]:
+        """The entry points by name, and the names two third-party entry points claim (name -> message).
+
+        An entry point reusing a built-in's name (or one of grail-bench's own entry points') is left out with one
+        warning line; a name two third-party entry points claim is left out of both, with one warning line.
+        """
         found: dict[str, str] = {}
+        clashes: dict[str, str] = {}
         if self.group is None:
-            return found
-        for ep in _entry_points(self.group, tuple(sys.path)):
-            earlier = found.get(ep.name) or (BUILT_IN if ep.name in self._builtin else None)
-            if earlier is not None and earlier != ep.value:
-                raise UserError(f"{self.kind} name {ep.name!r} is registered twice: {earlier} and {ep.value}")
+            return found, clashes
+        points = _entry_points(self.group, tuple(sys.path))
+        own = {ep.name: ep.value for ep in points if ep.value.startswith(OWN)}
+        for ep in points:
+            kept = BUILT_IN if ep.name in self._builtin else own.get(ep.name)
+            if kept is not None and kept != ep.value:
+                _warn_once(f"ignored the {self.kind} plugin {ep.name} = {ep.value}: {ep.name!r} is grail-bench's own "
+                           f"{self.kind} ({kept}), which is kept")
+                continue
+            earlier = found.get(ep.name)
+            if ep.name in clashes or (earlier is not None and earlier != ep.value):
+                clashes[ep.name] = clashes.get(ep.name) or (f"{self.kind} name {ep.name!r} is registered twice: "
+                                                            f"{earlier} and {ep.value}")
+                _warn_once(f"{clashes[ep.name]}; neither is used")
+                continue
             found[ep.name] = ep.value
-        return found
+        for name in clashes:
+            found.pop(name, None)
+        return found, clashes
 
     def _entries(self) -> dict[str, Any]:
         return {**self._builtin, **self._plugins(), **self._local}
@@ -143,6 +183,9 @@ class Registry(Generic[T]):
         if canonical in self._builtin and canonical not in self._local:
             return canonical, self._builtin[canonical]  # no entry-point scan: built-ins are looked up per score
         entries = self._entries()
+        clash = self._scan()[1].get(canonical)
+        if clash is not None and canonical not in entries:
+            raise UserError(clash)
         if canonical not in entries:
             raise self._unknown(f"unknown {self.kind} {name!r}; available: {', '.join(self.names()) or 'none'}")
         return canonical, entries[canonical]
@@ -159,9 +202,23 @@ class Registry(Generic[T]):
         key = (canonical, target if named else id(target))
         found = self._loaded.get(key)
         if found is None or (not named and found[0] is not target):
-            entry = self._checked(load_target(target), target) if named else self._checked(target, _describe(target))
+            entry = self._checked(self._load(canonical, target), target) if named \
+                else self._checked(target, _describe(target))
             found = self._loaded[key] = (target, entry)
         return found[1]
+
+    def _load(self, name: str, target: str) -> Any:
+        """Import a ``"module:attribute"`` target; a plugin that fails to is one line naming it.
+
+        Raises:
+            UserError: For a module that raises on import or an attribute it lacks.
+        """
+        try:
+            return load_target(target)
+        except Exception as exc:  # noqa: BLE001 - a plugin's import may raise anything; say which and why
+            why = str(exc).splitlines()[0] if str(exc) else ""
+            raise UserError(f"the {self.kind} {name!r} ({target}) cannot be loaded: {type(exc).__name__}"
+                            f"{': ' + why if why else ''}") from None
 
     def _checked(self, obj: Any, target: str) -> T:
         return self._check(obj, target) if self._check is not None else obj

@@ -68,6 +68,7 @@ from typing import Any, Callable, Hashable, Iterable, Iterator, NamedTuple, Sequ
 
 import numpy as np
 
+from grail_bench.core.bounds import Range
 from grail_bench.core.cache import key_digest
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import cache_dir
@@ -92,6 +93,8 @@ METHODS = ("auto", "exact", "monte-carlo")
 EXACT_LIMIT = 2_000_000  # observations enumerated at most before "auto" samples instead
 CACHED_SEED = 0  # the Monte Carlo seed of every cached ceiling: its cache key records it
 NOISY_LIMIT = 500  # clean candidates of one noisy observation a Monte Carlo likelihood sums at most
+#: Monte Carlo observations of one ceiling (published ceilings draw 2000; checked before any work).
+SAMPLES = Range(2, 1_000_000)
 
 
 @dataclass(frozen=True)
@@ -435,8 +438,7 @@ def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | 
     """
     if method not in METHODS:
         raise UserError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
-    if samples < 2:
-        raise UserError(f"need at least 2 Monte Carlo samples, got {samples}")
+    SAMPLES.check("samples", samples)
     rounding = rounding or task.rounding
     selection = _selection(protocol, level, rounding)
     demonstrators = _demonstrators(task)
@@ -513,7 +515,11 @@ def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: C
 
     Returns:
         ``{Cell: Ceiling}``, without the cells that have none.
+
+    Raises:
+        UserError: For ``samples`` outside :data:`SAMPLES`.
     """
+    SAMPLES.check("samples", samples)
     out, missing = {}, {}
 
     def tick() -> None:

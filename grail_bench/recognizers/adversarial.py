@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Any, Callable, Literal, Sequence
+from typing import Annotated, Any, Callable, Literal, Sequence
 
 import numpy as np
 import torch
@@ -27,7 +27,15 @@ from gymnasium import spaces
 from stable_baselines3 import PPO
 from stable_baselines3.common.policies import ActorCriticPolicy
 
-from grail_bench.core.adversarial import AIRL, GAIL, BasicRewardNet, BasicShapedRewardNet, RunningNorm
+from grail_bench.core.adversarial import (
+    AIRL,
+    GAIL,
+    BasicRewardNet,
+    BasicShapedRewardNet,
+    RunningNorm,
+    VariableHorizonError,
+)
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.ppo_update import GAEBuffer, NumpyPPO
 from grail_bench.core.rl import empty_policy, vec_env
@@ -118,16 +126,16 @@ class AdversarialConfig:
     """
 
     # budget-gail: 20 000 steps is on the plateau of both 6-goal MiniGrid tasks (5 seeds, 30 % observed)
-    total_timesteps: int = 20_000
-    n_envs: int = 8
-    n_steps: int = 64
-    batch_size: int = 32
+    total_timesteps: Annotated[int, Range(1, 100_000_000)] = 20_000
+    n_envs: Annotated[int, Range(1, 256)] = 8
+    n_steps: Annotated[int, Range(1, 100_000)] = 64
+    batch_size: Annotated[int, Range(1, 1_000_000)] = 32
     gamma: float = 0.95
     learning_rate: float = 3e-4
-    n_epochs: int = 10
-    n_disc_updates_per_round: int = 8
-    gen_replay_buffer_capacity: int = 512
-    demo_batch_size: int = 16
+    n_epochs: Annotated[int, Range(1, 10_000)] = 10
+    n_disc_updates_per_round: Annotated[int, Range(1, 10_000)] = 8
+    gen_replay_buffer_capacity: Annotated[int, Range(1, 10_000_000)] = 512
+    demo_batch_size: Annotated[int, Range(1, 1_000_000)] = 16
     update: Literal["numpy", "torch"] = "numpy"
     off_support: OffSupport = off_support_setting()
     action_box: ActionBox = action_box_setting()
@@ -163,7 +171,7 @@ class AIRLConfig(AdversarialConfig):
             (imitation 1.0.1's default, 0.99, would differ from the paper's 0.95).
     """
 
-    total_timesteps: int = 40_000
+    total_timesteps: Annotated[int, Range(1, 100_000_000)] = 40_000
     shaping_discount: float | None = None
 
     def __post_init__(self) -> None:
@@ -206,6 +214,23 @@ class AdversarialRecognizer(PolicyRecognizer):
     def new_policy(self, goal: Goal, env_factory: EnvFactory) -> ActorCriticPolicy:
         return empty_policy("ppo", *spaces_of(env_factory, goal))
 
+    def check_task(self, task: Any) -> None:
+        """Refuse, where the run is planned, a task whose episodes may end before its horizon (its domain's
+        ``ends_early``), besides :meth:`ScoredRecognizer.check_task`'s refusals.
+
+        Raises:
+            UserError: In one line saying why.
+        """
+        super().check_task(task)
+        ends_early = getattr(task.spec, "ends_early", None)
+        why = ends_early(task.env_params) if callable(ends_early) else None
+        if why:
+            raise UserError(self._variable_horizon(f"{task.id}: {why}"))
+
+    def _variable_horizon(self, what: str) -> str:
+        return (f"recognizer {self.name!r}: {what}, but GAIL and AIRL train on episodes of one fixed length (an "
+                "episode that ends early tells the discriminator whose it is)")
+
     def train_policy(self, goal: Goal, demos: Sequence[Trajectory], env_factory: EnvFactory,
                      seed: int) -> tuple[ActorCriticPolicy, dict[str, list[float]]]:
         cfg = self.config
@@ -229,7 +254,10 @@ class AdversarialRecognizer(PolicyRecognizer):
             rounds = max(1, cfg.total_timesteps // trainer.gen_train_timesteps)
             disc_acc, gen_return = [], []
             for _ in range(rounds):
-                trainer.train_gen(trainer.gen_train_timesteps)
+                try:
+                    trainer.train_gen(trainer.gen_train_timesteps)
+                except VariableHorizonError as exc:  # a domain that does not declare ends_early
+                    raise UserError(self._variable_horizon(f"goal {list(goal)}'s generator {exc}")) from None
                 stats = None
                 for _ in range(cfg.n_disc_updates_per_round):
                     stats = trainer.train_disc()

@@ -5,13 +5,14 @@ from __future__ import annotations
 import hashlib
 import time
 from dataclasses import dataclass, field
-from typing import Any, Literal, Mapping, Sequence
+from typing import Annotated, Any, Literal, Mapping, Sequence
 
 import numpy as np
 import torch
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 from grail_bench.core import bc_update
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import EnvFactory, Goal, Trajectory, flatten, until_success
 from grail_bench.recognizers.policy import PolicyRecognizer, Trained, spaces_of
@@ -45,8 +46,8 @@ class BCConfig:
             has no evidence. It changes training: its models are cached apart, keyed by those states too.
     """
 
-    n_epochs: int = 100
-    batch_size: int = 8
+    n_epochs: Annotated[int, Range(1, 100_000)] = 100
+    batch_size: Annotated[int, Range(1, 1_000_000)] = 8
     learning_rate: float = 1e-3
     ent_weight: float = 1e-3
     off_support: OffSupport = off_support_setting()

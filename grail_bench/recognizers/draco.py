@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal, Sequence
+from typing import Annotated, Any, Literal, Sequence
 
 from gymnasium import spaces
 from grail_bench.core.trajectory import Trajectory
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.rl import empty_policy, learn, make_ppo, make_sac
 from grail_bench.core.trajectory import EnvFactory, Goal
@@ -52,9 +53,9 @@ class DRACOConfig:
     """
 
     algorithm: Literal["ppo", "sac"] = "ppo"
-    sac_steps: int | None = field(default=None, metadata={"omit_none": True})
-    ppo_steps: int | None = field(default=None, metadata={"omit_none": True})
-    net_arch: tuple[int, ...] = (64, 64)
+    sac_steps: Annotated[int, Range(1, 100_000_000)] | None = field(default=None, metadata={"omit_none": True})
+    ppo_steps: Annotated[int, Range(1, 100_000_000)] | None = field(default=None, metadata={"omit_none": True})
+    net_arch: Annotated[tuple[int, ...], Range(1, 4096)] = (64, 64)
     off_support: OffSupport = off_support_setting()
     action_box: ActionBox = action_box_setting()
 

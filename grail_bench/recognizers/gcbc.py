@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Annotated, Any, Callable, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -31,6 +31,7 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 
 from grail_bench.core.cache import cached
 from grail_bench.core.provenance import model_versions
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.scaling import scale_of
 from grail_bench.core.torchutil import single_thread
@@ -163,11 +164,11 @@ class GCBCConfig:
             only (:func:`~grail_bench.recognizers.scored.action_box_setting`).
     """
 
-    n_batches: int = 4000
-    batch_size: int = 32
+    n_batches: Annotated[int, Range(1, 10_000_000)] = 4000
+    batch_size: Annotated[int, Range(1, 1_000_000)] = 32
     learning_rate: float = 1e-3
     ent_weight: float = 1e-3
-    hidden: int = 64
+    hidden: Annotated[int, Range(1, 4096)] = 64
     off_support: OffSupport = off_support_setting()
     action_box: ActionBox = action_box_setting()
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from typing import Annotated, Any, Callable, Mapping, Sequence
 
 import numpy as np
 from gymnasium import spaces
@@ -12,6 +12,7 @@ from grail_bench.core.trajectory import Trajectory
 from scipy.special import softmax
 
 from grail_bench.core.cache import cached
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import goal_seed
 from grail_bench.core.spaces import n_states, state_index
@@ -43,13 +44,13 @@ class GRAQLConfig:
             the configuration's key unless set).
     """
 
-    episodes: int = 15_000
+    episodes: Annotated[int, Range(1, 10_000_000)] = 15_000
     alpha: float = 0.5
     gamma: float = 0.9
     epsilon_start: float = 1.0
     epsilon_end: float = 0.05
     temperature: float = 1.0
-    max_episode_steps: int | None = field(default=None, metadata={"omit_none": True})
+    max_episode_steps: Annotated[int, Range(1, 100_000)] | None = field(default=None, metadata={"omit_none": True})
 
     def __post_init__(self) -> None:
         if self.episodes < 1 or not 0 < self.alpha <= 1 or not 0 < self.gamma <= 1 or not self.temperature > 0:

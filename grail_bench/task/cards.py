@@ -40,10 +40,16 @@ Parsing builds :class:`~grail_bench.task.model.GRTask` objects, which validate e
 field (regime parameters included, through the domain); errors read
 ``file: task[i].field: why``. A task ID defined twice, in one card or two, is
 an error naming the file(s).
+
+A broken card in the card folder (invalid TOML, a wrong field, a file that is not UTF-8, an ID another card
+defines) never breaks ``import grail_bench`` or the other tasks: it is skipped with one warning line (the logger
+``grail_bench.task.cards``) naming the file and why, and ``grail-bench tasks`` lists it
+(:func:`skipped_cards`).
 """
 
 from __future__ import annotations
 
+import logging
 import re
 import tomllib
 from functools import lru_cache
@@ -54,6 +60,8 @@ from typing import Any, Iterable
 from grail_bench.core.errors import UserError
 from grail_bench.task.domain import available_domains
 from grail_bench.task.model import GRTask, TaskFieldError
+
+logger = logging.getLogger(__name__)
 
 ID_PATTERN = re.compile(r"^GRAIL/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
 FILE_KEYS = {"domain", "description", "defaults", "task"}
@@ -99,6 +107,8 @@ def goal_set_id(task_id: str, name: str) -> str:
 def _tasks(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: str, where: str,
            folder: Path | None) -> list[GRTask]:
     """The block's task, then one per entry of its ``goal_sets`` (see the module docstring)."""
+    if not isinstance(raw, dict):
+        raise _fail(source, where, f"expected a [[task]] table, got {raw!r}")
     unknown = set(raw) - TASK_KEYS
     if unknown:
         raise _fail(source, f"{where}.{sorted(unknown)[0]}", f"unknown field (known: {', '.join(sorted(TASK_KEYS))})")
@@ -202,16 +212,65 @@ def unique(tasks: Iterable[GRTask]) -> list[GRTask]:
     return list(seen.values())
 
 
+def read_card(path: Any, source: str | None = None) -> str:
+    """A card file's text (UTF-8).
+
+    Args:
+        path: The file (a :class:`~pathlib.Path` or a package resource).
+        source: Names it in messages (default: the path).
+
+    Raises:
+        CardError: Naming the file, for one that cannot be read or is not UTF-8 text.
+    """
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise CardError(f"{source or path}: not UTF-8 text (byte {exc.start}); save the card as UTF-8") from None
+    except OSError as exc:
+        raise CardError(f"{source or path}: cannot be read: {exc.strerror or exc}") from None
+
+
 def load_cards(paths: Iterable[Path] | None = None) -> list[GRTask]:
-    """Load every shipped card (parsed once per process), or the given files, in a stable order."""
+    """Load every shipped card (parsed once per process), or the given files, in a stable order.
+
+    A broken shipped card is skipped (see :func:`skipped_cards`); a broken given file raises.
+
+    Raises:
+        CardError: For a given file that is not a valid card, or task IDs defined twice among them.
+    """
     if paths is None:
-        return list(_shipped_cards())
-    return unique(t for p in map(Path, paths) for t in parse_card(p.read_text(encoding="utf-8"), str(p), p.parent))
+        return list(_shipped_cards()[0])
+    return unique(t for p in map(Path, paths) for t in parse_card(read_card(p), str(p), p.parent))
+
+
+def skipped_cards() -> dict[str, str]:
+    """The shipped cards that were skipped because they are broken: file name -> why (one line)."""
+    return dict(_shipped_cards()[1])
 
 
 @lru_cache(maxsize=1)
-def _shipped_cards() -> tuple[GRTask, ...]:
+def _shipped_cards() -> tuple[tuple[GRTask, ...], tuple[tuple[str, str], ...]]:
+    """The tasks of every card in the card folder, and the cards skipped.
+
+    One broken card (bad TOML, wrong fields, another encoding, an ID another card defines) must not break
+    ``import grail_bench`` or the other tasks: it is skipped with one warning line naming the file and why.
+    """
     root = files("grail_bench.tasks")
     entries = sorted((p for p in root.iterdir() if p.name.endswith(".toml")), key=lambda p: p.name)
     folder = root if isinstance(root, Path) else None  # a package read from an archive has no folder
-    return tuple(unique(t for p in entries for t in parse_card(p.read_text(encoding="utf-8"), p.name, folder)))
+    tasks: dict[str, GRTask] = {}
+    skipped: dict[str, str] = {}
+    for entry in entries:
+        try:
+            found = parse_card(read_card(entry, entry.name), entry.name, folder)
+            taken = next((t for t in found if t.id in tasks), None)
+            if taken is not None:
+                raise CardError(f"task id {taken.id!r} is defined twice, in {tasks[taken.id].source} and "
+                                f"{entry.name}")
+        except Exception as exc:  # noqa: BLE001 - a card is user input: whatever it breaks, skip it and say why
+            why = str(exc) if isinstance(exc, UserError) else f"{type(exc).__name__}: {exc}"
+            skipped[entry.name] = why.removeprefix(f"{entry.name}: ")
+            logger.warning("grail-bench: skipped the task card %s: %s", entry.name, skipped[entry.name])
+            continue
+        tasks.update((t.id, t) for t in found)
+    return tuple(tasks.values()), tuple(skipped.items())

@@ -155,7 +155,7 @@ def _origin_fields(task: GRTask, meta: dict[str, Any]) -> list[tuple[str, Any, A
     out: list[tuple[str, Any, Any]] = [("task", meta.get("task", _ABSENT), task.id),
                                        ("regime", meta.get("regime", _ABSENT), task.regime)]
     theirs = meta.get("params")
-    theirs = stored_params(task.spec, theirs) if isinstance(theirs, dict) else {}
+    theirs = stored_params(task.spec, theirs, meta.get("regime")) if isinstance(theirs, dict) else {}
     for name in sorted({*theirs, *task.params}):
         out.append((f"params.{name}", theirs.get(name, _ABSENT), task.params.get(name, _ABSENT)))
     theirs = meta.get("env") if isinstance(meta.get("env"), dict) else {}

@@ -67,6 +67,15 @@ class Domain(Protocol):
     its simulator comes from beyond the suite's own, whose versions key those
     cached demonstrations too.
 
+    A domain may also declare ``bounds``: per regime or env parameter that sizes work (a grid's side, a step
+    count), the :class:`~grail_bench.core.bounds.Range` its values must lie in. A task refuses a value outside
+    it when it is built (from a card, ``--param``, ``make_task`` or ``gym.make``), before any work, naming the
+    parameter, the value and the range.
+
+    A domain may also declare ``ends_early(env_params)``: why its episodes may end before ``max_steps`` (a
+    goal reached, lava), or None when every episode runs to it. Recognizers that train on episodes of one
+    length (GAIL, AIRL) refuse such a task where a run is planned.
+
     A domain may also declare ``noop_action``: the action that leaves the agent
     where it is (an action of its env's action space: an integer for discrete
     actions, a sequence of the action box's shape for continuous ones; MiniGrid
@@ -146,8 +155,11 @@ def get_domain(name: str) -> Domain:
     return DOMAINS.get(name)
 
 
-def stored_params(domain: Domain, params: Mapping[str, Any]) -> dict[str, Any]:
-    """The parameters a stored run used: the recorded ones, plus the domain's ``implicit`` values of parameters
-    it declares were added since (those runs predate them)."""
+def stored_params(domain: Domain, params: Mapping[str, Any], regime: Any = None) -> dict[str, Any]:
+    """The parameters a stored run (or an exported dataset) used: the recorded ones, plus the domain's
+    ``implicit`` values of parameters it declares were added since (those runs predate them); given the run's
+    ``regime``, only of parameters that regime has (a biased MiniGrid run has no ``route_choice``)."""
     implicit = getattr(domain, "implicit", None) or {}
+    if isinstance(regime, str):
+        implicit = {k: v for k, v in implicit.items() if k in domain.regimes.get(regime, {})}
     return {**implicit, **params}

@@ -10,6 +10,7 @@ import numbers
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal
 from grail_bench.task.domain import Domain, get_domain
@@ -20,6 +21,8 @@ if TYPE_CHECKING:
     import gymnasium as gym
 
 ENV_ONLY = ("render_mode", "goal")  # gym.make arguments that shape one env, not the task
+#: The task's own sizes (published tasks use at most 200 demonstrations per goal).
+FIELD_BOUNDS: Mapping[str, Range] = {"n_demos": Range(2, 10_000), "n_train": Range(1, 9_999)}
 
 
 class TaskFieldError(UserError):
@@ -33,6 +36,13 @@ class TaskFieldError(UserError):
     def __init__(self, field: str, why: str) -> None:
         super().__init__(f"{field}: {why}")
         self.field, self.why = field, why
+
+
+def _check_bounds(prefix: str, values: Mapping[str, Any], bounds: Mapping[str, Range]) -> None:
+    """Refuse a value outside its declared bound (see :mod:`grail_bench.core.bounds`), before any work."""
+    for name, bound in bounds.items():
+        if name in values and not bound.contains(values[name]):
+            raise TaskFieldError(f"{prefix}{name}", f"{values[name]!r} is out of range (allowed {bound})")
 
 
 def _count(value: Any) -> bool:
@@ -169,9 +179,13 @@ class GRTask:
             why = _env_value_error(self.env_params[name], default)
             if why:
                 raise TaskFieldError(f"env.{name}", why)
+        bounds = getattr(spec, "bounds", None) or {}
+        _check_bounds("params.", self.params, bounds)
+        _check_bounds("env.", self.env_params, bounds)
         for name in ("n_demos", "n_train"):
             if not _count(getattr(self, name)):
                 raise TaskFieldError(name, f"expected a positive integer, got {getattr(self, name)!r}")
+        _check_bounds("", {"n_demos": self.n_demos, "n_train": self.n_train}, FIELD_BOUNDS)
         if self.n_train >= self.n_demos:
             raise TaskFieldError("n_train", f"must be smaller than n_demos ({self.n_demos}) to leave test "
                                             "demonstrations")

@@ -16,7 +16,7 @@ import difflib
 from typing import TYPE_CHECKING, Any
 
 from grail_bench.core.errors import UserError
-from grail_bench.task.cards import load_cards
+from grail_bench.task.cards import load_cards, skipped_cards
 from grail_bench.task.domain import stored_params
 from grail_bench.task.model import ENV_ONLY, GRTask
 
@@ -97,7 +97,9 @@ def _unknown(task_id: Any, known: list[str]) -> str:
         return f"{task_id} is a gymnasium env but not a GRAIL/ task"
     close = difflib.get_close_matches(task_id, known, n=3, cutoff=0.6)
     hint = f"; did you mean {', '.join(close)}?" if close else ""
-    return f"unknown task {task_id!r}{hint} (`grail-bench tasks` lists them)"
+    skipped = skipped_cards()
+    broken = f"; the broken task card(s) {', '.join(skipped)} were skipped" if skipped else ""
+    return f"unknown task {task_id!r}{hint} (`grail-bench tasks` lists them){broken}"
 
 
 def find_task(task_id: str, params: dict[str, Any] | None = None) -> GRTask | None:

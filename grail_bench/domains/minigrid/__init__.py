@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.domains.minigrid.grid import check_params, split_obstacles
 
@@ -45,6 +46,8 @@ class MiniGrid:
         # turn_pattern: "left-right" or "around-and-back" (see .demos).
         "suboptimal": {"route_choice": "uniform", "turn_prob": 1.0, "turn_pattern": "left-right"},
     }
+    # Far above every published room (9 and 13 cells a side, at most 200 steps): a mistyped size is refused.
+    bounds: Mapping[str, Range] = {"size": Range(high=64), "max_steps": Range(1, 10_000)}
     ceiling_regimes = frozenset(regimes)
     noop_action = 3  # grid.STAY: the agent neither turns nor moves
     # Runs stored before route_choice existed drew every demonstration's path uniformly.
@@ -60,6 +63,10 @@ class MiniGrid:
         for goal in goals:
             if tuple(int(c) for c in goal) not in free:
                 raise UserError(f"goal {list(goal)} is not a free cell of the room (walls and lava excluded)")
+
+    def ends_early(self, env_params: Mapping[str, Any]) -> str | None:
+        """Why episodes may end before ``max_steps``, or None (see :class:`~grail_bench.task.domain.Domain`)."""
+        return None if env_params["fixed_horizon"] else "episodes end at the goal or in lava (fixed_horizon = false)"
 
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.minigrid.env import GRMiniGridEnv

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 
 if TYPE_CHECKING:
@@ -48,6 +49,8 @@ class PandaReach:
         "gaussian": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "sigma": 0.1},
         "uniform": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "half_width": 0.1},
     }
+    # Sizes of work, far above the published ones (50 steps, a 15,000-step expert).
+    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000), "expert_steps": Range(1, 10_000_000)}
     ceiling_regimes: frozenset[str] = frozenset()  # a learned expert plus continuous noise: no likelihood
     noop_action = (0.0, 0.0, 0.0)  # the zero displacement of the end effector: the arm stays where it is
     cache_demos = True  # a seed's rollouts take minutes: generated once, kept on disk

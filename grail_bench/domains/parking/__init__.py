@@ -16,6 +16,7 @@ import math
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 
 if TYPE_CHECKING:
@@ -69,6 +70,7 @@ class Parking:
         "optimal": {},
         "noisy": {"sigma": 0.1},
     }
+    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000)}  # published: 100
     # The scripted expert in a deterministic simulator, plus continuous noise: no likelihood is stated.
     ceiling_regimes: frozenset[str] = frozenset()
     cache_demos = True  # about 1 s per goal and seed: generated once, kept on disk

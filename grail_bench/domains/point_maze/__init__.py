@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.domains.point_maze.maze import check_params
 
@@ -39,6 +40,9 @@ class PointMaze:
         "biased": {"routes": []},
         "noisy": {**_EXPERT, "sigma": 0.1},
     }
+    # Sizes of work, far above the published ones (100-200 steps, a 30,000-step expert).
+    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000), "action_repeat": Range(1, 1_000),
+                                   "expert_steps": Range(1, 10_000_000)}
     # The scripted routes are deterministic; action noise has a density but no enumerable support.
     ceiling_regimes = frozenset({"optimal", "biased"})
     cache_demos = True  # a seed's rollouts take minutes: generated once, kept on disk

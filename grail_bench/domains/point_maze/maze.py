@@ -18,6 +18,10 @@ import numpy as np
 from grail_bench.core.errors import UserError
 from grail_bench.domains.routes import check_routes, ranking
 
+#: The most rows or columns a maze has (the published mazes are 7x7 and 11x11; MuJoCo builds one body per cell).
+MAX_SIDE = 64
+
+
 Cell = tuple[int, int]
 SUCCESS_RADIUS = 0.45  # the library's: the goal is reached within this distance
 # Compass heading -> (row, col) step; routes name headings in order of preference, as in MiniGrid.
@@ -39,11 +43,15 @@ class Maze:
         """Validate a layout given as strings.
 
         Raises:
-            UserError: For ragged rows, unknown characters or an open border.
+            UserError: For ragged rows, unknown characters, an open border, or more than :data:`MAX_SIDE` rows or
+                columns.
         """
         if (not isinstance(rows, (list, tuple)) or len(rows) < 3
                 or not all(isinstance(r, str) and len(r) == len(rows[0]) for r in rows)):
             raise UserError("maze must be a list of at least 3 equal-length strings")
+        if max(len(rows), len(rows[0])) > MAX_SIDE:
+            raise UserError(f"maze is {len(rows)}x{len(rows[0])} cells, out of range (allowed at most {MAX_SIDE} "
+                            "rows and columns)")
         if set("".join(rows)) - {"#", "."}:
             raise UserError("maze rows may hold only '#' (wall) and '.' (free)")
         if set(rows[0] + rows[-1] + "".join(r[0] + r[-1] for r in rows)) != {"#"}:

@@ -39,6 +39,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
+from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 
 if TYPE_CHECKING:
@@ -83,6 +84,7 @@ class Symbolic:
         # of two actions that undo each other.
         "suboptimal": {"detour_prob": 0.3},
     }
+    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000)}  # published: 50
     ceiling_regimes = frozenset({"optimal", "biased"})
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
@@ -95,6 +97,10 @@ class Symbolic:
         for goal in goals:
             if len(goal) != 1 or float(goal[0]) != int(goal[0]) or not 0 <= int(goal[0]) < n:
                 raise UserError(f"goal {list(goal)} must be [i], the index of one of the problem's {n} hypotheses")
+
+    def ends_early(self, env_params: Mapping[str, Any]) -> str | None:
+        """Why episodes may end before ``max_steps`` (see :class:`~grail_bench.task.domain.Domain`)."""
+        return "episodes end when the goal holds"
 
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.symbolic.env import SymbolicEnv

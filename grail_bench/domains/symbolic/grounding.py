@@ -10,6 +10,10 @@
 Atoms no kept operator changes become static facts (true) or disappear
 (never true); the rest are the fluents, sorted, and the operators are sorted by
 name, so the model is the same for the same text.
+
+Grounding is bounded: at most :data:`BINDING_LIMIT` parameter bindings are tried
+and :data:`OPERATOR_LIMIT` ground operators built (a 30x30 grid tries 4,380 and
+builds 3,480); a larger problem is refused in one line before it fills memory.
 """
 
 from __future__ import annotations
@@ -19,6 +23,14 @@ from typing import Iterable, Iterator
 from grail_bench.core.errors import UserError
 from grail_bench.domains.symbolic.pddl_text import Atom, LiftedAction, LiftedDomain, LiftedProblem, Literal, atom_text
 from grail_bench.domains.symbolic.strips import Operator, StripsModel
+
+BINDING_LIMIT = 20_000_000  #: parameter bindings grounding tries at most, over every action
+OPERATOR_LIMIT = 500_000  #: ground operators (before pruning) grounding builds at most
+
+
+def _too_large(what: str, limit: int) -> UserError:
+    return UserError(f"the problem is too large to ground: more than {limit:,} {what} (grail-bench's grounder "
+                     "enumerates bindings; split the problem or use fewer objects)")
 
 
 def _objects_by_type(domain: LiftedDomain, objects: dict[str, str]) -> dict[str, list[str]]:
@@ -40,8 +52,14 @@ def _bind(atom: Atom, binding: dict[str, str]) -> Atom:
 
 
 def _bindings(action: LiftedAction, by_type: dict[str, list[str]], static_preds: set[str],
-              static_init: frozenset[Atom]) -> Iterator[dict[str, str]]:
-    """Parameter bindings that satisfy the action's static and equality literals, checked as soon as bound."""
+              static_init: frozenset[Atom], tried: list[int]) -> Iterator[dict[str, str]]:
+    """Parameter bindings that satisfy the action's static and equality literals, checked as soon as bound.
+
+    ``tried[0]`` counts the bindings tried, across calls.
+
+    Raises:
+        UserError: Past :data:`BINDING_LIMIT` bindings tried.
+    """
     names = ["?" + v for v, _ in action.parameters]
     checks: list[list[Literal]] = [[] for _ in names]  # literal checked once parameter i is bound
     for positive, atom in action.precondition:
@@ -55,19 +73,44 @@ def _bindings(action: LiftedAction, by_type: dict[str, list[str]], static_preds:
             continue
         checks[last].append((positive, atom))
 
+    # positive static literals whose last-bound parameter appears once: they pick that parameter's objects out
+    # of an index of the static facts (a grid's move binds ?to among ?from's neighbours, not among every cell)
+    filters = [[(atom, atom.index(names[i])) for positive, atom in checks[i]
+                if positive and atom[0] != "=" and atom[1:].count(names[i]) == 1] for i in range(len(names))]
+    slots = {(atom[0], pos): _slot(static_init, atom[0], pos) for kept in filters for atom, pos in kept}
     binding: dict[str, str] = {}
+
+    def candidates(i: int) -> list[str]:
+        objects = by_type.get(action.parameters[i][1], [])
+        for atom, pos in filters[i]:
+            bound = _bind(atom, binding)
+            allowed = slots[atom[0], pos].get(bound[1:pos] + bound[pos + 1:], set())
+            objects = [obj for obj in objects if obj in allowed]
+        return objects
 
     def extend(i: int) -> Iterator[dict[str, str]]:
         if i == len(names):
             yield dict(binding)
             return
-        for obj in by_type.get(action.parameters[i][1], []):
+        for obj in candidates(i):
+            tried[0] += 1
+            if tried[0] > BINDING_LIMIT:
+                raise _too_large("parameter bindings", BINDING_LIMIT)
             binding[names[i]] = obj
             if _holds(checks[i], binding, static_init):
                 yield from extend(i + 1)
         binding.pop(names[i], None)
 
     yield from extend(0)
+
+
+def _slot(static_init: frozenset[Atom], predicate: str, pos: int) -> dict[tuple[str, ...], set[str]]:
+    """The static facts of ``predicate`` by their other arguments: the objects found at position ``pos``."""
+    out: dict[tuple[str, ...], set[str]] = {}
+    for fact in static_init:
+        if fact[0] == predicate and len(fact) > pos:
+            out.setdefault(fact[1:pos] + fact[pos + 1:], set()).add(fact[pos])
+    return out
 
 
 def _holds(literals: Iterable[Literal], binding: dict[str, str], static_init: frozenset[Atom]) -> bool:
@@ -83,7 +126,8 @@ def ground(domain: LiftedDomain, problem: LiftedProblem, goals: Iterable[Iterabl
     """The grounded model of ``problem``, pruned to what the candidate ``goals`` can need.
 
     Raises:
-        UserError: For an init or goal atom naming an unknown predicate or object.
+        UserError: For an init or goal atom naming an unknown predicate or object, or a problem past the
+            grounding limits.
     """
     goals = [tuple(g) for g in goals]
     for what, atoms in (("init", problem.init), *((f"goal {i}", g) for i, g in enumerate(goals))):
@@ -99,9 +143,12 @@ def ground(domain: LiftedDomain, problem: LiftedProblem, goals: Iterable[Iterabl
     by_type = _objects_by_type(domain, problem.objects)
 
     candidates: list[tuple[Atom, list[Atom], list[Atom], list[Atom], list[Atom]]] = []
+    tried = [0]
     for action in domain.actions:
         dynamic = [(p, atom) for p, atom in action.precondition if atom[0] != "=" and atom[0] not in static_preds]
-        for binding in _bindings(action, by_type, static_preds, static_init):
+        for binding in _bindings(action, by_type, static_preds, static_init, tried):
+            if len(candidates) >= OPERATOR_LIMIT:
+                raise _too_large("ground operators", OPERATOR_LIMIT)
             name = (action.name, *(binding["?" + v] for v, _ in action.parameters))
             pre = [_bind(a, binding) for p, a in dynamic if p]
             neg = [_bind(a, binding) for p, a in dynamic if not p]

@@ -58,6 +58,13 @@ class GoalDemonstrator:
                                 f"likelihood enumerates at most {MAX_PLANS}")
             self.plans = [tuple(p) for p in self.graph.plans()]
         self._spans = {plan: self.pairs(plan) for plan in self.plans}
+        # pair -> the plans (by position) that hold it: an observation is scored only against the plans holding
+        # every observed pair (the others contribute exactly 0), so a grid's thousands of plans stay fast
+        self._span_list = list(self._spans.values())
+        self._holding: dict[Pair, set[int]] = {}
+        for i, pairs in enumerate(self._span_list):
+            for pair in pairs:
+                self._holding.setdefault(pair, set()).add(i)
 
     def pairs(self, plan: tuple[int, ...]) -> list[Pair]:
         """The ``(state, operator)`` pairs of a plan played from the initial state."""
@@ -90,7 +97,10 @@ class GoalDemonstrator:
         """Probability that this goal's demonstrator yields ``observation`` under the protocol."""
         total = 0.0
         k = len(observation)
-        for pairs in self._spans.values():
+        spans = self._span_list
+        holding = [self._holding.get(pair, set()) for pair in set(observation)]
+        candidates = sorted(set.intersection(*holding)) if holding else range(len(spans))
+        for pairs in (spans[i] for i in candidates):
             n = len(pairs)
             if n_observed(selection.level, n, selection.rounding) != k:
                 continue

@@ -43,8 +43,8 @@ def hmax_many(model: StripsModel, states: Sequence[int], goal: int) -> np.ndarra
         active, now = active[~done], now[~done]
         if not active.size:
             break
-        applicable = (now.astype(np.float32) @ pre.T) >= count
-        grown = now | ((applicable.astype(np.float32) @ add) > 0)
+        applicable = (pre @ now.T.astype(np.float32)).T >= count
+        grown = now | ((add.T @ applicable.T.astype(np.float32)).T > 0)
         moving = (grown != now).any(axis=1)  # a layer that adds nothing never reaches the goal
         active = active[moving]
         reached[active] = grown[moving]

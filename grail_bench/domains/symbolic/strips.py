@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
@@ -137,15 +137,21 @@ class StripsModel:
         return [(pre, add) for pre, _, add, _ in self._masks]
 
     @cached_property
-    def relaxed_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(pre, pre_count, add)``: ``(A, F)`` 0/1 precondition and add matrices and each operator's number of
-        preconditions, as ``float32`` (batched delete-relaxation heuristics multiply them)."""
-        pre = np.zeros((len(self.operators), len(self.fluents)), dtype=np.float32)
-        add = np.zeros_like(pre)
-        for a, op in enumerate(self.operators):
-            pre[a, list(op.pre)] = 1.0
-            add[a, list(op.add)] = 1.0
-        return pre, pre.sum(axis=1), add
+    def relaxed_arrays(self) -> tuple[Any, np.ndarray, Any]:
+        """``(pre, pre_count, add)``: ``(A, F)`` sparse 0/1 precondition and add matrices (``float32`` CSR) and
+        each operator's number of preconditions (batched delete-relaxation heuristics multiply them; an operator
+        touches a few fluents, so sparse products keep large problems, a 30x30 grid's 900 fluents, fast)."""
+        from scipy import sparse
+
+        shape = (len(self.operators), len(self.fluents))
+
+        def matrix(column: str) -> Any:
+            rows = [a for a, op in enumerate(self.operators) for _ in getattr(op, column)]
+            cols = [f for op in self.operators for f in getattr(op, column)]
+            return sparse.csr_matrix((np.ones(len(rows), dtype=np.float32), (rows, cols)), shape=shape)
+
+        pre = matrix("pre")
+        return pre, np.asarray(pre.sum(axis=1), dtype=np.float32).reshape(-1), matrix("add")
 
     def bits(self, states: Sequence[int]) -> np.ndarray:
         """``(len(states), n_fluents)`` booleans: the fluents true in each state."""
