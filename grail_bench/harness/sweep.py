@@ -35,6 +35,7 @@ from grail_bench.harness.store import ResultsStore
 from grail_bench.task import GRTask, make_task
 from grail_bench.task.observation import ObservationSpec
 from grail_bench.task.overrides import TaskOverrides
+from grail_bench.task.versions import fingerprint
 
 
 @dataclass(frozen=True)
@@ -166,6 +167,8 @@ def run_unit(unit: Unit) -> UnitResult:
                   versions=_versions(), demos=_demos(unit.task, unit.seed))
     with single_thread():  # as every worker does: the same arithmetic wherever a unit runs
         rows, fitted = get_mode(unit.mode).run(job)
+    fp = fingerprint(unit.task)  # the task as run: its card's, or a variant's with its parameters
+    rows = [replace(r, task_fingerprint=fp) if hasattr(r, "task_fingerprint") else r for r in rows]
     if fitted is not None and fitted.diagnostics is not None:
         rows = [*rows, FitRow(unit.task.id, unit.planned.name, unit.planned.config_hash, unit.seed, unit.mode,
                               diagnostics.to_json(fitted.diagnostics))]

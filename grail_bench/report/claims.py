@@ -47,8 +47,8 @@ VERDICTS = ("holds", "partly", "does not hold", "not measured")
 Statistic = Literal["mean", "max", "contrast"]
 
 _MINIGRID_BIASED = ("GRAIL/MiniGrid-Biased-v0",)
-_MINIGRID_SUBOPTIMAL = ("GRAIL/MiniGrid-Suboptimal-v0", "GRAIL/MiniGrid-Suboptimal-4Goals-v0",
-                        "GRAIL/MiniGrid-Suboptimal-6Goals-v0")
+_MINIGRID_SUBOPTIMAL = ("GRAIL/MiniGrid-Suboptimal-v1", "GRAIL/MiniGrid-Suboptimal-4Goals-v1",
+                        "GRAIL/MiniGrid-Suboptimal-6Goals-v1")
 _MINIGRID_OPTIMAL = ("GRAIL/MiniGrid-Optimal-v0", "GRAIL/MiniGrid-Optimal-4Goals-v0",
                      "GRAIL/MiniGrid-Optimal-6Goals-v0")
 _PANDA_NOISY = ("GRAIL/PandaReach-Gaussian-0.1-v0", "GRAIL/PandaReach-Gaussian-0.3-v0",

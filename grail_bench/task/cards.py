@@ -65,6 +65,9 @@ TASK_KEYS = {
 GOAL_SET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.]*$")
 #: A Minari dataset ID (``namespace/name-v0``): a card's ``demos`` that is no folder beside the card is one.
 DATASET_ID = re.compile(r"^([\w.-]+/)?[\w.-]+-v\d+$")
+#: The one TOML file beside the shipped cards that is no card: what each task ID's version means
+#: (:mod:`grail_bench.task.versions`).
+VERSIONS_FILE = "versions.toml"
 DEFAULT_FIELDS = {"n_demos": 10, "n_train": 7, "observability": [0.1, 0.2, 0.3], "protocol": "subset",
                   "rounding": "ceil"}
 
@@ -212,6 +215,7 @@ def load_cards(paths: Iterable[Path] | None = None) -> list[GRTask]:
 @lru_cache(maxsize=1)
 def _shipped_cards() -> tuple[GRTask, ...]:
     root = files("grail_bench.tasks")
-    entries = sorted((p for p in root.iterdir() if p.name.endswith(".toml")), key=lambda p: p.name)
+    entries = sorted((p for p in root.iterdir() if p.name.endswith(".toml") and p.name != VERSIONS_FILE),
+                     key=lambda p: p.name)
     folder = root if isinstance(root, Path) else None  # a package read from an archive has no folder
     return tuple(unique(t for p in entries for t in parse_card(p.read_text(encoding="utf-8"), p.name, folder)))

@@ -61,6 +61,7 @@ class ResultRow(Run):
     set_recall: float | None = None  # holds the true goal, else 0; whether it holds it; and its size,
     set_spread: float | None = None  # each a mean over observations (None: stored before)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
+    task_fingerprint: str | None = None  # the task as run (grail_bench.task.versions); None: stored before
 
 
 @dataclass(frozen=True, kw_only=True)
