@@ -17,6 +17,7 @@ replicates in one call. Every bootstrap takes a seed: same seed, same interval.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any, Callable, Hashable, Mapping, Sequence
 
 import numpy as np
@@ -97,12 +98,22 @@ def stratified_bootstrap(scores: Scores, statistic: Statistic, *, reps: int = 20
     if reps < 1:
         raise UserError(f"reps must be positive, got {reps}")
     arrays = _check(scores)
-    rng = np.random.default_rng(seed)
-    draws = {task: rng.integers(0, a.size, size=(reps, a.size)) for task, a in arrays.items()}
-    replicates = np.asarray(statistic({task: a[draws[task]] for task, a in arrays.items()}))
+    draws = _draws(seed, reps, tuple(a.size for a in arrays.values()))
+    replicates = np.asarray(statistic({task: a[d] for (task, a), d in zip(arrays.items(), draws)}))
     tail = 100 * (1 - confidence) / 2
     low, high = np.percentile(replicates, [tail, 100 - tail])
     return Interval(float(statistic(arrays)), float(low), float(high))
+
+
+@lru_cache(maxsize=256)
+def _draws(seed: int, reps: int, sizes: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """The resampled indices of a stratified bootstrap, per stratum in order: they depend only on the seed, the
+    replicates and the strata's sizes, so thousands of cells of ten seeds each draw them once (read only)."""
+    rng = np.random.default_rng(seed)
+    out = tuple(rng.integers(0, n, size=(reps, n)) for n in sizes)
+    for d in out:
+        d.flags.writeable = False
+    return out
 
 
 def _improvement(x: np.ndarray, y: np.ndarray) -> Any:
@@ -180,9 +191,8 @@ def stratified_bootstrap_curve(scores: Scores, statistic: Statistic, *, reps: in
                                seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`stratified_bootstrap` of a vector statistic (e.g. :func:`performance_profile`): point, low, high."""
     arrays = _check(scores)
-    rng = np.random.default_rng(seed)
-    draws = {task: rng.integers(0, a.size, size=(reps, a.size)) for task, a in arrays.items()}
-    replicates = np.asarray(statistic({task: a[draws[task]] for task, a in arrays.items()}))  # (reps, n)
+    draws = _draws(seed, reps, tuple(a.size for a in arrays.values()))
+    replicates = np.asarray(statistic({task: a[d] for (task, a), d in zip(arrays.items(), draws)}))  # (reps, n)
     tail = 100 * (1 - confidence) / 2
     low, high = np.percentile(replicates, [tail, 100 - tail], axis=0)
     return np.asarray(statistic(arrays), dtype=float), low, high
