@@ -194,7 +194,7 @@ def run(
             summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{what} ({mode})")
             records = [r for req, planned in summary.planned for r in collect(req, store, planned)]
             where = store.path
-            _show(records, MODES[mode], chosen)
+            _show(records, MODES[mode], chosen, store.path)
         say(f"results stored in {where}")
         if json_path is not None:
             write_text(json_path, json.dumps([r.to_dict() for r in records], indent=2) + "\n", "records")
@@ -216,9 +216,11 @@ def _observations(profile: Optional[str], observability: Optional[str], protocol
     return [(",".join(map(str, chosen.levels)), name, chosen.rounding) for name in chosen.protocols]
 
 
-def _show(records: list, mode, executor) -> None:  # noqa: ANN001 - a Mode and an Executor
+def _show(records: list, mode, executor, store: str = ":memory:") -> None:  # noqa: ANN001 - a Mode, an Executor
     """A run's tables: offline, the paper-style F1 tables of its canonical configurations and of its named
-    variants (with Bayes ceilings, those not cached yet computed on the run's executor) and the timings."""
+    variants (with Bayes ceilings, those not cached yet computed on the run's executor and kept in the run's
+    store) and the timings."""
+    from grail_bench.harness.store import CeilingCache
     from grail_bench.report import leaderboard
     from grail_bench.report.tables import mode_table, timing_table
     from grail_bench.report.text import rich_tables
@@ -227,7 +229,8 @@ def _show(records: list, mode, executor) -> None:  # noqa: ANN001 - a Mode and a
         console.print(mode_table(records, mode))
         return
     with console.status("Bayes ceilings (computed once, then cached)"):
-        board = leaderboard.build([], records=records, executor=executor)
+        board = leaderboard.build([], records=records, executor=executor,
+                                  cache=CeilingCache(store) if store != ":memory:" else None)
     for table in rich_tables([*board.boards, *board.variants]):
         console.print(table)
     console.print(timing_table(records))
@@ -245,6 +248,9 @@ def leaderboard_(
     method: Optional[List[str]] = typer.Option(None, "--method", help=METHOD_FILTER_HELP),
     boards: bool = typer.Option(False, "--boards", help="Also print the paper-style F1 tables, a row per task and "
                                 "level, with Bayes ceilings (computed once, then cached in the store)."),
+    read_only: bool = typer.Option(False, "--read-only", help="Change nothing in the store: the Bayes ceilings "
+                                   "computed are kept in the user's cache folder only (default: in the store's "
+                                   "ceilings table too, where it can be written)."),
     all_variants: bool = typer.Option(False, "--all-variants", help="List every named variant under its method "
                                       "in the claims table (default: the best one beside it)."),
     scorer: Optional[List[str]] = typer.Option(
@@ -297,7 +303,7 @@ def leaderboard_(
             fits = ([f for f in store.select(FitRow) if filters.task(f.task) and filters.method(f.recognizer)]
                     if mode.name == "offline" else [])
             where = store.path
-        cache = CeilingCache(where) if where != ":memory:" else None
+        cache = CeilingCache(where) if not read_only and where != ":memory:" else None
         if not selected[mode.name] and filters:
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} match "
                        f"{_filter_text(filters)}")
@@ -325,14 +331,12 @@ def leaderboard_(
         with make_executor(None, workers, None) as pool:
             board = leaderboard.build(offline, ref, samples, studies=selected, progress=True, fits=fits,
                                       executor=pool, cache=cache)
-        if mode.name != "offline":
-            study = board.studies[mode.name]
-            console.print(mode_table(study.records, mode))
-            if markdown_path is not None:
-                write_text(markdown_path, mode_markdown(study.records, mode), "Markdown")
-            if plot is not None:
-                say(f"plot written to {plots.save_png(plots.online(study.records, study.curves), plot)}")
-            return
+        study = board.studies[mode.name]
+        console.print(mode_table(study.records, mode))
+        if markdown_path is not None:
+            write_text(markdown_path, mode_markdown(study.records, mode), "Markdown")
+        if plot is not None:
+            say(f"plot written to {plots.save_png(plots.online(study.records, study.curves), plot)}")
 
 
 def _ranked(offline: list, ref, studies: dict, fits: list, samples: Optional[int], workers: Optional[int],  # noqa: ANN001
