@@ -13,6 +13,7 @@ from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
+from grail_bench.core.progress import progress
 from grail_bench.harness.ceiling import Ceiling, Cell, ceilings_for, curve_cells, curve_of, distinct_cells
 from grail_bench.harness.diagnostics import FitRow, FitSummary, summarize
 from grail_bench.harness.executors import Executor
@@ -70,12 +71,9 @@ def _progress(enabled: bool, total: int) -> tuple[Any, Any]:
     """A progress bar over the ceiling levels (a Monte Carlo one takes seconds) and the callback advancing it."""
     if not enabled or not total:
         return nullcontext(), None
-    from rich.console import Console
-    from rich.progress import Progress
-
-    bar = Progress(transient=True, console=Console(stderr=True))  # stdout holds the boards alone
-    job = bar.add_task("Bayes and pairs-only ceilings (computed once, then cached)", total=total)
-    return bar, lambda: bar.advance(job)
+    # On stderr (stdout holds the boards alone): a bar on a terminal, plain lines in a log.
+    bar = progress("Bayes and pairs-only ceilings (computed once, then cached)", total, transient=True)
+    return bar, bar.advance
 
 
 def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Reported] | None = None,

@@ -34,7 +34,8 @@ Grid = tuple[list[str], list[list[tuple[str, bool]]]]  # header; per row, (text,
 VERDICT_MARKS = {"consistent": "", "higher": "↑", "lower": "↓"}
 
 #: What a board's bracketed values and marks mean (terminal captions and the Markdown intro).
-LEGEND = ("[0.83] = normalised F1, (F1 - chance) / (ceiling - chance); = ▲ ▼: inside, above, below the "
+LEGEND = ("[0.83] = normalised F1, (F1 - chance) / (ceiling - chance); the ceiling bounds expected accuracy, not "
+          "F1, so above 1 (e.g. [1.06]) is F1 above the accuracy ceiling, not a method beating it; = ▲ ▼: inside, above, below the "
           "paper's 95 % interval; ↑ ↓: a Welch test finds ours higher, lower; bold: best of its row (methods "
           "only); (reference): shown for comparison, never ranked")
 
@@ -272,7 +273,9 @@ def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
              + " (best of each row in bold). Where the task has a",
              "Bayes ceiling (the best accuracy any recognizer can reach under that protocol and level; ± its",
              "Monte Carlo standard error), the cell adds the normalised F1 in brackets,",
-             "(F1 - chance) / (ceiling - chance). The pairs-only ceiling is the accuracy of scoring each goal",
+             "(F1 - chance) / (ceiling - chance). The ceiling bounds expected accuracy, not F1: a normalised F1",
+             "above 1 (e.g. [1.06]) is F1 above the accuracy ceiling (macro F1 can exceed accuracy, and a few",
+             "seeds vary), not a method beating the Bayes-optimal one. The pairs-only ceiling is the accuracy of scoring each goal",
              "from the observed pairs through that goal's own demonstrator (as GRAIL, GRAQL and DRACO score,",
              "with perfect policies): how far a method is from what its form allows. The demonstrator (perfect",
              "imitation) is a reference, shown after the methods and never ranked.",
