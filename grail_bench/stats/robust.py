@@ -98,7 +98,7 @@ def stratified_bootstrap(scores: Scores, statistic: Statistic, *, reps: int = 20
     if reps < 1:
         raise UserError(f"reps must be positive, got {reps}")
     arrays = _check(scores)
-    draws = _draws(seed, reps, tuple(a.size for a in arrays.values()))
+    draws = bootstrap_draws(seed, reps, tuple(a.size for a in arrays.values()))
     replicates = np.asarray(statistic({task: a[d] for (task, a), d in zip(arrays.items(), draws)}))
     tail = 100 * (1 - confidence) / 2
     low, high = np.percentile(replicates, [tail, 100 - tail])
@@ -106,7 +106,7 @@ def stratified_bootstrap(scores: Scores, statistic: Statistic, *, reps: int = 20
 
 
 @lru_cache(maxsize=256)
-def _draws(seed: int, reps: int, sizes: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+def bootstrap_draws(seed: int, reps: int, sizes: tuple[int, ...]) -> tuple[np.ndarray, ...]:
     """The resampled indices of a stratified bootstrap, per stratum in order: they depend only on the seed, the
     replicates and the strata's sizes, so thousands of cells of ten seeds each draw them once (read only)."""
     rng = np.random.default_rng(seed)
@@ -191,7 +191,7 @@ def stratified_bootstrap_curve(scores: Scores, statistic: Statistic, *, reps: in
                                seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`stratified_bootstrap` of a vector statistic (e.g. :func:`performance_profile`): point, low, high."""
     arrays = _check(scores)
-    draws = _draws(seed, reps, tuple(a.size for a in arrays.values()))
+    draws = bootstrap_draws(seed, reps, tuple(a.size for a in arrays.values()))
     replicates = np.asarray(statistic({task: a[d] for (task, a), d in zip(arrays.items(), draws)}))  # (reps, n)
     tail = 100 * (1 - confidence) / 2
     low, high = np.percentile(replicates, [tail, 100 - tail], axis=0)
