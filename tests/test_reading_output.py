@@ -65,3 +65,12 @@ def test_a_page_of_ones_own_tasks_shows_no_paper_claims(tmp_path):
 
 def test_the_legend_says_what_a_normalised_f1_above_1_is():
     assert "above 1" in LEGEND and "accuracy ceiling" in LEGEND
+
+
+def test_summaries_computed_together_are_those_computed_one_by_one():
+    from grail_bench.stats.metrics import summarize, summarize_many
+
+    rng = np.random.default_rng(0)
+    groups = [list(np.round(rng.random(n), 2)) for n in (1, 2, 3, 5, 10, 10, 10, 13) for _ in range(40)]
+    groups += [[0.5] * 10, [1.0, 1.0]]
+    assert summarize_many(groups) == [summarize(g) for g in groups]
