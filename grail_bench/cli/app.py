@@ -300,8 +300,9 @@ def leaderboard_(
         with open_store(store_path, must_exist=True) as store:
             selected = {name: _select(store, m, filters, scorer, protocol) for name, m in MODES.items()
                         if name == mode.name or (html is not None)}
+            shown = mode.name == "offline" and (markdown_path is not None or html is not None)  # the terminal: none
             fits = ([f for f in store.select(FitRow) if filters.task(f.task) and filters.method(f.recognizer)]
-                    if mode.name == "offline" else [])
+                    if shown else [])
             where = store.path
         cache = CeilingCache(where) if not read_only and where != ":memory:" else None
         if not selected[mode.name] and filters:

@@ -21,7 +21,6 @@ from functools import lru_cache
 from typing import Any, Callable, Hashable, Mapping, Sequence
 
 import numpy as np
-from scipy.stats import rankdata
 
 from grail_bench.core.errors import UserError
 
@@ -126,6 +125,8 @@ def _improvement(x: np.ndarray, y: np.ndarray) -> Any:
     x, y = np.broadcast_to(x, lead + (n,)), np.broadcast_to(y, lead + (m,))
     # Many runs: from the x runs' average ranks among all runs (the U statistic), the same count exactly (ranks
     # are halves) without an (n, m) array of differences per replicate.
+    from scipy.stats import rankdata  # here: scipy.stats takes seconds to import, and few runs never need it
+
     ranks = rankdata(np.concatenate([x, y], axis=-1), axis=-1)
     return (ranks[..., :n].sum(axis=-1) - n * (n + 1) / 2) / (n * m)
 
