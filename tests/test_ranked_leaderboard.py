@@ -141,3 +141,32 @@ def _digests(cache: CeilingCache) -> list[str]:
 def test_the_store_cache_leaves_a_store_it_cannot_write_unchanged(tmp_path):
     missing = CeilingCache(tmp_path / "none" / "x.sqlite")
     assert missing.get(["a"]) == {} and missing.put({"a": json.dumps({})}) is False
+
+
+def test_the_claims_table_has_a_row_per_claim_and_method_with_its_best_variant_beside_it():
+    from rich.console import Console
+
+    from grail_bench.report.claims import ClaimResult
+    from grail_bench.report.text import claims_table
+
+    nan = float("nan")
+    results = [ClaimResult("A holds", "Table 3", "BC-GRAIL", "mean F1", 0.9, 0.85, 0.95, "holds"),
+               ClaimResult("A holds", "Table 3", "BC-GRAIL · n_epochs 25", "mean F1", 0.7, 0.6, 0.8, "partly"),
+               ClaimResult("A holds", "Table 3", "BC-GRAIL · occupancy", "mean F1", 0.95, 0.9, 1.0, "holds"),
+               ClaimResult("A holds", "Table 3", "GRAQL", "mean F1", 0.4, 0.3, 0.5, "does not hold"),
+               ClaimResult("B elsewhere", "Table 4", "BC-GRAIL", "mean F1 (0 of 3 run)", nan, nan, nan, "not measured")]
+
+    def text(all_variants):
+        console = Console(width=200, record=True, color_system=None)
+        with console.capture() as captured:
+            console.print(claims_table(results, all_variants))
+        return captured.get()
+
+    out = text(False)
+    rows = [line for line in out.splitlines() if "BC-GRAIL" in line or "GRAQL" in line]
+    assert len(rows) == 2  # one per canonical method of the measured claim
+    assert "occupancy: 0.95 [0.90, 1.00] holds" in rows[0]  # the best named variant beside its method
+    assert "n_epochs" not in out and "B elsewhere" not in out
+    assert "Not listed: 1 of the paper's claims" in " ".join(out.split())
+    every = text(True)
+    assert "BC-GRAIL · n_epochs 25" in every and "BC-GRAIL · occupancy" in every

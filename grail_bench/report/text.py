@@ -198,7 +198,10 @@ def claims_table(results: Sequence[ClaimResult], all_variants: bool = False) -> 
     for r in results:
         groups.setdefault((r.claim, r.configuration.split(SEPARATOR)[0]), []).append(r)
     rows, previous = [], None
+    measured_claims = {claim for (claim, _), group in groups.items() if any(r.verdict != "not measured" for r in group)}
     for (claim, method), group in groups.items():
+        if claim not in measured_claims:  # none of its strata in these runs: counted under the table
+            continue
         canonical = next((r for r in group if r.configuration == method), None)
         variants = [r for r in group if r.configuration != method]
         measured = [r for r in variants if not math.isnan(r.estimate)]
@@ -212,8 +215,10 @@ def claims_table(results: Sequence[ClaimResult], all_variants: bool = False) -> 
         previous = claim
         if all_variants:
             rows += [["", f"  {r.configuration}", _estimate(r), r.verdict, ""] for r in variants]
+    unmeasured = len({claim for claim, _ in groups} - measured_claims)
     caption = ("Verdicts: holds, the 95 % interval lies inside the claimed range; does not hold, wholly outside; "
                "partly, it straddles an end; not measured, a stratum the claim needs was not run. "
+               + (f"Not listed: {unmeasured} of the paper's claims, whose strata these runs lack. " if unmeasured else "")
                + ("" if all_variants else "--all-variants lists every named variant."))
     title = "The paper's headline claims, measured on these runs"
     return Fitted(grid_table(title, header, rows, caption, first_style=None), stacked(title, header, rows, keys=2,
