@@ -130,7 +130,7 @@ def tasks_table(tasks: Sequence[Any]) -> Fitted:
     for name, domain, regime, goals, demos, levels, protocol in rows:
         medium.add_row(Text.assemble((name, "bold"), "\n", ("\n".join(textwrap.wrap(goals, width)), "dim")),
                        f"{domain}\n{regime}", demos, f"{levels} ({protocol})")
-    return Fitted(wide, medium, stacked(title, header, rows))
+    return Fitted(wide, medium, stacked(title, header, rows, key_width=None))  # IDs whole, to copy into --task
 
 
 def names_table(title: str, rows: Sequence[tuple[str, str]], second: str) -> Table:
