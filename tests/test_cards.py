@@ -119,10 +119,10 @@ def card_with_demos(tmp_path_factory):
     from grail_bench.task.export import export
 
     folder = tmp_path_factory.mktemp("cards")
-    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=0.5)
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1", turn_prob=0.5)
     export(task, [0, 1], folder / "datasets")
     card = folder / "suboptimal.toml"
-    card.write_text('domain = "minigrid"\n[[task]]\nid = "GRAIL/MiniGrid-Suboptimal-v0"\nregime = "suboptimal"\n'
+    card.write_text('domain = "minigrid"\n[[task]]\nid = "GRAIL/MiniGrid-Suboptimal-v1"\nregime = "suboptimal"\n'
                     'goals = [[7, 1], [7, 7]]\nparams = { turn_prob = 0.5 }\ndemos = "datasets"\n')
     return card, task
 

@@ -133,7 +133,7 @@ def test_likelihood_with_turn_insertions_matches_brute_force(pattern, protocol, 
 
 
 def test_suboptimal_ceiling_is_monte_carlo_with_a_standard_error():
-    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", route_choice="uniform", turn_prob=0.3)
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1", route_choice="uniform", turn_prob=0.3)
     c = bayes_ceiling(task, "prefix", 0.3, samples=60, seed=0)
     assert c.method == "monte-carlo" and c.samples == 60 and 0 < c.stderr < 0.1
     assert 0.5 <= c.accuracy <= 1.0
@@ -172,7 +172,7 @@ def test_ceilings_on_a_process_pool_equal_the_serial_ones_and_are_cached(tmp_pat
     from grail_bench.harness.executors import LocalExecutor
 
     cells = [("GRAIL/MiniGrid-Optimal-v0", {}, "subset+floor", 0.1), ("GRAIL/MiniGrid-Optimal-v0", {}, "prefix", 0.5),
-             ("GRAIL/MiniGrid-Suboptimal-v0", {"turn_prob": 0.3}, "prefix", 0.3),
+             ("GRAIL/MiniGrid-Suboptimal-v1", {"turn_prob": 0.3}, "prefix", 0.3),
              ("GRAIL/PandaReach-Optimal-v0", {}, "subset", 0.1)]  # no ceiling: left out
     monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path / "serial"))
     serial = ceilings_for(cells, samples=60)

@@ -21,7 +21,7 @@ from grail_bench.task import export as export_module
 from grail_bench.task.datasets import load_demos
 from grail_bench.task.export import dataset_id, export
 
-TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=0.5)
+TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1", turn_prob=0.5)
 
 
 @pytest.fixture(scope="module")
@@ -124,7 +124,7 @@ def test_a_run_from_the_datasets_gives_the_generators_f1(exported, monkeypatch):
 
 
 @pytest.mark.parametrize("task_id, params, changes, message", [
-    ("GRAIL/MiniGrid-Optimal-v0", {}, {}, 'its task = "GRAIL/MiniGrid-Suboptimal-v0", not "GRAIL/MiniGrid-Optimal-v0"'),
+    ("GRAIL/MiniGrid-Optimal-v0", {}, {}, 'its task = "GRAIL/MiniGrid-Suboptimal-v1", not "GRAIL/MiniGrid-Optimal-v0"'),
     (TASK.id, {}, {}, "its params.turn_prob = 0.5, not 1.0"),
     (TASK.id, {"turn_prob": 0.5, "max_steps": 80}, {}, "its env.max_steps = 60, not 80"),
     (TASK.id, {"turn_prob": 0.5}, {"regime": "optimal"}, 'its regime = "optimal", not "suboptimal"'),
@@ -198,7 +198,7 @@ def test_run_refuses_what_does_not_fit_in_one_line_and_leaves_the_store_alone(ex
     off_space = with_episode(copy_of(paths[0], tmp_path / "off"), 3, "observations", 0, [99, 4, 0])
     before = contents(store.parent)
     for args, message in (
-        (["-t", "GRAIL/MiniGrid-Optimal-v0", "--demos", str(paths[0])], 'its task = "GRAIL/MiniGrid-Suboptimal-v0"'),
+        (["-t", "GRAIL/MiniGrid-Optimal-v0", "--demos", str(paths[0])], 'its task = "GRAIL/MiniGrid-Suboptimal-v1"'),
         (["-t", TASK.id, "--demos", str(paths[0])], "its params.turn_prob = 0.5, not 1.0"),
         (["-t", TASK.id, "--param", "turn_prob=0.5", "--demos", str(off_space)], "episode 3: observations lie outside"),
         (["-t", "GRAIL/PandaReach-Optimal-v0", "--demos", str(recorded)], "observation space"),

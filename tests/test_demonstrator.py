@@ -76,7 +76,7 @@ def test_route_regimes_follow_their_route_with_probability_one():
 
 
 def test_suboptimal_turns_and_the_monte_carlo_marginal():
-    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0")
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1")
     probs, env = tables(task)
     demonstrated, _ = tables(task, "demonstrated")
     base = env.unwrapped

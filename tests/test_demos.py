@@ -58,7 +58,7 @@ def test_uniform_route_choice_varies_among_shortest_paths():
         assert len({tuple(t.acts) for t in trajs}) > 3
 
 
-@pytest.mark.parametrize("task_id", ["GRAIL/MiniGrid-Optimal-6Goals-v0", "GRAIL/MiniGrid-Suboptimal-6Goals-v0"])
+@pytest.mark.parametrize("task_id", ["GRAIL/MiniGrid-Optimal-6Goals-v0", "GRAIL/MiniGrid-Suboptimal-6Goals-v1"])
 def test_fixed_route_choice_gives_one_route_per_goal_that_test_demos_follow_too(task_id):
     from grail_bench.core.trajectory import until_success
 
@@ -80,7 +80,7 @@ def test_fixed_route_choice_gives_one_route_per_goal_that_test_demos_follow_too(
 def test_the_insertion_probability_sets_the_mean_demo_length(turn_prob):
     from grail_bench.core.trajectory import goal_horizon
 
-    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=turn_prob)
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1", turn_prob=turn_prob)
     path = {g: goal_horizon(t[0]) for g, t in task.with_overrides(turn_prob=0.0).generate_demos(0).items()}
     for goal, trajs in task.generate_demos(seed=0, n_demos=60).items():
         # Each of the path's actions gains a left-right pair (2 actions) with probability turn_prob.
@@ -89,7 +89,7 @@ def test_the_insertion_probability_sets_the_mean_demo_length(turn_prob):
 
 
 @pytest.mark.parametrize("task_id, params", [("GRAIL/MiniGrid-Optimal-v0", {}),
-                                             ("GRAIL/MiniGrid-Suboptimal-v0", {"route_choice": "fixed"})])
+                                             ("GRAIL/MiniGrid-Suboptimal-v1", {"route_choice": "fixed"})])
 def test_other_seed_other_demos(task_id, params):
     task = grail_bench.make_task(task_id, **params)
     a, b = task.generate_demos(seed=0), task.generate_demos(seed=1)
@@ -100,7 +100,7 @@ def test_bad_regime_parameters_are_clear():
     with pytest.raises(ValueError, match="route_choice must be one of fixed, uniform, got 'any'"):
         grail_bench.make_task("GRAIL/MiniGrid-Optimal-v0", route_choice="any")
     with pytest.raises(ValueError, match="turn_prob must be in"):
-        grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=1.5).generate_demos(0)
+        grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1", turn_prob=1.5).generate_demos(0)
     with pytest.raises(ValueError, match="one heading order per goal"):
         grail_bench.make_task("GRAIL/MiniGrid-Biased-v0", routes=["NE"]).generate_demos(0)
     with pytest.raises(ValueError, match="compass letters"):

@@ -94,7 +94,7 @@ def test_boards_show_the_pairs_only_ceiling_beside_the_bayes_one():
 
 
 def test_ceilings_use_the_task_parameters_of_the_run():
-    task = "GRAIL/MiniGrid-Suboptimal-v0"
+    task = "GRAIL/MiniGrid-Suboptimal-v1"
     no_turns = offline_record(task, "bc", 0.2, 0.9, scorer="mse", protocol="prefix",
                       task_params={**defaults(task), "route_choice": "uniform", "turn_prob": 0.0})
     (board,) = build_boards([no_turns], ceiling_samples=50)

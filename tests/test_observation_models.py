@@ -242,7 +242,7 @@ def test_minigrid_ceilings_under_each_model_and_the_refusals():
     with pytest.raises(UserError, match="pairs-only ceiling scores actions in states"):
         bayes_ceiling(task, "prefix", 0.3, channel="actions", pairs_only=True)
     with pytest.raises(UserError, match="needs a demonstrator whose demonstrations can be enumerated"):
-        bayes_ceiling(grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0"), "subset", 0.3, channel="states")
+        bayes_ceiling(grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1"), "subset", 0.3, channel="states")
 
 
 # -- gr_libs' observation profile ----------------------------------------------------------------------------------

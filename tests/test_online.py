@@ -28,7 +28,7 @@ from grail_bench.harness.store import OnlineRow, ResultsStore
 from grail_bench.recognizers import capabilities, make_recognizer
 from grail_bench.task.observation import observe
 
-TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
+TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v1")
 DEMOS = TASK.generate_demos(0)
 TRAIN, TEST = TASK.split(DEMOS)
 
@@ -213,7 +213,7 @@ def test_cli_online_run_then_leaderboard_plot(tmp_path, monkeypatch):
                                  "--markdown", str(md), "--no-ceiling"])
     assert result.exit_code == 0, result.output
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "| MiniGrid-Suboptimal-6Goals-v0 | subset | bc/mse | 2 |" in md.read_text()
+    assert "| MiniGrid-Suboptimal-6Goals-v1 | subset | bc/mse | 2 |" in md.read_text()
     result = runner.invoke(app, ["leaderboard", "--open-set", "--store", str(store)])
     assert result.exit_code == 2 and "no open-set results" in result.output
     result = runner.invoke(app, ["leaderboard", "--store", str(store), "--plot", str(plot)])

@@ -111,7 +111,7 @@ def test_a_goal_has_the_same_demos_and_seed_in_every_goal_set():
 
 def test_default_protocols_of_the_cards():
     assert grail_bench.make_task("GRAIL/MiniGrid-Optimal-6Goals-v0").protocol == "subset"
-    assert grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0").protocol == "subset"
+    assert grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1").protocol == "subset"
     assert grail_bench.make_task("GRAIL/MiniGrid-Biased-v0").protocol == "prefix"
     assert grail_bench.make_task("GRAIL/PandaReach-Aligned-Optimal-v0").protocol == "subset"
 

@@ -32,9 +32,9 @@ def _one_per_env(task_ids: list[str]) -> list[str]:
 
 ENV_IDS = _one_per_env(TASK_IDS)
 EXPECTED = {
-    "GRAIL/MiniGrid-Optimal-v0", "GRAIL/MiniGrid-Biased-v0", "GRAIL/MiniGrid-Suboptimal-v0",
+    "GRAIL/MiniGrid-Optimal-v0", "GRAIL/MiniGrid-Biased-v0", "GRAIL/MiniGrid-Suboptimal-v1",
     "GRAIL/MiniGrid-Optimal-4Goals-v0", "GRAIL/MiniGrid-Optimal-6Goals-v0",
-    "GRAIL/MiniGrid-Suboptimal-4Goals-v0", "GRAIL/MiniGrid-Suboptimal-6Goals-v0",
+    "GRAIL/MiniGrid-Suboptimal-4Goals-v1", "GRAIL/MiniGrid-Suboptimal-6Goals-v1",
     "GRAIL/PointMaze-Optimal-v0", "GRAIL/PointMaze-Biased-v0", "GRAIL/PointMaze-Noisy-0.1-v0",
     "GRAIL/PointMaze-Noisy-0.3-v0",
 }
@@ -109,23 +109,23 @@ def test_make_env_pins_the_requested_goal():
 
 
 def test_regime_parameters_override_through_make():
-    env = gym.make("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=0.9)
+    env = gym.make("GRAIL/MiniGrid-Suboptimal-v1", turn_prob=0.9)
     assert env.unwrapped.task.params["turn_prob"] == 0.9
-    assert grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=0.1).params["turn_prob"] == 0.1
+    assert grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1", turn_prob=0.1).params["turn_prob"] == 0.1
     assert gym.make("GRAIL/MiniGrid-Optimal-v0", max_steps=80).unwrapped.max_steps == 80
 
 
 def test_unknown_override_is_a_clear_error():
     with pytest.raises(ValueError, match="cannot apply parameter 'turn_probability'"):
-        gym.make("GRAIL/MiniGrid-Suboptimal-v0", turn_probability=0.9)
+        gym.make("GRAIL/MiniGrid-Suboptimal-v1", turn_probability=0.9)
 
 
 def test_make_task_rejects_overrides_it_cannot_apply():
     with pytest.raises(ValueError, match="'render_mode' .*applies to gym.make, not to a task"):
         grail_bench.make_task("GRAIL/MiniGrid-Biased-v0", render_mode="rgb_array")
     with pytest.raises(ValueError, match="params: turn_prob must be in"):
-        grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=2)
-    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0", turn_prob=0.5, max_steps=80, n_demos=12)
+        grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1", turn_prob=2)
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1", turn_prob=0.5, max_steps=80, n_demos=12)
     assert (task.params["turn_prob"], task.env_params["max_steps"], task.n_demos) == (0.5, 80, 12)
 
 
@@ -188,8 +188,8 @@ def test_env_parameters_of_the_right_kind_pass():
 
 
 @pytest.mark.parametrize("task_id, overrides", [
-    ("GRAIL/MiniGrid-Suboptimal-v0", {}),
-    ("GRAIL/MiniGrid-Suboptimal-v0", {"turn_prob": 0.5, "max_steps": 80, "n_demos": 12, "n_train": 9}),
+    ("GRAIL/MiniGrid-Suboptimal-v1", {}),
+    ("GRAIL/MiniGrid-Suboptimal-v1", {"turn_prob": 0.5, "max_steps": 80, "n_demos": 12, "n_train": 9}),
     ("GRAIL/MiniGrid-Biased-v0", {"routes": ["EN", "ES"], "obstacles": []}),
     ("GRAIL/PandaReach-Gaussian-0.1-v0", {"expert": "scripted", "sigma": 0.3}),
 ])
@@ -203,7 +203,7 @@ def test_overrides_round_trip_and_name_the_variant(task_id, overrides):
 
 
 def test_variant_reads_like_the_overrides():
-    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v0")
+    task = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-v1")
     assert grail_bench.task.variant(task, {"turn_prob": 0.5, "route_choice": "fixed"}) == \
         'route_choice="fixed" turn_prob=0.5'
     assert grail_bench.task.variant(task, {"turn_prob": 1.0}) == ""

@@ -102,7 +102,7 @@ def test_planning_a_clipped_run_reads_the_action_space_from_one_env(monkeypatch)
 
 
 def test_task_overrides_round_trip_through_the_store(tmp_path):
-    task_id, asked = "GRAIL/MiniGrid-Suboptimal-v0", {"turn_prob": 0.5}
+    task_id, asked = "GRAIL/MiniGrid-Suboptimal-v1", {"turn_prob": 0.5}
     card = make_task(task_id)
     assert card.params["turn_prob"] != asked["turn_prob"]
     path = tmp_path / "s.sqlite"

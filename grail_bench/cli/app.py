@@ -63,18 +63,34 @@ def _root() -> None:
     """grail-bench: goal-recognition benchmarks on gymnasium."""
 
 
-def _all_tasks() -> list:
+TASK_FILTER_HELP = ("Only these tasks: full IDs or globs, e.g. 'GRAIL/MiniGrid-*' (quote globs); repeat for "
+                    "several.")
+DOMAIN_FILTER_HELP = "Only this domain's tasks (e.g. minigrid, point_maze); repeat for several."
+METHOD_FILTER_HELP = "Only this method: a recognizer (bc), its published name (BC-GRAIL) or recognizer/scorer; globs."
+
+
+def _all_tasks(filters=None) -> list:  # noqa: ANN001 - a report.filters.Filters
     from grail_bench.task import make_task, task_ids
 
-    return [make_task(task_id) for task_id in task_ids()]
+    ids = task_ids()
+    if filters:
+        filters.check_tasks(ids)
+        ids = [t for t in ids if filters.task(t)]
+    return [make_task(task_id) for task_id in ids]
 
 
 @app.command()
-def tasks() -> None:
-    """List every registered GRAIL/ task with its domain, regime, goals and demo counts."""
+def tasks(
+    task: Optional[List[str]] = typer.Option(None, "--task", "-t", help=TASK_FILTER_HELP),
+    domain: Optional[List[str]] = typer.Option(None, "--domain", "-d", help=DOMAIN_FILTER_HELP),
+) -> None:
+    """List every registered GRAIL/ task (full IDs, as --task takes them) with its domain, regime, goals and demo
+    counts."""
+    from grail_bench.report.filters import Filters
     from grail_bench.report.tables import tasks_table
 
-    console.print(tasks_table(_all_tasks()))
+    with errors():
+        console.print(tasks_table(_all_tasks(Filters.of(task, domain))))
     _say_skipped_cards()
 
 
@@ -87,21 +103,29 @@ def _say_skipped_cards() -> None:
 
 
 @app.command("list")
-def list_(what: str = typer.Argument("all", help="tasks, recognizers, scorers or all")) -> None:
+def list_(
+    what: str = typer.Argument("all", help="tasks, recognizers, scorers or all"),
+    task: Optional[List[str]] = typer.Option(None, "--task", "-t", help=TASK_FILTER_HELP),
+    domain: Optional[List[str]] = typer.Option(None, "--domain", "-d", help=DOMAIN_FILTER_HELP),
+    method: Optional[List[str]] = typer.Option(None, "--method", help=METHOD_FILTER_HELP),
+) -> None:
     """List tasks, recognizers and scorers (imports no recognizer code)."""
     from grail_bench.recognizers.registry import available_recognizers
     from grail_bench.recognizers.scoring import BUILTIN, available_scorers
+    from grail_bench.report.filters import Filters
     from grail_bench.report.tables import names_table, tasks_table
 
     if what not in ("all", "tasks", "recognizers", "scorers"):
         raise fail(f"cannot list {what!r}; choose tasks, recognizers, scorers or all")
+    filters = Filters.of(task, domain, method)
     with errors():
         if what in ("all", "tasks"):
-            console.print(tasks_table(_all_tasks()))
+            console.print(tasks_table(_all_tasks(Filters.of(task, domain))))
             _say_skipped_cards()
         if what in ("all", "recognizers"):
             console.print(names_table("recognizers (entry-point group grail_bench.recognizers)",
-                                      list(available_recognizers().items()), "provided by"))
+                                      [(n, t) for n, t in available_recognizers().items() if filters.method(n)],
+                                      "provided by"))
         if what in ("all", "scorers"):
             rows = [(n, BUILTIN[n].description if n in BUILTIN else t) for n, t in available_scorers().items()]
             console.print(names_table("scorers (entry-point group grail_bench.scorers)", rows, "what it computes"))
@@ -180,7 +204,7 @@ def run(
             summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{what} ({mode})")
             records = [r for req, planned in summary.planned for r in collect(req, store, planned)]
             where = store.path
-            _show(records, MODES[mode], chosen)
+            _show(records, MODES[mode], chosen, store.path)
         say(f"results stored in {where}")
         if json_path is not None:
             write_text(json_path, json.dumps([r.to_dict() for r in records], indent=2) + "\n", "records")
@@ -202,9 +226,11 @@ def _observations(profile: Optional[str], observability: Optional[str], protocol
     return [(",".join(map(str, chosen.levels)), name, chosen.rounding) for name in chosen.protocols]
 
 
-def _show(records: list, mode, executor) -> None:  # noqa: ANN001 - a Mode and an Executor
+def _show(records: list, mode, executor, store: str = ":memory:") -> None:  # noqa: ANN001 - a Mode, an Executor
     """A run's tables: offline, the paper-style F1 tables of its canonical configurations and of its named
-    variants (with Bayes ceilings, those not cached yet computed on the run's executor) and the timings."""
+    variants (with Bayes ceilings, those not cached yet computed on the run's executor and kept in the run's
+    store) and the timings."""
+    from grail_bench.harness.store import CeilingCache
     from grail_bench.report import leaderboard
     from grail_bench.report.tables import mode_table, timing_table
     from grail_bench.report.text import rich_tables
@@ -213,7 +239,8 @@ def _show(records: list, mode, executor) -> None:  # noqa: ANN001 - a Mode and a
         console.print(mode_table(records, mode))
         return
     with console.status("Bayes ceilings (computed once, then cached)"):
-        board = leaderboard.build([], records=records, executor=executor)
+        board = leaderboard.build([], records=records, executor=executor,
+                                  cache=CeilingCache(store) if store != ":memory:" else None)
     for table in rich_tables([*board.boards, *board.variants]):
         console.print(table)
     console.print(timing_table(records))
@@ -226,7 +253,16 @@ def leaderboard_(
     reference: Optional[Path] = typer.Option(None, "--reference",
                                              help="CSV of reported values (columns task, recognizer, observability, f1) to show beside "
                                                   "ours."),
-    task: Optional[List[str]] = typer.Option(None, "--task", "-t", help="Only these tasks."),
+    task: Optional[List[str]] = typer.Option(None, "--task", "-t", help=TASK_FILTER_HELP),
+    domain: Optional[List[str]] = typer.Option(None, "--domain", "-d", help=DOMAIN_FILTER_HELP),
+    method: Optional[List[str]] = typer.Option(None, "--method", help=METHOD_FILTER_HELP),
+    boards: bool = typer.Option(False, "--boards", help="Also print the paper-style F1 tables, a row per task and "
+                                "level, with Bayes ceilings (computed once, then cached in the store)."),
+    read_only: bool = typer.Option(False, "--read-only", help="Change nothing in the store: the Bayes ceilings "
+                                   "computed are kept in the user's cache folder only (default: in the store's "
+                                   "ceilings table too, where it can be written)."),
+    all_variants: bool = typer.Option(False, "--all-variants", help="List every named variant under its method "
+                                      "in the claims table (default: the best one beside it)."),
     scorer: Optional[List[str]] = typer.Option(
         None, "--scorer", help="Only these scorers (NAME), or recognizer/scorer pairs (e.g. bc/mse)."),
     protocol: Optional[List[str]] = typer.Option(
@@ -247,18 +283,16 @@ def leaderboard_(
         None, "--profiles", help="Also write performance profiles, optimality gaps and calibration (PROFILES.md, "
         "performance_profiles.png, CALIBRATION.md, reliability.png) into this folder."),
 ) -> None:
-    """Paper-style F1 tables from the results store."""
+    """The results store ranked: per domain the methods' IQM of F1 with 95 % intervals first, then the paper's
+    headline claims (when the store holds their tasks); --boards adds the paper-style F1 tables."""
     from grail_bench.harness.diagnostics import FitRow
     from grail_bench.harness.modes import MODES
+    from grail_bench.harness.store import CeilingCache
     from grail_bench.report import leaderboard, plots
-    from grail_bench.report.html import write_site
+    from grail_bench.report.filters import Filters
     from grail_bench.report.reference import read_reference
-    from grail_bench.report.claims import headline_claims
-    from grail_bench.report.reproduce import write_robust
     from grail_bench.report.rows import ablation_rows
-    from grail_bench.report.summary import domain_summaries
     from grail_bench.report.tables import ablation_markdown, ablation_table, mode_markdown, mode_table
-    from grail_bench.report.text import markdown, rich_tables
 
     mode = MODES[mode_name(mode_, ("online", online), ("open-set", open_set))]
     if ablation and mode.name != "offline":
@@ -272,11 +306,18 @@ def leaderboard_(
     with errors():
         outputs(files=[markdown_path, plot], folders=[html, profiles])
         ref = read_reference(reference) if reference else None
+        filters = Filters.of(task, domain, method)
         with open_store(store_path, must_exist=True) as store:
-            selected = {name: _select(store, m, task, scorer, protocol) for name, m in MODES.items()
+            selected = {name: _select(store, m, filters, scorer, protocol) for name, m in MODES.items()
                         if name == mode.name or (html is not None)}
-            fits = store.select(FitRow, **({"task": task} if task else {})) if mode.name == "offline" else []
+            shown = mode.name == "offline" and (markdown_path is not None or html is not None)  # the terminal: none
+            fits = ([f for f in store.select(FitRow) if filters.task(f.task) and filters.method(f.recognizer)]
+                    if shown else [])
             where = store.path
+        cache = CeilingCache(where) if not read_only and where != ":memory:" else None
+        if not selected[mode.name] and filters:
+            raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} match "
+                       f"{_filter_text(filters)}")
         if not selected[mode.name]:
             hint = "" if mode.name == "offline" else f" --mode {mode.name}"
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} yet; run "
@@ -294,46 +335,84 @@ def leaderboard_(
         offline = selected.pop("offline", [])
         if mode.name != "offline" and plot is None:
             samples = None  # the tables show no ceiling; only the online plot draws one
+        if mode.name == "offline":
+            _ranked(offline, ref, selected, fits, samples, workers, cache, boards, all_variants,
+                    markdown_path, html, profiles)
+            return
         with make_executor(None, workers, None) as pool:
             board = leaderboard.build(offline, ref, samples, studies=selected, progress=True, fits=fits,
-                                      executor=pool)
-        if mode.name != "offline":
-            study = board.studies[mode.name]
-            console.print(mode_table(study.records, mode))
-            if markdown_path is not None:
-                write_text(markdown_path, mode_markdown(study.records, mode), "Markdown")
-            if plot is not None:
-                say(f"plot written to {plots.save_png(plots.online(study.records, study.curves), plot)}")
-            return
+                                      executor=pool, cache=cache)
+        study = board.studies[mode.name]
+        console.print(mode_table(study.records, mode))
+        if markdown_path is not None:
+            write_text(markdown_path, mode_markdown(study.records, mode), "Markdown")
+        if plot is not None:
+            say(f"plot written to {plots.save_png(plots.online(study.records, study.curves), plot)}")
+
+
+def _ranked(offline: list, ref, studies: dict, fits: list, samples: Optional[int], workers: Optional[int],  # noqa: ANN001
+            cache, boards: bool, all_variants: bool, markdown_path: Optional[Path], html: Optional[Path],
+            profiles: Optional[Path]) -> None:
+    """The leaderboard of the paper's protocol: the domain summaries as soon as the records are aggregated (they
+    need no ceiling), the headline claims, then (--boards, or a file that shows them) the ceilings and the boards."""
+    from grail_bench.report import leaderboard
+    from grail_bench.report.claims import claim_tasks, headline_claims
+    from grail_bench.report.html import write_site
+    from grail_bench.report.reproduce import write_robust
+    from grail_bench.report.summary import domain_summaries
+    from grail_bench.report.text import claims_table, markdown, rich_tables, summary_tables
+
+    files = markdown_path is not None or html is not None or profiles is not None
+    with console.status("aggregating seeds and domain summaries (bootstrap intervals)"):
+        board = leaderboard.build(offline, ref, None, studies=studies, fits=fits)
+        summaries = domain_summaries(board.boards, improvement=files)
+    for table in summary_tables(summaries):
+        console.print(table)
+    claims = None
+    if claim_tasks() & {r.task for r in board.records}:  # only where this store ran the paper's tasks
+        with console.status("headline claims (bootstrap intervals)"):
+            claims = headline_claims(board.records)
+        console.print(claims_table(claims, all_variants))
+    if samples is not None and (boards or files):
+        with make_executor(None, workers, None) as pool:
+            leaderboard.add_ceilings(board, samples, progress=True, executor=pool, cache=cache)
+        summaries = domain_summaries(board.boards) if files else summaries  # with the ceilings' profiles
+    if boards:
         for table in rich_tables(board.boards):
             console.print(table)
-        if board.variants or board.archive:
-            say(f"{sum(len(b.columns) for b in board.variants)} named variants and {len(board.archive)} archived "
-                "configurations are not shown here: see --markdown or --html")
-        summaries = claims = None
-        if markdown_path is not None or html is not None:
-            with console.status("domain summaries and headline claims (bootstrap intervals)"):
-                summaries = domain_summaries(board.boards)
-                claims = headline_claims(board.records)
-        if markdown_path is not None:
-            write_text(markdown_path, markdown(board.boards, board.records, fits=board.fits, variants=board.variants,
-                                               archive=board.archive, summaries=summaries, claims=claims), "Markdown")
-        if html is not None:
-            with console.status("web page (bootstrap intervals)"):
-                index = write_site(board, html, summaries=summaries, claims=claims)[0]
-            say(f"web page written to {index}")
-        if profiles is not None:
-            with console.status("performance profiles (bootstrap bands)"):
-                for path in write_robust(board, profiles):
-                    say(f"wrote {path}")
+    if board.variants or board.archive:
+        say(f"{sum(len(b.columns) for b in board.variants)} named variants and {len(board.archive)} archived "
+            "configurations are not shown here: see --markdown or --html"
+            + ("" if boards else "; --boards prints the F1 tables per task and level"))
+    if markdown_path is not None:
+        write_text(markdown_path, markdown(board.boards, board.records, fits=board.fits, variants=board.variants,
+                                           archive=board.archive, summaries=summaries, claims=claims), "Markdown")
+    if html is not None:
+        with console.status("web page (bootstrap intervals)"):
+            index = write_site(board, html, summaries=summaries, claims=claims)[0]
+        say(f"web page written to {index}")
+    if profiles is not None:
+        with console.status("performance profiles (bootstrap bands)"):
+            for path in write_robust(board, profiles):
+                say(f"wrote {path}")
 
 
-def _select(store, mode, task: Optional[List[str]], scorer: Optional[List[str]],  # noqa: ANN001
+def _filter_text(filters) -> str:  # noqa: ANN001 - a report.filters.Filters
+    parts = [f"--{name} {' '.join(values)}" for name, values in (("task", filters.tasks), ("domain", filters.domains),
+                                                                  ("method", filters.methods)) if values]
+    return " ".join(parts)
+
+
+def _select(store, mode, filters, scorer: Optional[List[str]],  # noqa: ANN001
             protocol: Optional[List[str]]) -> list:
-    """Stored rows of one mode, narrowed by the leaderboard's --task, --scorer and --protocol."""
-    where = ({"protocol": protocol} if protocol else {}) | ({"task": task} if task else {})
-    return [r for r in store.select(mode, **where)
-            if not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer]
+    """Stored rows of one mode, narrowed by the leaderboard's --task, --domain, --method, --scorer and
+    --protocol."""
+    where = {"protocol": protocol} if protocol else {}
+    exact = filters.tasks and not any(set(p) & set("*?[") for p in filters.tasks)
+    if exact:  # plain IDs: narrowed where the rows are read
+        where["task"] = [p if p.startswith("GRAIL/") else f"GRAIL/{p}" for p in filters.tasks]
+    return [r for r in store.select(mode, **where) if filters.row(r)
+            and (not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer)]
 
 
 @app.command()

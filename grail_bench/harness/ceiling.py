@@ -393,24 +393,38 @@ def _cache_path(task: GRTask, label: str, level: float, samples: int,
            "params": dict(task.params), "env": dict(task.env_params), "protocol": label, "level": level,
            "samples": samples, "seed": CACHED_SEED, "schema": 1,
            "domain": task.domain} | ({"pairs_only": True} if pairs_only else {})
+    generator = int(getattr(task.spec, "generator_version", 1))
+    key |= {"generator": generator} if generator != 1 else {}  # a domain's new demonstrator: new ceilings
     return key, cache_dir() / "ceilings" / f"{key_digest(key)}.json"
+
+
+def _parse(key: dict[str, Any], text: str | None) -> Ceiling | None:
+    """The ceiling of a cache entry's text if it is ``key``'s, else None (compute it again)."""
+    try:
+        stored = json.loads(text) if text else {}
+        if stored.get("key") == json.loads(json.dumps(key)):
+            return Ceiling(**stored["ceiling"])
+    except (ValueError, TypeError, AttributeError):
+        pass
+    return None
 
 
 def _read(key: dict[str, Any], path: Path) -> Ceiling | None:
     """The stored ceiling, or None when it is missing or unreadable (compute it again)."""
     try:
-        stored = json.loads(path.read_text(encoding="utf-8"))
-        if stored.get("key") == json.loads(json.dumps(key)):
-            return Ceiling(**stored["ceiling"])
-    except (OSError, ValueError, TypeError):
-        pass
-    return None
+        return _parse(key, path.read_text(encoding="utf-8"))
+    except OSError:
+        return None
+
+
+def _entry(key: dict[str, Any], ceiling: Ceiling) -> str:
+    return json.dumps({"key": key, "ceiling": ceiling.as_dict()})
 
 
 def _write(key: dict[str, Any], path: Path, ceiling: Ceiling) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".tmp{os.getpid()}")
-    tmp.write_text(json.dumps({"key": key, "ceiling": ceiling.as_dict()}), encoding="utf-8")
+    tmp.write_text(_entry(key, ceiling), encoding="utf-8")
     tmp.replace(path)
 
 
@@ -506,12 +520,17 @@ def _cell_ceiling(cell: Cell, samples: int, pairs_only: bool) -> Ceiling | None:
 
 
 def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: Callable[[], None] | None = None,
-                 pairs_only: bool = False, executor: Executor | None = None) -> dict[Cell, Ceiling]:
+                 pairs_only: bool = False, executor: Executor | None = None,
+                 store: Any | None = None) -> dict[Cell, Ceiling]:
     """The Bayes ceiling (or the pairs-only one) of each ``(task, task parameters, protocol label, level)`` cell
     that has one.
 
-    Cached cells are read here; the others are computed on ``executor`` (default: in this process, in order)
-    and cached by this process. ``on_cell`` is called once per distinct cell (for a progress bar).
+    Cached cells are read here, from ``store`` (a results store's
+    :class:`~grail_bench.harness.store.CeilingCache`) first, then from the user's cache folder; the others are
+    computed on ``executor`` (default: in this process, in order) and cached by this process in both. Each entry is
+    keyed by what determines the ceiling (the task's goals, regime and env parameters, the demonstrator's version,
+    the protocol, level, samples and seed), so a changed task gets its ceiling computed again. ``on_cell`` is
+    called once per distinct cell (for a progress bar).
 
     Returns:
         ``{Cell: Ceiling}``, without the cells that have none.
@@ -520,7 +539,7 @@ def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: C
         UserError: For ``samples`` outside :data:`SAMPLES`.
     """
     SAMPLES.check("samples", samples)
-    out, missing = {}, {}
+    out, missing, keys = {}, {}, {}
 
     def tick() -> None:
         if on_cell is not None:
@@ -529,18 +548,29 @@ def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: C
     for cell in distinct_cells(cells):
         task = find_task(cell.task, cell.params.as_dict())
         if _applies(task, cell.protocol, pairs_only):
-            key, path = _cache_path(task, cell.protocol, cell.level, samples, pairs_only)
+            keys[cell] = _cache_path(task, cell.protocol, cell.level, samples, pairs_only)
+        else:
+            tick()
+    stored = store.get(key_digest(key) for key, _ in keys.values()) if store is not None else {}
+    to_store = {}
+    for cell, (key, path) in keys.items():
+        ceiling = _parse(key, stored.get(key_digest(key)))
+        if ceiling is None:
             ceiling = _read(key, path)
             if ceiling is None:
                 missing[cell] = (key, path)
                 continue
-            out[cell] = ceiling
+            to_store[key_digest(key)] = _entry(key, ceiling)
+        out[cell] = ceiling
         tick()
+    writable = store is not None and store.put(to_store)
     compute = partial(_cell_ceiling, samples=samples, pairs_only=pairs_only)
     for cell, ceiling in (executor or SerialExecutor()).map_unordered(compute, list(missing)):
         if ceiling is not None:
             key, path = missing[cell]
             _write(key, path, ceiling)
+            if writable:  # each as it comes: an interrupted run keeps what it computed
+                store.put({key_digest(key): _entry(key, ceiling)})
             out[cell] = ceiling
         tick()
     return out

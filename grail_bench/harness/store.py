@@ -32,6 +32,12 @@ is created or changed beside it, so a store in a read-only folder, or one
 committed to a repository, reads as it is. Commands that write learn before any
 work (:func:`check_store_writable`) that the store can take their rows.
 
+Task versions. Rows record the fingerprint of the task they ran (``task_fingerprint``, schema 10; NULL before).
+Rows stored under a task version whose meaning has since moved to a newer one (``tasks/versions.toml``,
+``[[moved]]``) are read as the version their recorded parameters say they ran
+(:func:`grail_bench.task.versions.resolve_id`); the file is not rewritten, and selecting a task selects the rows
+stored under its older IDs that resolve to it.
+
 Default location: ``$GRAIL_BENCH_STORE``, else
 ``$XDG_DATA_HOME/grail-bench/results.sqlite`` (``~/.local/share/...``).
 """
@@ -40,7 +46,7 @@ from __future__ import annotations
 
 import os
 import sqlite3
-from dataclasses import asdict, fields
+from dataclasses import asdict, fields, replace
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -49,9 +55,11 @@ from grail_bench.core.paths import check_writable, data_dir
 from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
+from grail_bench.harness.planning import task_params
+from grail_bench.task import versions
 
-SCHEMA_VERSION = 9
-__all__ = ["SCHEMA_VERSION", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
+SCHEMA_VERSION = 10
+__all__ = ["SCHEMA_VERSION", "CeilingCache", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
            "ZeroShotRow", "check_store_writable", "default_store_path", "stale"]
 _HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite database file
 _SIDECARS = ("-wal", "-journal")  # present while a connection has the store open (or after a crash)
@@ -65,7 +73,7 @@ _TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash":
           "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
           "config": "TEXT", "versions": "TEXT", "provenance": "TEXT", "n_trajectories": "INTEGER",
           "curve": "TEXT", "held_out": "TEXT", "confusion": "TEXT", "mode": "TEXT", "diagnostics": "TEXT",
-          "ties": "TEXT"}
+          "ties": "TEXT", "task_fingerprint": "TEXT"}
 #: SQL condition of a stale row (see the module docstring): stored under the old tie rule, and it may have tied.
 _STALE = "{t}.ties IS NULL AND ({t}.n_ties IS NULL OR {t}.n_ties > 0)"
 
@@ -222,11 +230,15 @@ class ResultsStore:
         kind = kind.row if isinstance(kind, Mode) else kind
         table = _tables()[kind][0]
         columns = [f.name for f in fields(kind)]
+        versioned = "config" in columns  # rows whose task ID is read through grail_bench.task.versions
+        wanted = None
         clauses, params = [], []
         for column, value in where.items():
             if column not in columns:
                 raise ValueError(f"unknown column {column!r}")
             values = list(value) if isinstance(value, (list, tuple, set)) else [value]
+            if column == "task" and versioned:
+                wanted, values = set(values), sorted(versions.aliases(values))
             clauses.append(f"{column} IN ({', '.join('?' * len(values))})")
             params += values
         sql = f"SELECT {', '.join(columns)} FROM {table}"
@@ -235,9 +247,13 @@ class ResultsStore:
         order = [c for c in ("task", "recognizer", "scorer", "observability", "mode", "seed") if c in columns]
         sql += " ORDER BY " + ", ".join(order)
         try:
-            return [kind(*r) for r in self._conn.execute(sql, params)]
+            found = [kind(*r) for r in self._conn.execute(sql, params)]
         except sqlite3.Error as exc:
             raise StoreError(f"cannot read results store {self.path}: {exc}") from None
+        if not versioned:
+            return found
+        found = _resolved(found)
+        return found if wanted is None else [r for r in found if r.task in wanted]
 
     def completed(self, task: str, recognizer: str, scorer: str, config_hash: str, protocol: str,
                   kind: type[Row] | Mode = ResultRow) -> set[tuple[int, float | None]]:
@@ -248,6 +264,74 @@ class ResultsStore:
         return {(r.seed, getattr(r, "observability", None)) for r in
                 self.select(kind, task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash,
                             protocol=protocol) if not stale(r)}
+
+
+def _resolved(rows: list[Any]) -> list[Any]:
+    """Rows stored under a task version whose meaning has since moved, read as the version they were run with
+    (:func:`grail_bench.task.versions.resolve_id`, from the parameters each row records)."""
+    moved = versions.shipped_table().sources()
+    memo: dict[tuple[str, str], str] = {}
+    out = []
+    for r in rows:
+        if r.task in moved:
+            key = (r.task, r.config)
+            if key not in memo:
+                memo[key] = versions.resolve_id(r.task, task_params(r.config))
+            r = replace(r, task=memo[key]) if memo[key] != r.task else r
+        out.append(r)
+    return out
+
+
+class CeilingCache:
+    """Bayes ceilings kept in the store's ``ceilings`` table (key digest -> key and ceiling, as JSON), so the
+    ceilings a store's rows need are computed once per store wherever it is read.
+
+    The key holds everything that determines a ceiling (:func:`grail_bench.harness.ceiling.ceilings_for`); a
+    changed task or method gives a new key, so a stale entry is never read. The table sits beside the rows' tables
+    and is not part of their schema: it is created on the first write, and a store that cannot be written (read
+    only, or in use) is simply not written to; nothing else in the file is touched.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path).expanduser()
+
+    def get(self, digests: Iterable[str]) -> dict[str, str]:
+        """The stored ``{digest: JSON}`` of those of ``digests`` that are cached."""
+        wanted = list(digests)
+        if not wanted or not self.path.is_file():
+            return {}
+        try:
+            conn = _connect_read_only(self.path)
+            try:
+                if not conn.execute("SELECT 1 FROM sqlite_master WHERE name = 'ceilings'").fetchone():
+                    return {}
+                out = {}
+                for start in range(0, len(wanted), 500):
+                    chunk = wanted[start:start + 500]
+                    out |= dict(conn.execute(f"SELECT digest, entry FROM ceilings WHERE digest IN "
+                                             f"({', '.join('?' * len(chunk))})", chunk))
+                return out
+            finally:
+                conn.close()
+        except (sqlite3.Error, StoreError, OSError):
+            return {}
+
+    def put(self, entries: dict[str, str]) -> bool:
+        """Store ``{digest: JSON}``; False when the store cannot be written (nothing is then changed)."""
+        if not entries:
+            return True
+        try:
+            conn = sqlite3.connect(f"{self.path.resolve().as_uri()}?mode=rw", uri=True, timeout=5.0)
+            try:
+                with conn:
+                    conn.execute("CREATE TABLE IF NOT EXISTS ceilings (digest TEXT PRIMARY KEY, entry TEXT NOT NULL, "
+                                 "created_at TEXT NOT NULL DEFAULT (datetime('now')))")
+                    conn.executemany("INSERT OR REPLACE INTO ceilings (digest, entry) VALUES (?, ?)", entries.items())
+            finally:
+                conn.close()
+            return True
+        except (sqlite3.Error, OSError):
+            return False
 
 
 def _insert(kind: type, table: str, key: tuple[str, ...]) -> str:
@@ -341,10 +425,11 @@ def _migrate_v1(conn: sqlite3.Connection) -> None:
 
 
 def _add_missing_columns(conn: sqlite3.Connection) -> None:
-    """Schema 2 -> ... -> 9: the columns added since to the tables already there, empty (NULL) for the rows
+    """Schema 2 -> ... -> 10: the columns added since to the tables already there, empty (NULL) for the rows
     already stored: ``provenance``; ``top2``, ``mean_rank``; ``confusion``; the reliability and set metrics;
     schema 8 ``ties`` in every mode's table and ``n_ties`` in those that had none; schema 9 the zero-shot
-    table's ``adapt_seconds_per_goal`` and ``score_us_per_observation``. (Schema 5 added tables, and schema 6
+    table's ``adapt_seconds_per_goal`` and ``score_us_per_observation``; schema 10 ``task_fingerprint`` in every
+    mode's table. (Schema 5 added tables, and schema 6
     the ``fits`` table too.)"""
     for kind, (table, _) in _tables().items():
         columns = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}

@@ -24,6 +24,7 @@ from functools import lru_cache
 from itertools import groupby, zip_longest
 from typing import Any, Sequence
 
+from grail_bench.core.progress import progress as show_progress
 from grail_bench.core.provenance import package_versions, stamp
 from grail_bench.core.trajectory import Demos
 from grail_bench.harness import diagnostics
@@ -35,6 +36,7 @@ from grail_bench.harness.store import ResultsStore
 from grail_bench.task import GRTask, make_task
 from grail_bench.task.observation import ObservationSpec
 from grail_bench.task.overrides import TaskOverrides
+from grail_bench.task.versions import fingerprint
 
 
 @dataclass(frozen=True)
@@ -166,6 +168,8 @@ def run_unit(unit: Unit) -> UnitResult:
                   versions=_versions(), demos=_demos(unit.task, unit.seed))
     with single_thread():  # as every worker does: the same arithmetic wherever a unit runs
         rows, fitted = get_mode(unit.mode).run(job)
+    fp = fingerprint(unit.task)  # the task as run: its card's, or a variant's with its parameters
+    rows = [replace(r, task_fingerprint=fp) if hasattr(r, "task_fingerprint") else r for r in rows]
     if fitted is not None and fitted.diagnostics is not None:
         rows = [*rows, FitRow(unit.task.id, unit.planned.name, unit.planned.config_hash, unit.seed, unit.mode,
                               diagnostics.to_json(fitted.diagnostics))]
@@ -276,15 +280,7 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
         grail_bench.harness.executors.WorkerLost: When a worker process dies.
         Interrupted: On Ctrl-C, with the count of units kept.
     """
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+    from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     executor = executor or SerialExecutor()
     units, summary = plan_sweep(requests, store, executor.workers)
@@ -293,12 +289,11 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
                TextColumn("eta"), TimeRemainingColumn())
     start = time.perf_counter()
     try:
-        # On stderr, so stdout holds what a command prints alone; not built at all when hidden (a disabled bar
-        # still writes a line break when it stops, on some rich releases).
-        bar = Progress(*columns, console=Console(stderr=True), transient=False) if progress else None
+        # On stderr, so stdout holds what a command prints alone (a bar on a terminal, lines in a log); not built
+        # at all when hidden (a disabled bar still writes a line break when it stops, on some rich releases).
+        bar = (show_progress(f"{description} ({executor.name}, {executor.workers} worker(s))", len(units), columns)
+               if progress else None)
         with bar or contextlib.nullcontext():
-            job = bar.add_task(f"{description} ({executor.name}, {executor.workers} worker(s))",
-                               total=len(units)) if bar else None
             for _, result in executor.map_unordered(run_unit, units):
                 stored = [replace(r, provenance=origin) for r in result.rows]
                 summary.rows += store.add(r for r in stored if not isinstance(r, FitRow))
@@ -307,7 +302,7 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
                 summary.trained += result.trained
                 summary.reused += result.reused
                 if bar:
-                    bar.advance(job)
+                    bar.advance()
     except KeyboardInterrupt:
         summary.seconds = time.perf_counter() - start
         raise Interrupted(summary) from None

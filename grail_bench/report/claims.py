@@ -47,8 +47,8 @@ VERDICTS = ("holds", "partly", "does not hold", "not measured")
 Statistic = Literal["mean", "max", "contrast"]
 
 _MINIGRID_BIASED = ("GRAIL/MiniGrid-Biased-v0",)
-_MINIGRID_SUBOPTIMAL = ("GRAIL/MiniGrid-Suboptimal-v0", "GRAIL/MiniGrid-Suboptimal-4Goals-v0",
-                        "GRAIL/MiniGrid-Suboptimal-6Goals-v0")
+_MINIGRID_SUBOPTIMAL = ("GRAIL/MiniGrid-Suboptimal-v1", "GRAIL/MiniGrid-Suboptimal-4Goals-v1",
+                        "GRAIL/MiniGrid-Suboptimal-6Goals-v1")
 _MINIGRID_OPTIMAL = ("GRAIL/MiniGrid-Optimal-v0", "GRAIL/MiniGrid-Optimal-4Goals-v0",
                      "GRAIL/MiniGrid-Optimal-6Goals-v0")
 _PANDA_NOISY = ("GRAIL/PandaReach-Gaussian-0.1-v0", "GRAIL/PandaReach-Gaussian-0.3-v0",
@@ -208,12 +208,17 @@ def headline_claims(records: Sequence[OfflineRecord], reps: int = 2000, seed: in
     return results
 
 
+def claim_tasks() -> set[str]:
+    """Every task a claim is measured on: a store holding none of them has no claim to show."""
+    return {task for claim in CLAIMS for task in claim.tasks}
+
+
 def _paper_cells(records: Sequence[OfflineRecord]) -> tuple[dict[str, Cells], dict[str, tuple[str, bool]]]:
     """The non-archived configurations' records under the paper's protocol and task parameters, by label and
     (task, observed share); and each label's method and whether it is canonical (labelled by the method)."""
     cells: dict[str, Cells] = defaultdict(dict)
     methods: dict[str, tuple[str, bool]] = {}
-    tasks = {task for claim in CLAIMS for task in claim.tasks}
+    tasks = claim_tasks()
     for r in records:
         params = json.dumps(r.task_params, sort_keys=True, default=str)
         if r.task not in tasks or r.protocol != _paper_protocol(r.task, params):

@@ -305,10 +305,11 @@ def build_page(board: Leaderboard, reps: int = 2000, seed: int = 0, summaries: S
         section.figure = figures.add(section.id, _figure(section))
     if summaries is None:
         summaries = domain_summaries(board.boards, reps, seed)
-    if claims is None:
-        from grail_bench.report.claims import headline_claims
+    if claims is None:  # only for a store that ran the claims' tasks: a user's own tasks get no claims section
+        from grail_bench.report.claims import claim_tasks, headline_claims
 
-        claims = headline_claims(records, reps=reps, seed=seed)
+        ran = claim_tasks() & {r.task for r in records}
+        claims = headline_claims(records, reps=reps, seed=seed) if ran else []
     calibration = calibration_rows(records)
     figure_data = profile_figure_data(summaries)
     exported = []

@@ -61,12 +61,18 @@ def grid_table(title: str, header: Sequence[str], rows: Iterable[Sequence[Cell]]
     return table
 
 
+#: Widest the keys' column of :func:`stacked` grows (of an 80-column terminal: the values keep the rest).
+KEY_WIDTH = 40
+
+
 def stacked(title: str, header: Sequence[str], rows: Iterable[Sequence[Cell]], keys: int = 1,
-            caption: str | None = None) -> Table:
+            caption: str | None = None, key_width: int | None = KEY_WIDTH) -> Table:
     """The narrow layout: two columns, a row's first ``keys`` values stacked on the left (the first in bold),
-    each other value on a line of its own on the right, after its header."""
+    each other value on a line of its own on the right, after its header. A key longer than ``key_width``
+    (a task label carrying a long parameter, ``problem=/a/long/path``) is cut with an ellipsis, so the values
+    keep their room; None never cuts (names a user copies, such as task IDs)."""
     table = Table(title=title, caption=_caption(caption), caption_justify="left", show_lines=True, box=box.SQUARE)
-    table.add_column("\n".join(header[:keys]), no_wrap=True)
+    table.add_column("\n".join(header[:keys]), no_wrap=True, overflow="ellipsis", max_width=key_width)
     table.add_column("values")
     for row in rows:
         left = Text("\n").join(Text(_text(v).plain, style="bold" if i == 0 else "") for i, v in enumerate(row[:keys]))

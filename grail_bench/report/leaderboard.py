@@ -13,6 +13,7 @@ from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
+from grail_bench.core.progress import progress
 from grail_bench.harness.ceiling import Ceiling, Cell, ceilings_for, curve_cells, curve_of, distinct_cells
 from grail_bench.harness.diagnostics import FitRow, FitSummary, summarize
 from grail_bench.harness.executors import Executor
@@ -70,29 +71,29 @@ def _progress(enabled: bool, total: int) -> tuple[Any, Any]:
     """A progress bar over the ceiling levels (a Monte Carlo one takes seconds) and the callback advancing it."""
     if not enabled or not total:
         return nullcontext(), None
-    from rich.console import Console
-    from rich.progress import Progress
-
-    bar = Progress(transient=True, console=Console(stderr=True))  # stdout holds the boards alone
-    job = bar.add_task("Bayes and pairs-only ceilings (computed once, then cached)", total=total)
-    return bar, lambda: bar.advance(job)
+    # On stderr (stdout holds the boards alone): a bar on a terminal, plain lines in a log.
+    bar = progress("Bayes and pairs-only ceilings (computed once, then cached)", total, transient=True)
+    return bar, bar.advance
 
 
 def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Reported] | None = None,
           ceiling_samples: int | None = 2000, studies: dict[str, Sequence[Any]] | None = None,
           records: Sequence[OfflineRecord] | None = None, progress: bool = False,
-          fits: Sequence[FitRow] = (), executor: Executor | None = None) -> Leaderboard:
+          fits: Sequence[FitRow] = (), executor: Executor | None = None, cache: Any | None = None) -> Leaderboard:
     """The leaderboard of stored rows.
 
     Args:
         rows: Offline rows (every seed).
         reference: Reported values to show beside ours.
-        ceiling_samples: Monte Carlo samples of the Bayes and pairs-only ceilings; None computes and shows none.
+        ceiling_samples: Monte Carlo samples of the Bayes and pairs-only ceilings; None computes and shows none
+            (:func:`add_ceilings` adds them later).
         studies: Rows of the other modes by mode name (``online``, ``open-set``).
         records: The offline records when already aggregated (else aggregated here).
         progress: Show a progress bar while ceilings are computed.
         fits: Stored fit diagnostics (:class:`~grail_bench.harness.diagnostics.FitRow`).
         executor: Where ceilings missing from the cache are computed (default: in this process).
+        cache: The store's ceiling cache (:class:`~grail_bench.harness.store.CeilingCache`), read and written
+            beside the user's cache folder.
     """
     rows = list(rows)
     records = list(records) if records is not None else MODES["offline"].aggregate(rows)
@@ -102,21 +103,38 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
         if mode_rows:
             studies_out[name] = Study(MODES[name], mode_rows, MODES[name].aggregate(mode_rows))
     configs = configurations(records)
+    board = Leaderboard(rows, records, [], {}, reference, studies_out, summarize(fits), configs, [],
+                        archive(records, configs))
+    if ceiling_samples is None:
+        board.boards = build_boards(records, reference, {}, {}, configs)
+        board.variants = variant_boards(records, {}, {}, configs)
+    else:
+        add_ceilings(board, ceiling_samples, progress, executor, cache)
+    return board
+
+
+def add_ceilings(board: Leaderboard, samples: int = 2000, progress: bool = False, executor: Executor | None = None,
+                 cache: Any | None = None) -> None:
+    """Compute the Bayes and pairs-only ceilings ``board`` shows (those cached are read) and attach them to its
+    boards and its online curves (see :func:`build` for the arguments)."""
+    records, configs = board.records, board.configs
     shown = [r for r in records if configs[config_key(r)].kind != "archived"]  # archived runs show no ceiling
-    cells = ceiling_cells(shown) if ceiling_samples is not None else []
-    online = studies_out.get("online")
-    curves = _online_curve_cells(online.records) if online is not None and ceiling_samples is not None else {}
+    cells = ceiling_cells(shown)
+    online = board.studies.get("online")
+    curves = _online_curve_cells(online.records) if online is not None else {}
     # The offline levels and the online fractions in one pass, so every worker helps with both.
     bayes_cells = distinct_cells([*cells, *(cell for curve in curves.values() for cell in curve)])
     bar, tick = _progress(progress, len(bayes_cells) + len(cells))
     with bar:
-        ceilings = ceilings_for(bayes_cells, ceiling_samples, tick, executor=executor) if bayes_cells else {}
-        pairs_only = ceilings_for(cells, ceiling_samples, tick, pairs_only=True, executor=executor) if cells else {}
+        ceilings = (ceilings_for(bayes_cells, samples, tick, executor=executor, store=cache)
+                    if bayes_cells else {})
+        pairs_only = (ceilings_for(cells, samples, tick, pairs_only=True, executor=executor, store=cache)
+                      if cells else {})
     if online is not None:
         online.curves = {key: curve_of(curve, ceilings) for key, curve in curves.items()}
-    return Leaderboard(rows, records, build_boards(records, reference, ceilings, pairs_only, configs), ceilings,
-                       reference, studies_out, summarize(fits), configs,
-                       variant_boards(records, ceilings, pairs_only, configs), archive(records, configs))
+    board.ceilings = ceilings
+    board.boards = build_boards(records, board.reference, ceilings, pairs_only, configs)
+    board.variants = variant_boards(records, ceilings, pairs_only, configs)
 
 
 def _online_curve_cells(records: Sequence[Any]) -> dict[tuple[str, str], list[Cell]]:

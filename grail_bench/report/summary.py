@@ -160,8 +160,10 @@ def comparison_groups(strata: dict[str, dict[Any, list[float]]]) -> list[tuple[l
     return groups
 
 
-def domain_summaries(boards: Sequence[Board], reps: int = 2000, seed: int = 0) -> list[DomainSummary]:
-    """Every domain's summary, from the main boards' method cells (variant boards and references ignored)."""
+def domain_summaries(boards: Sequence[Board], reps: int = 2000, seed: int = 0,
+                     improvement: bool = True) -> list[DomainSummary]:
+    """Every domain's summary, from the main boards' method cells (variant boards and references ignored);
+    without the probabilities of improvement (``poi`` empty) unless ``improvement`` (the terminal shows none)."""
     strata: dict[str, dict[str, dict[Stratum, list[float]]]] = defaultdict(lambda: defaultdict(dict))
     normal: dict[str, dict[str, dict[Stratum, list[float]]]] = defaultdict(lambda: defaultdict(dict))
     recognizer: dict[str, dict[str, str]] = defaultdict(dict)
@@ -188,13 +190,14 @@ def domain_summaries(boards: Sequence[Board], reps: int = 2000, seed: int = 0) -
                 compared_in.setdefault(n, title)
         for (names, shared), title in zip(groups, titles):
             left_out = {n: t for n, t in sorted(compared_in.items()) if n not in names}
-            out.append(_summary(d, title, names, shared, left_out, strata[d], normal[d], recognizer[d], reps, seed))
+            out.append(_summary(d, title, names, shared, left_out, strata[d], normal[d], recognizer[d], reps, seed,
+                                improvement))
     return out
 
 
 def _summary(domain: str, title: str, names: list[str], shared: set, left_out: dict[str, str],
              strata: dict[str, dict[Stratum, list[float]]], normal: dict[str, dict[Stratum, list[float]]],
-             recognizer: dict[str, str], reps: int, seed: int) -> DomainSummary:
+             recognizer: dict[str, str], reps: int, seed: int, improvement: bool = True) -> DomainSummary:
     everything = set().union(*(set(strata[n]) for n in names)) if names else set()
     common = {n: {k: v for k, v in strata[n].items() if k in shared} for n in names}
     iqms = {n: stratified_bootstrap(common[n], pooled_iqm, reps=reps, seed=seed) for n in names}
@@ -202,7 +205,7 @@ def _summary(domain: str, title: str, names: list[str], shared: set, left_out: d
         domain=domain, title=title, names=names, iqm=iqms, mean={n: pooled_mean(common[n]) for n in names},
         best=tied_best(iqms),
         poi={(a, b): probability_of_improvement_ci(common[a], common[b], reps=reps, seed=seed)
-             for a in names for b in names if a != b},
+             for a in names for b in names if a != b and improvement},
         shared=sorted(shared), all_strata={n: len(strata[n]) for n in [*names, *left_out]},
         missing={n: sorted(everything - set(strata[n])) for n in names}, left_out=left_out,
         recognizer=recognizer)

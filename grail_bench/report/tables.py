@@ -111,11 +111,12 @@ def mode_markdown(records: Sequence[Any], mode: Mode) -> str:
 
 
 def tasks_table(tasks: Sequence[Any]) -> Fitted:
-    """Every task (its ID without ``GRAIL/``) with its domain, regime, goals, demonstration counts, levels and
-    protocol; at narrower widths the goals under the task's name, at the narrowest each value on its own line."""
+    """Every task (its full ID, as ``--task`` takes it) with its domain, regime, goals, demonstration counts,
+    levels and protocol; at narrower widths the goals under the task's ID, at the narrowest each value on its own
+    line."""
     title = f"{TASK_PREFIX} tasks"
     header = ["task", "domain", "regime", "goals", "demos/goal (train/test)", "observability", "protocol"]
-    rows = [[task.id.removeprefix(TASK_PREFIX), task.domain, task.regime, " ".join(goal_label(g) for g in task.goals),
+    rows = [[task.id, task.domain, task.regime, " ".join(goal_label(g) for g in task.goals),
              f"{task.n_demos} ({task.n_train}/{task.n_demos - task.n_train})",
              ", ".join(level_text(p) for p in task.observability), task.protocol_label] for task in tasks]
     wide = grid_table(title, header, rows)
@@ -129,7 +130,7 @@ def tasks_table(tasks: Sequence[Any]) -> Fitted:
     for name, domain, regime, goals, demos, levels, protocol in rows:
         medium.add_row(Text.assemble((name, "bold"), "\n", ("\n".join(textwrap.wrap(goals, width)), "dim")),
                        f"{domain}\n{regime}", demos, f"{levels} ({protocol})")
-    return Fitted(wide, medium, stacked(title, header, rows))
+    return Fitted(wide, medium, stacked(title, header, rows, key_width=None))  # IDs whole, to copy into --task
 
 
 def names_table(title: str, rows: Sequence[tuple[str, str]], second: str) -> Table:

@@ -8,11 +8,14 @@ becomes markup.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Callable, Sequence
 
 from rich.text import Text
 
 from grail_bench.harness.ceiling import Ceiling, normalised
+from grail_bench.report.claims import ClaimResult
+from grail_bench.report.configs import SEPARATOR
 from grail_bench.report.boards import (
     ArchiveEntry,
     Board,
@@ -31,7 +34,8 @@ Grid = tuple[list[str], list[list[tuple[str, bool]]]]  # header; per row, (text,
 VERDICT_MARKS = {"consistent": "", "higher": "↑", "lower": "↓"}
 
 #: What a board's bracketed values and marks mean (terminal captions and the Markdown intro).
-LEGEND = ("[0.83] = normalised F1, (F1 - chance) / (ceiling - chance); = ▲ ▼: inside, above, below the "
+LEGEND = ("[0.83] = normalised F1, (F1 - chance) / (ceiling - chance); the ceiling bounds expected accuracy, not "
+          "F1, so above 1 (e.g. [1.06]) is F1 above the accuracy ceiling, not a method beating it; = ▲ ▼: inside, above, below the "
           "paper's 95 % interval; ↑ ↓: a Welch test finds ours higher, lower; bold: best of its row (methods "
           "only); (reference): shown for comparison, never ranked")
 
@@ -154,12 +158,77 @@ def summaries_markdown(summaries: Sequence[DomainSummary]) -> list[str]:
             lines.append(f"| {md(n)} | {f'**{iqm}**' if n in s.best else iqm} | [{s.iqm[n].low:.2f}, "
                          f"{s.iqm[n].high:.2f}] | {s.mean[n]:.2f} | {s.all_strata[n]} |")
         lines.append("")
-        notes = [f"- {md(n)} lacks strata other methods ran (a gap in the published data): {md(text)}."
+        notes = [f"- {md(n)} lacks strata other methods ran (not run for it in these results): {md(text)}."
                  for n, text in s.gaps_text.items()]
         notes += [f"- Ranked in {md(t)} (no stratum shared with all of these): {md(', '.join(names))}."
                   for t, names in s.ranked_elsewhere.items()]
         lines += notes + ([""] if notes else [])
     return lines
+
+
+def summary_tables(summaries: Sequence[DomainSummary]) -> list[Fitted]:
+    """The domain summaries as terminal tables (the rows of :func:`summaries_markdown`): per method the IQM of F1
+    with its 95 % interval, the mean and the strata run; bold where the interval overlaps the best one's."""
+    header = ["method", "IQM [95 % interval]", "mean", "strata run"]
+    tables = []
+    for s in summaries:
+        rows = [[Text(n, style="bold" if n in s.best else ""),
+                 Text(f"{s.iqm[n].point:.2f} [{s.iqm[n].low:.2f}, {s.iqm[n].high:.2f}]",
+                      style="bold" if n in s.best else ""), f"{s.mean[n]:.2f}", str(s.all_strata[n])]
+                for n in sorted(s.names, key=lambda n: -s.iqm[n].point)]
+        strata = s.strata_text
+        notes = [f"Over the {s.strata} (task, protocol, level) strata all {len(s.names)} methods ran"
+                 + (": " + "; ".join(strata) + "." if len(strata) <= 3 else
+                    f", in {len(strata)} tasks and protocols (--markdown lists them).")]
+        lacking = [f"{n} ({len(s.missing[n])})" for n in s.names if s.missing.get(n)]
+        notes += [f"Strata another method ran and these did not: {', '.join(lacking)}."] if lacking else []
+        notes += [f"Ranked in {t}: {', '.join(names)}." for t, names in s.ranked_elsewhere.items()]
+        caption = "\n".join(notes)
+        title = f"F1 per method, IQM over seeds and strata: {s.title}"
+        tables.append(Fitted(grid_table(title, header, rows, caption, first_style=None),
+                             stacked(title, header, rows, caption=caption)))
+    return tables
+
+
+def claims_table(results: Sequence[ClaimResult], all_variants: bool = False) -> Fitted:
+    """The headline claims: one row per claim and canonical method, its best named variant beside it (the one
+    with the highest estimate); ``all_variants`` adds a row per named variant under its method."""
+    header = ["claim", "method", "estimate [95 % CI]", "verdict", "best named variant"]
+    groups: dict[tuple[str, str], list[ClaimResult]] = {}
+    for r in results:
+        groups.setdefault((r.claim, r.configuration.split(SEPARATOR)[0]), []).append(r)
+    rows, previous = [], None
+    measured_claims = {claim for (claim, _), group in groups.items() if any(r.verdict != "not measured" for r in group)}
+    for (claim, method), group in groups.items():
+        if claim not in measured_claims:  # none of its strata in these runs: counted under the table
+            continue
+        canonical = next((r for r in group if r.configuration == method), None)
+        variants = [r for r in group if r.configuration != method]
+        measured = [r for r in variants if not math.isnan(r.estimate)]
+        best = max(measured, key=lambda r: r.estimate) if measured else None
+        beside = (f"{best.configuration.removeprefix(method + SEPARATOR)}: {_estimate(best)} {best.verdict}"
+                  if best else "–")
+        shown = canonical or group[0]
+        rows.append([claim if claim != previous else "", method, _estimate(shown) if canonical else "–",
+                     Text(shown.verdict if canonical else "not run", style="bold" if shown.verdict == "holds" else ""),
+                     beside if not all_variants else f"{len(variants)} below" if variants else "–"])
+        previous = claim
+        if all_variants:
+            rows += [["", f"  {r.configuration}", _estimate(r), r.verdict, ""] for r in variants]
+    unmeasured = len({claim for claim, _ in groups} - measured_claims)
+    caption = ("Verdicts: holds, the 95 % interval lies inside the claimed range; does not hold, wholly outside; "
+               "partly, it straddles an end; not measured, a stratum the claim needs was not run. "
+               + (f"Not listed: {unmeasured} of the paper's claims, whose strata these runs lack. " if unmeasured else "")
+               + ("" if all_variants else "--all-variants lists every named variant."))
+    title = "The paper's headline claims, measured on these runs"
+    return Fitted(grid_table(title, header, rows, caption, first_style=None), stacked(title, header, rows, keys=2,
+                                                                                        caption=caption))
+
+
+def _estimate(r: ClaimResult) -> str:
+    if math.isnan(r.estimate):
+        return "–"
+    return f"{r.estimate + 0.0:.2f} [{r.low + 0.0:.2f}, {r.high + 0.0:.2f}]"
 
 
 def archive_markdown(entries: Sequence[ArchiveEntry]) -> list[str]:
@@ -209,7 +278,9 @@ def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
              + " (best of each row in bold). Where the task has a",
              "Bayes ceiling (the best accuracy any recognizer can reach under that protocol and level; ± its",
              "Monte Carlo standard error), the cell adds the normalised F1 in brackets,",
-             "(F1 - chance) / (ceiling - chance). The pairs-only ceiling is the accuracy of scoring each goal",
+             "(F1 - chance) / (ceiling - chance). The ceiling bounds expected accuracy, not F1: a normalised F1",
+             "above 1 (e.g. [1.06]) is F1 above the accuracy ceiling (macro F1 can exceed accuracy, and a few",
+             "seeds vary), not a method beating the Bayes-optimal one. The pairs-only ceiling is the accuracy of scoring each goal",
              "from the observed pairs through that goal's own demonstrator (as GRAIL, GRAQL and DRACO score,",
              "with perfect policies): how far a method is from what its form allows. The demonstrator (perfect",
              "imitation) is a reference, shown after the methods and never ranked.",

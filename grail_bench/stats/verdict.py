@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from scipy import stats
 
 ALPHA = 0.05
 VERDICTS = ("consistent", "higher", "lower")
@@ -69,6 +68,8 @@ def welch_verdict(values: Sequence[float], mean: float, std: float, n: int, alph
         return Verdict("higher" if diff > 0 else "lower", math.copysign(math.inf, diff), math.nan, 0.0)
     t = diff / math.sqrt(va + vb)
     df = (va + vb) ** 2 / ((va * va / (len(x) - 1) if va else 0.0) + (vb * vb / (n - 1) if vb else 0.0))
+    from scipy import stats  # here: scipy.stats takes seconds to import, and only a reference's cells test
+
     p = float(2 * stats.t.sf(abs(t), df))
     verdict = "consistent" if p >= alpha else "higher" if t > 0 else "lower"
     return Verdict(verdict, float(t), float(df), p)

@@ -7,9 +7,11 @@
 * :mod:`.cards`: the TOML task cards; :mod:`.registration`: gymnasium IDs and :func:`make_task`.
 * :mod:`.demos`: where demonstrations come from (the generator, :mod:`.demo_cache`, or a Minari dataset read
   by :mod:`.datasets`); :mod:`.export`: demonstrations written as Minari datasets.
+* :mod:`.versions`: each task's fingerprint, what each ID's version means, and how rows stored under an old
+  version are read.
 
 The modules form layers, each importing only those below it (``lint-imports`` checks the contract in
-``pyproject.toml``): export; registration, demos; cards, datasets, demo_cache; model; domain, observation,
+``pyproject.toml``): export, versions; registration, demos; cards, datasets, demo_cache; model; domain, observation,
 overrides. The model reaches demonstrations through the source :mod:`.demos` installs, which importing this
 package does. Everything here is light (no torch): it runs on ``import gymnasium``.
 """

@@ -73,6 +73,9 @@ TASK_KEYS = {
 GOAL_SET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.]*$")
 #: A Minari dataset ID (``namespace/name-v0``): a card's ``demos`` that is no folder beside the card is one.
 DATASET_ID = re.compile(r"^([\w.-]+/)?[\w.-]+-v\d+$")
+#: The one TOML file beside the shipped cards that is no card: what each task ID's version means
+#: (:mod:`grail_bench.task.versions`).
+VERSIONS_FILE = "versions.toml"
 DEFAULT_FIELDS = {"n_demos": 10, "n_train": 7, "observability": [0.1, 0.2, 0.3], "protocol": "subset",
                   "rounding": "ceil"}
 
@@ -256,7 +259,8 @@ def _shipped_cards() -> tuple[tuple[GRTask, ...], tuple[tuple[str, str], ...]]:
     ``import grail_bench`` or the other tasks: it is skipped with one warning line naming the file and why.
     """
     root = files("grail_bench.tasks")
-    entries = sorted((p for p in root.iterdir() if p.name.endswith(".toml")), key=lambda p: p.name)
+    entries = sorted((p for p in root.iterdir() if p.name.endswith(".toml") and p.name != VERSIONS_FILE),
+                     key=lambda p: p.name)
     folder = root if isinstance(root, Path) else None  # a package read from an archive has no folder
     tasks: dict[str, GRTask] = {}
     skipped: dict[str, str] = {}

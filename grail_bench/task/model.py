@@ -12,13 +12,14 @@ from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
-from grail_bench.core.trajectory import Demos, EnvFactory, Goal
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal, Trajectory
 from grail_bench.task.domain import Domain, get_domain
-from grail_bench.task.observation import BUILTIN, ROUNDINGS, available_protocols, protocol_label
+from grail_bench.task.observation import BUILTIN, ROUNDINGS, available_protocols, observe, protocol_label
 from grail_bench.task.overrides import TaskOverrides, freeze
 
 if TYPE_CHECKING:
     import gymnasium as gym
+    import numpy as np
 
 ENV_ONLY = ("render_mode", "goal")  # gym.make arguments that shape one env, not the task
 #: The task's own sizes (published tasks use at most 200 demonstrations per goal).
@@ -346,6 +347,11 @@ class GRTask:
             UserError: When :attr:`demos` names a dataset that does not fit the task.
         """
         return _demos().generate(self, seed, n_demos)
+
+    def observe(self, traj: Trajectory, level: float, rng: np.random.Generator | None = None) -> Trajectory:
+        """What a recognizer sees of one of the task's test demonstrations at ``level``, under the task's own
+        protocol and rounding (:func:`~grail_bench.task.observation.observe`; random subsets need ``rng``)."""
+        return observe(traj, level, rng=rng, task=self)
 
     def split(self, demos: Demos) -> tuple[Demos, Demos]:
         """Split each goal's demonstrations into the first ``n_train`` and the rest."""

@@ -562,8 +562,9 @@ class ObservationSpec:
         return project(observed, self.channel)
 
 
-def observe(traj: Trajectory, fraction: float, protocol: str | ProtocolLike = "prefix",
-            rng: np.random.Generator | None = None, rounding: str = "ceil") -> Trajectory:
+def observe(traj: Trajectory, fraction: float, protocol: str | ProtocolLike | None = None,
+            rng: np.random.Generator | None = None, rounding: str | None = None, *,
+            task: Any | None = None) -> Trajectory:
     """The part of a test demonstration a recognizer gets to see.
 
     Infos are dropped, so nothing about the goal leaks through them.
@@ -571,9 +572,11 @@ def observe(traj: Trajectory, fraction: float, protocol: str | ProtocolLike = "p
     Args:
         traj: A test demonstration.
         fraction: Observability level in (0, 1].
-        protocol: A protocol or its name (see module docstring).
+        protocol: A protocol or its name (see module docstring); default: ``task``'s own protocol (a
+            :class:`~grail_bench.task.model.GRTask`'s ``protocol``), else ``prefix``.
         rng: Needed by random-subset protocols.
-        rounding: ``"ceil"`` or ``"floor"`` for ``k``.
+        rounding: ``"ceil"`` or ``"floor"`` for ``k``; default: ``task``'s, else ``ceil``.
+        task: The task the demonstration is of, whose protocol and rounding are the defaults.
 
     Returns:
         A trajectory with ``k`` actions and ``k + 1`` states; ``acts[i]`` was
@@ -585,6 +588,10 @@ def observe(traj: Trajectory, fraction: float, protocol: str | ProtocolLike = "p
     if isinstance(fraction, bool) or not isinstance(fraction, (int, float, np.integer, np.floating)) or not (
             0 < fraction <= 1):
         raise UserError(f"observability level must be a number in (0, 1], got {fraction!r}")
+    if protocol is None:
+        protocol = task.protocol if task is not None else "prefix"
+    if rounding is None:
+        rounding = task.rounding if task is not None else "ceil"
     chosen = get_protocol(protocol) if isinstance(protocol, str) else protocol
     if rng is None:
         if getattr(chosen, "random_subset", True):

@@ -13,6 +13,8 @@ idempotent and imports nothing heavier than the task cards.
 from __future__ import annotations
 
 import difflib
+import functools
+import json
 from typing import TYPE_CHECKING, Any
 
 from grail_bench.core.errors import UserError
@@ -105,7 +107,22 @@ def _unknown(task_id: Any, known: list[str]) -> str:
 def find_task(task_id: str, params: dict[str, Any] | None = None) -> GRTask | None:
     """The registered task with the parameters a stored run used (parameters added since the run filled in as
     its domain declares, see :func:`~grail_bench.task.domain.stored_params`), or None when its card is gone (or
-    no longer accepts those parameters): reports of old stores show such rows without the task's details."""
+    no longer accepts those parameters): reports of old stores show such rows without the task's details.
+
+    Built once per process for each ID and parameters (reports ask for the same few thousands of times)."""
+    try:
+        key = json.dumps(params, sort_keys=True, default=str) if params is not None else None
+    except (TypeError, ValueError):
+        return _find_task(task_id, params)
+    return _found(task_id, key)
+
+
+@functools.lru_cache(maxsize=4096)
+def _found(task_id: str, params_json: str | None) -> GRTask | None:
+    return _find_task(task_id, json.loads(params_json) if params_json is not None else None)
+
+
+def _find_task(task_id: str, params: dict[str, Any] | None) -> GRTask | None:
     try:
         task = make_task(task_id)
         if params is None:

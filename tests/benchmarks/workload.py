@@ -7,7 +7,7 @@ from grail_bench.core.trajectory import Trajectory
 
 import grail_bench
 
-TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v0")
+TASK = grail_bench.make_task("GRAIL/MiniGrid-Suboptimal-6Goals-v1")
 TRAIN, TEST = TASK.split(TASK.generate_demos(seed=0))
 GOAL = TASK.goals[0]
 

@@ -61,6 +61,7 @@ class ResultRow(Run):
     set_recall: float | None = None  # holds the true goal, else 0; whether it holds it; and its size,
     set_spread: float | None = None  # each a mean over observations (None: stored before)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
+    task_fingerprint: str | None = None  # the task as run (grail_bench.task.versions); None: stored before
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -175,11 +176,13 @@ def _calibration(group: list[ResultRow]) -> dict[str, Any]:
 def aggregate(rows: Iterable[ResultRow]) -> list[OfflineRecord]:
     """Across-seed records, one per configuration and level, sorted by task, recognizer, scorer, protocol, level."""
     records = []
-    for group in cells(rows):
+    groups = cells(rows)
+    f1s = metrics.summarize_many([[r.f1 for r in group] for group in groups])
+    for group, f1 in zip(groups, f1s):
         n_obs = sum(r.n_observations for r in group)
         records.append(OfflineRecord(
             **record_fields(group, (), ("accuracy", "precision", "recall")),
-            f1=metrics.summarize([r.f1 for r in group]),
+            f1=f1,
             score_us_per_observation=float(np.mean([r.score_us_per_observation for r in group])),
             tie_rate=sum(r.n_ties for r in group) / n_obs if n_obs else 0.0,
             brier_mean=_mean_or_none([r.brier for r in group]), nll_mean=_mean_or_none([r.nll for r in group]),

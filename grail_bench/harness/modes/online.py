@@ -86,6 +86,7 @@ class OnlineRow(Run):
     provenance: str | None = None
     n_ties: int | None = None  # prefixes whose best score tied (None: stored before it was counted)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
+    task_fingerprint: str | None = None  # the task as run (grail_bench.task.versions); None: stored before
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -82,6 +82,7 @@ class OpenSetRow(Run):
     provenance: str | None = None
     n_ties: int | None = None  # observations whose best known goals tied (None: stored before it was counted)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
+    task_fingerprint: str | None = None  # the task as run (grail_bench.task.versions); None: stored before
 
 
 @dataclass(frozen=True, kw_only=True)

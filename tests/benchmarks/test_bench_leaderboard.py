@@ -1,0 +1,51 @@
+"""Time to the first summary of ``grail-bench leaderboard`` on a copy of the published store (``make bench``).
+
+The command runs as a user runs it (a process of its own, imports included); the time is taken when its first
+line of output (the first domain summary's title) arrives, before the claims and the rest are drawn. The line
+count of the whole default output is stored as extra info.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PUBLISHED = Path(__file__).resolve().parents[2] / "leaderboard" / "results.sqlite"
+
+
+@pytest.fixture(scope="module")
+def published_copy(tmp_path_factory):
+    if not PUBLISHED.is_file() or PUBLISHED.stat().st_size < 1_000_000:  # absent, or a Git LFS pointer
+        pytest.skip("the published store is not here")
+    copy = tmp_path_factory.mktemp("published") / "results.sqlite"
+    shutil.copyfile(PUBLISHED, copy)
+    return copy
+
+
+def test_time_to_first_summary_on_the_published_store(benchmark, published_copy):
+    """Timed: from starting the command to its first line; each run's remaining output is read (and its lines
+    counted) before the next round starts, untimed."""
+    running: list[subprocess.Popen] = []
+    lines: list[int] = []
+
+    def finish() -> None:
+        while running:
+            proc = running.pop()
+            lines.append(1 + sum(1 for _ in proc.stdout))
+            assert proc.wait() == 0
+
+    def first_summary() -> None:
+        proc = subprocess.Popen([sys.executable, "-m", "grail_bench", "leaderboard", "--store", str(published_copy)],
+                                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                                env={**os.environ, "COLUMNS": "80"})
+        running.append(proc)
+        assert "F1 per method" in proc.stdout.readline()
+
+    benchmark.pedantic(first_summary, setup=finish, rounds=3, iterations=1)
+    finish()
+    benchmark.extra_info["output_lines"] = lines[-1]
