@@ -454,7 +454,7 @@ def test_run_refuses_gail_on_a_variable_horizon_in_one_line(tmp_path):
 # --- 6. a task's own export read back ------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("task_id", [TASK, "GRAIL/MiniGrid-Suboptimal-v0"])
+@pytest.mark.parametrize("task_id", [TASK, "GRAIL/MiniGrid-Suboptimal-v1"])
 def test_a_tasks_own_export_is_its_demonstrations(tmp_path, task_id):
     from grail_bench.task.export import export
 
