@@ -10,7 +10,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from grail_bench.task.cards import load_cards
+from grail_bench.task.cards import VERSIONS_FILE, load_cards
 from grail_bench.task.observation import level_text
 
 MARKER = "<!-- task-catalogue -->"
@@ -26,7 +26,7 @@ def _goal(goal: Any) -> str:
 
 def catalogue(cards_dir: Path) -> str:
     """Markdown for every task the cards in ``cards_dir`` define, grouped by card file."""
-    cards = sorted(cards_dir.glob("*.toml"))
+    cards = sorted(p for p in cards_dir.glob("*.toml") if p.name != VERSIONS_FILE)  # the versions table is no card
     by_card: dict[str, list[Any]] = defaultdict(list)
     for task in load_cards(cards):
         by_card[Path(task.source).name].append(task)
