@@ -30,7 +30,11 @@ Commands that only read (the leaderboard, studies) open a store with
 ``read_only=True``: the file must already be a grail-bench store, and nothing
 is created or changed beside it, so a store in a read-only folder, or one
 committed to a repository, reads as it is. Commands that write learn before any
-work (:func:`check_store_writable`) that the store can take their rows.
+work (:func:`check_store_writable`) that the store can take their rows, but
+change the disk only when they write rows: the file is created (whole, under a
+temporary name first) or an older schema migrated by the first
+:meth:`ResultsStore.add`. A full disk is one line (``no space left on device
+writing <path>``); SQLite's transactions keep the rows stored before.
 
 Default location: ``$GRAIL_BENCH_STORE``, else
 ``$XDG_DATA_HOME/grail-bench/results.sqlite`` (``~/.local/share/...``).
@@ -38,12 +42,14 @@ Default location: ``$GRAIL_BENCH_STORE``, else
 
 from __future__ import annotations
 
+import errno
 import os
 import sqlite3
 from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any, Iterable
 
+from grail_bench.core.atomic import WriteError, temporary_folder, write_error
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import check_writable, data_dir
 from grail_bench.harness import diagnostics
@@ -102,7 +108,12 @@ class ResultsStore:
     """Append-only results database.
 
     Args:
-        path: Database file (created with its folder if missing), or ``":memory:"``.
+        path: Database file, or ``":memory:"``. A missing (or empty) file is
+            created, with its folder, by the first :meth:`add` that has rows,
+            whole (built under a temporary name and moved into place); a store
+            of an older schema is read upgraded in memory and migrated in place
+            by that first :meth:`add` too, so a command refused before it
+            writes leaves the disk as it was.
         read_only: Read an existing store without creating or changing any
             file: a store of an older schema is upgraded in memory only, and
             :meth:`add` is refused.
@@ -116,22 +127,26 @@ class ResultsStore:
     def __init__(self, path: str | Path = ":memory:", read_only: bool = False) -> None:
         self.path = str(path)
         self.read_only = read_only
+        self._pending: str | None = None  # "create" or "migrate": what the first add does to the file first
         try:
             if self.path == ":memory:":
                 self._conn = sqlite3.connect(self.path)
-                self._upgrade(set(), 0)
+                _upgrade(self._conn, set(), 0)
             elif read_only:
                 self._conn = _connect_read_only(Path(self.path).expanduser())
                 self._checked(read_only=True, fresh=False)
             else:
                 file = _check_writable_path(Path(self.path).expanduser())
-                fresh = not file.exists() or file.stat().st_size == 0  # an empty file is an empty database
-                if not fresh:
+                if not file.exists() or file.stat().st_size == 0:  # an empty file is an empty database
+                    self._pending = "create"  # created (whole) by the first add
+                    self._conn = sqlite3.connect(":memory:")
+                    _upgrade(self._conn, set(), 0)
+                else:
                     _check_header(file)
-                self._conn = sqlite3.connect(file, timeout=60.0)
-                self._checked(read_only=False, fresh=fresh)
+                    self._conn = sqlite3.connect(file, timeout=60.0)
+                    self._checked(read_only=False, fresh=False)
         except sqlite3.Error as exc:
-            raise StoreError(f"cannot use results store {self.path}: {exc}") from None
+            raise StoreError(_sqlite_message("use", self.path, exc)) from None
         except OSError as exc:
             raise StoreError(f"cannot use results store {self.path}: {exc.strerror or exc}") from None
 
@@ -149,37 +164,51 @@ class ResultsStore:
         write access instead)."""
         version = self._conn.execute("PRAGMA user_version").fetchone()[0]
         tables = {r[0] for r in self._conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        if not tables and not version:  # an SQLite file with nothing in it (made by another tool): empty
+            fresh = True
         if not fresh and "results" not in tables:
             what = "an SQLite file but " if tables else ""
             raise StoreError(f"{self.path} is {what}not a grail-bench results store")
         if version > SCHEMA_VERSION:
             raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
         current = version >= SCHEMA_VERSION and not {table for table, _ in _tables().values()} - tables
-        if read_only:
-            if not current:  # an older schema: read a copy upgraded in memory, the file stays as it was
-                memory = sqlite3.connect(":memory:")
-                self._conn.backup(memory)
-                self._conn.close()
-                self._conn = memory
-                self._upgrade(tables, version)
-            return
-        self._conn.execute("PRAGMA journal_mode=WAL")
-        if current:  # nothing to write: reading leaves the file as it was, but a run must learn now if it can write
+        if not read_only:  # a run must learn now if it can write, though the file is changed only by add
             self._conn.execute("BEGIN IMMEDIATE")
             self._conn.execute("ROLLBACK")
-        else:
-            self._upgrade(tables, version)
+        if not current:  # an older schema: read a copy upgraded in memory, the file stays as it was
+            memory = sqlite3.connect(":memory:")
+            self._conn.backup(memory)
+            self._conn.close()
+            self._conn = memory
+            _upgrade(self._conn, tables, version)
+            if not read_only:
+                self._pending = "migrate"  # the file is migrated by the first add, in its transaction
+            return
+        if not read_only:
+            self._conn.execute("PRAGMA journal_mode=WAL")
 
-    def _upgrade(self, tables: set[str], version: int) -> None:
-        """Migrate an older schema and create the missing tables, in one transaction."""
-        with self._conn:
-            if tables and version < 2:
-                _migrate_v1(self._conn)
-            if tables and version < SCHEMA_VERSION:
-                _add_missing_columns(self._conn)
-            for kind, (table, key) in _tables().items():
-                self._conn.execute(_create(kind, table, key))
-            self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+    def _materialize(self) -> None:
+        """Before the first rows are written: create the store file (whole, through a temporary name) or
+        migrate the older store in place (in one transaction), then write through the file."""
+        file = Path(self.path).expanduser()
+        if self._pending == "create":
+            _create_store(file)
+        conn = sqlite3.connect(file, timeout=60.0)
+        try:
+            version = conn.execute("PRAGMA user_version").fetchone()[0]
+            tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            if (tables or version) and "results" not in tables:
+                raise StoreError(f"{self.path} is not a grail-bench results store")
+            if version > SCHEMA_VERSION:
+                raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
+            if version < SCHEMA_VERSION or {table for table, _ in _tables().values()} - tables:
+                _upgrade(conn, tables, version)
+            conn.execute("PRAGMA journal_mode=WAL")
+        except BaseException:
+            conn.close()
+            raise
+        self._conn.close()
+        self._conn, self._pending = conn, None
 
     def close(self) -> None:
         self._conn.close()
@@ -202,7 +231,11 @@ class ResultsStore:
         by_kind: dict[type, list[tuple]] = {}
         for r in rows:
             by_kind.setdefault(type(r), []).append(tuple(asdict(r).values()))
+        if not by_kind:
+            return 0
         try:
+            if self._pending is not None:
+                self._materialize()
             with self._conn:
                 before = self._conn.total_changes
                 tables = _tables()
@@ -210,7 +243,9 @@ class ResultsStore:
                     self._conn.executemany(_insert(kind, *tables[kind]), values)
                 return self._conn.total_changes - before
         except sqlite3.Error as exc:
-            raise StoreError(f"cannot write to results store {self.path}: {exc}") from None
+            raise StoreError(_sqlite_message("write to", self.path, exc)) from None
+        except OSError as exc:
+            raise StoreError(write_error(exc, self.path).args[0]) from None
 
     def rows(self, **where: Any) -> list[ResultRow]:
         """Stored :class:`ResultRow` rows, optionally filtered by column equality (a list means any of)."""
@@ -287,6 +322,62 @@ def check_store_writable(path: str | Path) -> Path:
         except sqlite3.Error as exc:
             raise StoreError(f"cannot write to results store {file}: {exc}") from None
     return file
+
+
+def _upgrade(conn: sqlite3.Connection, tables: set[str], version: int) -> None:
+    """Migrate an older schema and create the missing tables, in one transaction."""
+    with conn:
+        if tables and version < 2:
+            _migrate_v1(conn)
+        if tables and version < SCHEMA_VERSION:
+            _add_missing_columns(conn)
+        for kind, (table, key) in _tables().items():
+            conn.execute(_create(kind, table, key))
+        conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+
+
+def _sqlite_message(doing: str, path: str, exc: sqlite3.Error) -> str:
+    """One line for an SQLite error on the store at ``path`` (a full disk said as such)."""
+    if getattr(exc, "sqlite_errorcode", None) == sqlite3.SQLITE_FULL:
+        return f"no space left on device writing {path}"
+    return f"cannot {doing} results store {path}: {exc}"
+
+
+def _create_store(file: Path) -> None:
+    """Create an empty store at ``file`` whole: built under a temporary name beside it and moved into place only
+    if no other process created one meanwhile (an empty file there is replaced)."""
+
+    def build(tmp: Path) -> None:
+        conn = sqlite3.connect(tmp)
+        try:
+            with conn:
+                for kind, (table, key) in _tables().items():
+                    conn.execute(_create(kind, table, key))
+                conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+        except sqlite3.Error as exc:
+            if getattr(exc, "sqlite_errorcode", None) == sqlite3.SQLITE_FULL:
+                raise OSError(errno.ENOSPC, "No space left on device") from None
+            raise OSError(errno.EIO, str(exc)) from None
+        finally:
+            conn.close()
+
+    def place(tmp: Path) -> None:
+        build(tmp)
+        if file.exists() and file.stat().st_size:
+            return  # another process created it: keep theirs (write_with replaces it with itself, below)
+        try:
+            os.link(tmp, file)  # atomic, and never over a store created meanwhile
+        except FileExistsError:
+            if file.stat().st_size == 0:
+                os.replace(tmp, file)
+        except OSError:  # a file system without hard links
+            os.replace(tmp, file)
+
+    try:
+        with temporary_folder(file) as folder:
+            place(folder / file.name)
+    except WriteError as exc:
+        raise StoreError(str(exc)) from None
 
 
 def _check_writable_path(file: Path) -> Path:
