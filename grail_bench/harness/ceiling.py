@@ -59,7 +59,6 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import os
 from collections import defaultdict
 from dataclasses import asdict, dataclass, replace
 from functools import partial
@@ -68,6 +67,7 @@ from typing import Any, Callable, Hashable, Iterable, Iterator, NamedTuple, Sequ
 
 import numpy as np
 
+from grail_bench.core.atomic import write_text
 from grail_bench.core.cache import key_digest
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import cache_dir
@@ -405,10 +405,7 @@ def _read(key: dict[str, Any], path: Path) -> Ceiling | None:
 
 
 def _write(key: dict[str, Any], path: Path, ceiling: Ceiling) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".tmp{os.getpid()}")
-    tmp.write_text(json.dumps({"key": key, "ceiling": ceiling.as_dict()}), encoding="utf-8")
-    tmp.replace(path)
+    write_text(path, json.dumps({"key": key, "ceiling": ceiling.as_dict()}))
 
 
 def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | None = None, method: str = "auto",

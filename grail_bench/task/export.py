@@ -11,12 +11,17 @@ Its ``env_spec`` and ``eval_env_spec`` are the task's gymnasium spec, so
 ``dataset.recover_environment()`` rebuilds the GRAIL env.
 
 An export is all or nothing: the output folder is checked before any
-demonstration is generated, and if writing any dataset fails, every folder the
-export created is removed before the error is raised.
+demonstration is generated; each dataset is written into a temporary folder
+beside its final one (after checking the disk has room for it: HDF5 does not
+fail cleanly on a full disk) and renamed when complete, so no half-written
+dataset ever sits under a dataset's name; if writing any dataset fails, the
+datasets and folders the export created are removed before the error (one
+line) is raised.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
@@ -29,6 +34,7 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
+from grail_bench.core.atomic import WriteError, replace_folder, temporary_folder
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import check_writable
 from grail_bench.core.seeding import seed_list
@@ -65,39 +71,64 @@ def export(task: GRTask, seeds: int | Sequence[int], out: str | Path) -> list[Pa
     for ident in idents:
         if (out / ident).exists():
             raise UserError(f"{out / ident} exists already; export into another folder or remove it")
-    # What this export creates, removed again if it fails: the datasets, and the folders holding them.
-    created = [out / ident for ident in idents] + [p for p in (out / NAMESPACE, out) if not p.exists()]
     check_writable(out, folder=True)
+    done: list[Path] = []
     try:
         for seed, ident in zip(seeds, idents):
-            _write(minari, task, seed, ident, spec, out)
+            done.append(_write(minari, task, seed, ident, spec, out / ident))
     except BaseException:
-        for path in created:
+        for path in done:
             shutil.rmtree(path, ignore_errors=True)
+        for path in (out / NAMESPACE, out):  # the folders the export created, if nothing else is in them now
+            with contextlib.suppress(OSError):
+                path.rmdir()
         raise
-    return [out / ident for ident in idents]
+    return done
 
 
-def _write(minari: Any, task: GRTask, seed: int, ident: str, spec: Any, out: Path) -> None:
-    """Write the dataset of one seed."""
+def _estimate(trajectories: Sequence[Any]) -> int:
+    """Bytes a dataset of ``trajectories`` takes on disk, generously: its arrays, the per-step rewards and flags,
+    and HDF5's per-episode overhead, plus a margin."""
+    data = sum(np.asarray(t.obs).nbytes + np.asarray(t.acts).nbytes + 11 * len(t.acts) for t in trajectories)
+    return int(1.5 * data) + 64 * 1024 * (len(trajectories) + 16)
+
+
+def _check_space(need: int, final: Path) -> None:
+    """Refuse to write a dataset of ``need`` bytes at ``final`` when its disk has less room (HDF5 does not fail
+    cleanly on a full disk)."""
+    home = final
+    while not home.exists():
+        home = home.parent
+    free = shutil.disk_usage(home).free
+    if free < need:
+        raise WriteError(f"no space left on device writing {final} (it needs about {need / 1e6:.1f} MB, "
+                         f"{free / 1e6:.1f} MB are free)")
+
+
+def _write(minari: Any, task: GRTask, seed: int, ident: str, spec: Any, final: Path) -> Path:
+    """Write the dataset of one seed: into a temporary folder beside ``final``, moved to ``final`` once whole."""
     train, test = task.split(task.generate_demos(seed))
     labelled = [(goal, split, traj) for goal in task.goals
                 for split, part in (("train", train), ("test", test)) for traj in part[goal]]
-    with _datasets_path(out), warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="`author", category=UserWarning)
-        dataset = minari.create_dataset_from_buffers(
-            ident, [_buffer(traj, i) for i, (_, _, traj) in enumerate(labelled)], env=spec, eval_env=spec,
-            algorithm_name=f"grail-bench {task.regime} demonstrator", code_permalink="", author="grail-bench",
-            description=f"Demonstrations of {task.id} (seed {seed}) by grail-bench: {task.description}",
-            requirements=[f"grail-bench=={version('grail-bench')}"], data_format="hdf5")
-    storage = dataset.storage
-    storage.update_episode_metadata([{"goal": list(map(float, goal)), "split": split}
-                                     for goal, split, _ in labelled])
-    storage.update_metadata({METADATA: json.dumps({
-        "task": task.id, "regime": task.regime, "params": dict(task.params), "env": dict(task.env_params),
-        "goals": [list(map(float, g)) for g in task.goals], "protocol": task.protocol,
-        "rounding": task.rounding, "observability": list(task.observability), "n_demos": task.n_demos,
-        "n_train": task.n_train, "seed": int(seed), "version": version("grail-bench")}, sort_keys=True)})
+    _check_space(_estimate([traj for _, _, traj in labelled]), final)
+    with temporary_folder(final) as root:
+        with _datasets_path(root), warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message="`author", category=UserWarning)
+            dataset = minari.create_dataset_from_buffers(
+                ident, [_buffer(traj, i) for i, (_, _, traj) in enumerate(labelled)], env=spec, eval_env=spec,
+                algorithm_name=f"grail-bench {task.regime} demonstrator", code_permalink="", author="grail-bench",
+                description=f"Demonstrations of {task.id} (seed {seed}) by grail-bench: {task.description}",
+                requirements=[f"grail-bench=={version('grail-bench')}"], data_format="hdf5")
+        storage = dataset.storage
+        storage.update_episode_metadata([{"goal": list(map(float, goal)), "split": split}
+                                         for goal, split, _ in labelled])
+        storage.update_metadata({METADATA: json.dumps({
+            "task": task.id, "regime": task.regime, "params": dict(task.params), "env": dict(task.env_params),
+            "goals": [list(map(float, g)) for g in task.goals], "protocol": task.protocol,
+            "rounding": task.rounding, "observability": list(task.observability), "n_demos": task.n_demos,
+            "n_train": task.n_train, "seed": int(seed), "version": version("grail-bench")}, sort_keys=True)})
+        del dataset, storage
+        return replace_folder(root / ident, final)
 
 
 @contextmanager
