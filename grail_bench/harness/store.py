@@ -43,11 +43,13 @@ Default location: ``$GRAIL_BENCH_STORE``, else
 from __future__ import annotations
 
 import errno
+import json
 import os
 import sqlite3
 from dataclasses import asdict, fields
+from functools import lru_cache
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable, get_args, get_type_hints
 
 from grail_bench.core.atomic import WriteError, temporary_folder, write_error
 from grail_bench.core.errors import UserError
@@ -270,9 +272,20 @@ class ResultsStore:
         order = [c for c in ("task", "recognizer", "scorer", "observability", "mode", "seed") if c in columns]
         sql += " ORDER BY " + ", ".join(order)
         try:
-            return [kind(*r) for r in self._conn.execute(sql, params)]
+            found = self._conn.execute(sql, params).fetchall()
         except sqlite3.Error as exc:
             raise StoreError(f"cannot read results store {self.path}: {exc}") from None
+        check = _row_checker(kind)
+        out = []
+        for values in found:
+            problem = check(values)
+            if problem is not None:
+                named = dict(zip(columns, values))
+                raise StoreError(f"results store {self.path}, table {table}, row (task {named['task']!r}, recognizer "
+                                 f"{named['recognizer']!r}, seed {named['seed']!r}): {problem}; fix or delete that "
+                                 "row (every other row is kept)")
+            out.append(kind(*values))
+        return out
 
     def completed(self, task: str, recognizer: str, scorer: str, config_hash: str, protocol: str,
                   kind: type[Row] | Mode = ResultRow) -> set[tuple[int, float | None]]:
@@ -283,6 +296,60 @@ class ResultsStore:
         return {(r.seed, getattr(r, "observability", None)) for r in
                 self.select(kind, task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash,
                             protocol=protocol) if not stale(r)}
+
+
+#: Columns holding JSON text: parsed when read (their readers index into them), or only checked to be whole
+#: (bracketed: a truncated text is not) where parsing every row would slow reading a large store.
+_JSON = frozenset({"curve", "held_out", "confusion"})
+_JSON_WHOLE = frozenset({"config", "versions", "provenance", "reliability", "diagnostics"})
+#: The metric columns that are shares (between 0 and 1).
+_SHARES = frozenset({"accuracy", "precision", "recall", "f1", "top2", "step_accuracy", "never", "unknown_recall",
+                     "false_alarm", "auroc", "accuracy_held_out", "accuracy_trained", "set_precision", "set_recall"})
+
+
+@lru_cache(maxsize=None)
+def _row_checker(kind: type) -> Callable[[tuple], str | None]:
+    """A check of one stored row of ``kind`` as read (a tuple in field order): None, or what is wrong with it
+    (a value of the wrong type, a NULL where a value is required, a share outside [0, 1], malformed JSON, a
+    confusion matrix that is not square). Rows are written by grail-bench; this finds hand-edited ones."""
+    hints = get_type_hints(kind)
+    checks = []
+    for f in fields(kind):
+        hint = hints[f.name]
+        optional = type(None) in get_args(hint)
+        base = next((a for a in get_args(hint) if a is not type(None)), hint) if optional else hint
+        want = {int: (int,), float: (int, float), str: (str,)}.get(base)
+        checks.append((f.name, optional, want))
+
+    def check(values: tuple) -> str | None:
+        for (name, optional, want), value in zip(checks, values):
+            if value is None:
+                if not optional:
+                    return f"{name} is NULL"
+                continue
+            if want is not None and (isinstance(value, bool) or not isinstance(value, want)):
+                return f"{name} is {value!r}, not {'a number' if want != (str,) else 'text'}"
+            if name in _SHARES and not 0.0 <= value <= 1.0:
+                return f"{name} is {value!r}, outside [0, 1]"
+            if name in _JSON_WHOLE and not (value[:1], value[-1:]) in (("{", "}"), ("[", "]")):
+                return f"{name} is not valid JSON"
+            if name in _JSON:
+                try:
+                    parsed = json.loads(value)
+                except ValueError:
+                    return f"{name} is not valid JSON"
+                if name == "confusion" and not _square(parsed):
+                    return "confusion is not a square matrix of numbers"
+        return None
+
+    return check
+
+
+def _square(matrix: Any) -> bool:
+    """Whether ``matrix`` is a non-empty square list of lists of numbers."""
+    return (isinstance(matrix, list) and len(matrix) > 0
+            and all(isinstance(row, list) and len(row) == len(matrix)
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row) for row in matrix))
 
 
 def _insert(kind: type, table: str, key: tuple[str, ...]) -> str:
