@@ -302,15 +302,12 @@ class ResultsStore:
 #: (bracketed: a truncated text is not) where parsing every row would slow reading a large store.
 _JSON = frozenset({"curve", "held_out", "confusion"})
 _JSON_WHOLE = frozenset({"config", "versions", "provenance", "reliability", "diagnostics"})
-#: The metric columns that are shares (between 0 and 1).
-_SHARES = frozenset({"accuracy", "precision", "recall", "f1", "top2", "step_accuracy", "never", "unknown_recall",
-                     "false_alarm", "auroc", "accuracy_held_out", "accuracy_trained", "set_precision", "set_recall"})
 
 
 @lru_cache(maxsize=None)
 def _row_checker(kind: type) -> Callable[[tuple], str | None]:
     """A check of one stored row of ``kind`` as read (a tuple in field order): None, or what is wrong with it
-    (a value of the wrong type, a NULL where a value is required, a share outside [0, 1], malformed JSON, a
+    (a value of the wrong type, a NULL where a value is required, malformed JSON, a
     confusion matrix that is not square). Rows are written by grail-bench; this finds hand-edited ones."""
     hints = get_type_hints(kind)
     checks = []
@@ -329,8 +326,6 @@ def _row_checker(kind: type) -> Callable[[tuple], str | None]:
                 continue
             if want is not None and (isinstance(value, bool) or not isinstance(value, want)):
                 return f"{name} is {value!r}, not {'a number' if want != (str,) else 'text'}"
-            if name in _SHARES and not 0.0 <= value <= 1.0:
-                return f"{name} is {value!r}, outside [0, 1]"
             if name in _JSON_WHOLE and not (value[:1], value[-1:]) in (("{", "}"), ("[", "]")):
                 return f"{name} is not valid JSON"
             if name in _JSON:
