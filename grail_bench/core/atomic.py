@@ -15,15 +15,15 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import secrets
 import shutil
-import tempfile
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterator, Mapping, Union
 
 from grail_bench.core.errors import UserError
 
-__all__ = ["WriteError", "replace_folder", "temporary_folder", "write_bytes", "write_json", "write_text",
-           "write_with", "write_error"]
+__all__ = ["WriteError", "replace_folder", "temporary_folder", "write_bytes", "write_error", "write_files",
+           "write_text", "write_with"]
 
 
 class WriteError(UserError):
@@ -64,57 +64,83 @@ def _flush(path: Path) -> None:
         os.close(fd)
 
 
-def write_with(path: str | Path, write: Callable[[Path], None]) -> Path:
-    """Write ``path`` atomically: ``write(tmp)`` fills a temporary file beside it, which then replaces ``path``.
+def _temporary(path: Path) -> Path:
+    """A new empty file beside ``path`` under a hidden temporary name (permissions as for any new file)."""
+    while True:
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}.tmp"
+        try:
+            os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
+            return tmp
+        except FileExistsError:
+            continue
 
-    The folder holding ``path`` is created if missing (and removed again if
-    the write fails). ``write`` may raise :class:`UserError` (passed on) or
-    ``OSError`` (turned into one line).
+
+Content = Union[bytes, str, Callable[[Path], None]]
+
+
+def write_files(files: Mapping[str | Path, Content]) -> list[Path]:
+    """Write several files as one: each to a temporary name beside it and flushed, then all moved into place.
+
+    A content is bytes, text (UTF-8) or ``write(tmp)``, which fills the
+    temporary file (``savefig``, ``torch.save``, ...). The folders are created
+    if missing. If any write fails, no file is replaced: every temporary and
+    every folder created is removed.
 
     Returns:
-        ``path``.
+        The paths, in order.
+
+    Raises:
+        WriteError: Naming the path whose write failed; every earlier file at these paths is as it was.
+    """
+    paths = [Path(p) for p in files]
+    created = list(dict.fromkeys(f for p in paths for f in _missing_parents(p.parent)))
+    staged: list[tuple[Path, Path]] = []
+    current: Path | None = paths[0] if paths else None
+    done = False
+    try:
+        for path, content in zip(paths, files.values()):
+            current = path
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = _temporary(path)
+            staged.append((tmp, path))
+            if callable(content):
+                content(tmp)
+            else:
+                tmp.write_bytes(content.encode("utf-8") if isinstance(content, str) else content)
+            _flush(tmp)
+        for tmp, path in staged:
+            current = path
+            os.replace(tmp, path)
+        done = True
+    except OSError as exc:
+        raise write_error(exc, current) from None
+    finally:
+        if not done:
+            for tmp, _ in staged:
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+            _remove_created(created)
+    return paths
+
+
+def write_with(path: str | Path, write: Callable[[Path], None]) -> Path:
+    """Write ``path`` atomically: ``write(tmp)`` fills a temporary file beside it, which then replaces ``path``
+    (:func:`write_files`; ``write`` may raise :class:`UserError`, passed on, or ``OSError``, made one line).
 
     Raises:
         WriteError: Naming ``path``; the previous file at ``path``, if any, is left as it was.
     """
-    path = Path(path)
-    created = _missing_parents(path.parent)
-    tmp: Path | None = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        os.close(fd)
-        tmp = Path(name)
-        write(tmp)
-        _flush(tmp)
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as exc:
-        raise write_error(exc, path) from None
-    finally:
-        if tmp is not None:
-            with contextlib.suppress(OSError):
-                tmp.unlink()
-        if tmp is not None or not path.exists():
-            _remove_created(created)
-    return path
+    return write_files({path: write})[0]
 
 
 def write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (:func:`write_with`)."""
-    return write_with(path, lambda tmp: tmp.write_bytes(data))
+    """Write ``data`` to ``path`` atomically (:func:`write_files`)."""
+    return write_files({path: data})[0]
 
 
 def write_text(path: str | Path, text: str) -> Path:
-    """Write UTF-8 ``text`` to ``path`` atomically (:func:`write_with`)."""
-    return write_bytes(path, text.encode("utf-8"))
-
-
-def write_json(path: str | Path, data: object, **dumps: object) -> Path:
-    """Write ``data`` as JSON (``json.dumps`` keywords ``dumps``) to ``path`` atomically."""
-    import json
-
-    return write_text(path, json.dumps(data, **dumps))  # type: ignore[arg-type]
+    """Write UTF-8 ``text`` to ``path`` atomically (:func:`write_files`)."""
+    return write_files({path: text})[0]
 
 
 @contextlib.contextmanager
@@ -130,7 +156,11 @@ def temporary_folder(final: str | Path) -> Iterator[Path]:
     tmp: Path | None = None
     try:
         final.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(dir=final.parent, prefix=f".{final.name}.", suffix=".tmp"))
+        while tmp is None:
+            candidate = final.parent / f".{final.name}.{secrets.token_hex(4)}.tmp"
+            with contextlib.suppress(FileExistsError):
+                candidate.mkdir()  # permissions as for any new folder (the dataset keeps them)
+                tmp = candidate
         yield tmp
     except OSError as exc:
         raise write_error(exc, final) from None

@@ -45,6 +45,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import shutil
 import sqlite3
 from dataclasses import asdict, fields
 from functools import lru_cache
@@ -384,7 +385,7 @@ def check_store_writable(path: str | Path) -> Path:
             finally:
                 conn.close()
         except sqlite3.Error as exc:
-            raise StoreError(f"cannot write to results store {file}: {exc}") from None
+            raise StoreError(_sqlite_message("write to", str(file), exc)) from None
     return file
 
 
@@ -401,10 +402,20 @@ def _upgrade(conn: sqlite3.Connection, tables: set[str], version: int) -> None:
 
 
 def _sqlite_message(doing: str, path: str, exc: sqlite3.Error) -> str:
-    """One line for an SQLite error on the store at ``path`` (a full disk said as such)."""
-    if getattr(exc, "sqlite_errorcode", None) == sqlite3.SQLITE_FULL:
+    """One line for an SQLite error on the store at ``path`` (a full disk said as such: SQLite reports one as
+    "database or disk is full", or, failing to grow its WAL index, as "disk I/O error")."""
+    code = getattr(exc, "sqlite_errorcode", None) or 0
+    if code == sqlite3.SQLITE_FULL or (code & 0xFF == sqlite3.SQLITE_IOERR and _disk_full(Path(path))):
         return f"no space left on device writing {path}"
     return f"cannot {doing} results store {path}: {exc}"
+
+
+def _disk_full(file: Path) -> bool:
+    """Whether the disk holding ``file`` has (next to) no room left."""
+    try:
+        return shutil.disk_usage(file.expanduser().absolute().parent).free < 1 << 20
+    except OSError:
+        return False
 
 
 def _create_store(file: Path) -> None:

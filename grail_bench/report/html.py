@@ -41,7 +41,7 @@ from importlib.metadata import version
 from pathlib import Path
 from typing import Any, Sequence
 
-from grail_bench.core.atomic import write_text
+from grail_bench.core.atomic import write_files
 from grail_bench.harness.ceiling import normalised
 from grail_bench.harness.diagnostics import FitSummary
 from grail_bench.report import plots
@@ -417,11 +417,11 @@ def write_site(board: Leaderboard, out: str | Path, title: str = "grail-bench le
     files |= {"records.json": json_lines(page["records"]),
               "fits.json": json.dumps(page["fits"], sort_keys=True, default=str) + "\n"}
     files |= dict(page["figures"])
-    # Every file rendered first, each written whole; only then the pages and figures of an earlier rendering
-    # that this one no longer has are removed (a failed write leaves the earlier site whole).
+    # Every file rendered first, then all written as one (a failed write leaves the earlier site whole); only
+    # then the pages and figures of an earlier rendering that this one no longer has are removed.
     stale = [*(out / FIGURES).glob("*.svg"),
              *(p for p in out.glob("*.html") if GENERATOR in p.read_text(encoding="utf-8", errors="replace")[:2000])]
-    written = [write_text(out / name, text) for name, text in files.items()]
+    written = write_files({out / name: text for name, text in files.items()})
     for old in stale:
         if old not in written:
             old.unlink()

@@ -23,7 +23,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from grail_bench.core.atomic import write_with
+from grail_bench.core.atomic import write_files, write_with
 from grail_bench.report.boards import domain_of, own_scorer_records, short_name
 from grail_bench.task.observation import level_text
 
@@ -48,8 +48,8 @@ def save(fig: Any, out: Path, stem: str) -> list[Path]:
     paths = [out / f"{stem}.png", out / f"{stem}.svg"]
     fig.tight_layout()
     try:
-        write_with(paths[0], lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-        write_with(paths[1], lambda tmp: fig.savefig(tmp, format="svg"))
+        write_files({paths[0]: lambda tmp: fig.savefig(tmp, dpi=110, format="png"),
+                     paths[1]: lambda tmp: fig.savefig(tmp, format="svg")})
     finally:
         plt.close(fig)
     return paths

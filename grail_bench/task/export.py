@@ -72,6 +72,9 @@ def export(task: GRTask, seeds: int | Sequence[int], out: str | Path) -> list[Pa
         if (out / ident).exists():
             raise UserError(f"{out / ident} exists already; export into another folder or remove it")
     check_writable(out, folder=True)
+    for ident in idents:  # what an export killed mid-write (a crash in HDF5) left, never under a dataset's name
+        for left in (out / ident).parent.glob(f".{(out / ident).name}.*.tmp"):
+            shutil.rmtree(left, ignore_errors=True)
     done: list[Path] = []
     try:
         for seed, ident in zip(seeds, idents):
@@ -90,7 +93,7 @@ def _estimate(trajectories: Sequence[Any]) -> int:
     """Bytes a dataset of ``trajectories`` takes on disk, generously: its arrays, the per-step rewards and flags,
     and HDF5's per-episode overhead, plus a margin."""
     data = sum(np.asarray(t.obs).nbytes + np.asarray(t.acts).nbytes + 11 * len(t.acts) for t in trajectories)
-    return int(1.5 * data) + 64 * 1024 * (len(trajectories) + 16)
+    return int(1.5 * data) + 16 * 1024 * len(trajectories) + 256 * 1024
 
 
 def _check_space(need: int, final: Path) -> None:
