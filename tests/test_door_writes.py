@@ -158,6 +158,30 @@ def test_export_to_a_disk_without_room_is_one_line_and_leaves_nothing(tmp_path, 
     assert listing(out) == {"mine.txt": b"kept"}
 
 
+def test_a_dataset_writer_that_crashes_is_one_line_and_leaves_nothing(tmp_path, monkeypatch, capfd):
+    import os
+    import signal
+    import sys
+    import types
+
+    from grail_bench.task import export as export_module
+
+    if not hasattr(os, "fork"):
+        pytest.skip("the writer runs in this process where the platform cannot fork")
+
+    def crash(*args, **kwargs):  # as HDF5 does on a disk that fills up while it writes
+        for _ in range(1000):
+            print("HDF5-DIAG: Error detected in HDF5 (errno = 28, No space left on device)", file=sys.stderr)
+        os.kill(os.getpid(), signal.SIGSEGV)
+
+    monkeypatch.setattr(export_module, "minari_module", lambda: types.SimpleNamespace(create_dataset_from_buffers=crash))
+    out = tmp_path / "out"
+    result = cli("export", "-t", "GRAIL/MiniGrid-Suboptimal-v0", "--out", str(out))
+    one_error_line(result, f"no space left on device writing {out}")
+    assert "HDF5-DIAG" not in capfd.readouterr().err
+    assert not out.exists()
+
+
 # --- 2. a refused command changes nothing --------------------------------------------------------------------------
 
 

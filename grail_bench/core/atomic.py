@@ -172,7 +172,7 @@ def temporary_folder(final: str | Path) -> Iterator[Path]:
 
 
 def replace_folder(tmp: Path, final: str | Path) -> Path:
-    """Move the complete folder ``tmp`` to ``final`` (which must not exist, or be an empty folder)."""
+    """Move the complete folder (or file) ``tmp`` to ``final`` (which must not exist, or be an empty folder)."""
     final = Path(final)
     try:
         final.parent.mkdir(parents=True, exist_ok=True)

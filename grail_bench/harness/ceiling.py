@@ -394,12 +394,16 @@ def _cache_path(task: GRTask, label: str, level: float, samples: int,
 
 
 def _read(key: dict[str, Any], path: Path) -> Ceiling | None:
-    """The stored ceiling, or None when it is missing or unreadable (compute it again)."""
+    """The stored ceiling, or None when it is missing, unreadable or malformed (compute it again)."""
     try:
         stored = json.loads(path.read_text(encoding="utf-8"))
         if stored.get("key") == json.loads(json.dumps(key)):
-            return Ceiling(**stored["ceiling"])
-    except (OSError, ValueError, TypeError):
+            ceiling = Ceiling(**stored["ceiling"])
+            numbers = (ceiling.observability, ceiling.accuracy, ceiling.stderr, ceiling.chance, ceiling.samples)
+            if all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in numbers) \
+                    and 0 <= ceiling.accuracy <= 1 and ceiling.stderr >= 0 and ceiling.samples >= 0:
+                return ceiling
+    except (OSError, ValueError, TypeError, AttributeError, KeyError):
         pass
     return None
 

@@ -23,14 +23,19 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import gc
 import json
+import multiprocessing
 import os
 import shutil
+import sys
+import tempfile
+import traceback
 import warnings
 from contextlib import contextmanager
 from importlib.metadata import version
 from pathlib import Path
-from typing import Any, Iterator, Sequence
+from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -43,6 +48,7 @@ from grail_bench.task.model import GRTask
 from grail_bench.task.registration import make_task
 
 NAMESPACE = "grail-bench"
+_NAMESPACE_METADATA = "namespace_metadata.json"
 
 
 def dataset_id(task: GRTask, seed: int) -> str:
@@ -114,7 +120,8 @@ def _write(minari: Any, task: GRTask, seed: int, ident: str, spec: Any, final: P
     labelled = [(goal, split, traj) for goal in task.goals
                 for split, part in (("train", train), ("test", test)) for traj in part[goal]]
     _check_space(_estimate([traj for _, _, traj in labelled]), final)
-    with temporary_folder(final) as root:
+
+    def fill(root: Path) -> None:
         with _datasets_path(root), warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="`author", category=UserWarning)
             dataset = minari.create_dataset_from_buffers(
@@ -130,8 +137,85 @@ def _write(minari: Any, task: GRTask, seed: int, ident: str, spec: Any, final: P
             "goals": [list(map(float, g)) for g in task.goals], "protocol": task.protocol,
             "rounding": task.rounding, "observability": list(task.observability), "n_demos": task.n_demos,
             "n_train": task.n_train, "seed": int(seed), "version": version("grail-bench")}, sort_keys=True)})
-        del dataset, storage
+
+    with temporary_folder(final) as root:
+        _isolated(lambda: fill(root), final)
+        namespace = root / NAMESPACE / _NAMESPACE_METADATA  # Minari's file about the namespace, kept if new
+        if namespace.exists() and not (final.parent / _NAMESPACE_METADATA).exists():
+            replace_folder(namespace, final.parent / _NAMESPACE_METADATA)
         return replace_folder(root / ident, final)
+
+
+_FAILED = "grail-bench export failed: "  # how a forked writer reports an error it caught
+
+
+def _isolated(work: Callable[[], None], final: Path) -> None:
+    """Run ``work`` (the HDF5 writes) in a forked process, where the platform forks: on a disk that fills up
+    HDF5 can crash the process (a segmentation fault after hundreds of lines of errors). The child's output is
+    kept, and its failure, crash included, is one line naming ``final``; the temporary folder it wrote into is
+    removed by the caller.
+
+    Raises:
+        UserError: What ``work`` raised as bad input, or (:class:`WriteError`) why the dataset was not written.
+    """
+    if not hasattr(os, "fork"):
+        with _hdf5_errors(final):
+            work()
+        return
+    context = multiprocessing.get_context("fork")
+    with tempfile.TemporaryFile() as log:
+        child = context.Process(target=_child, args=(work, log.fileno(), final))
+        child.start()
+        child.join()
+        if child.exitcode == 0:
+            return
+        log.seek(0)
+        text = log.read().decode("utf-8", errors="replace")
+    reported = [line.removeprefix(_FAILED) for line in text.splitlines() if line.startswith(_FAILED)]
+    if reported:
+        raise UserError(reported[-1])
+    if "errno = 28" in text or "No space left" in text:
+        raise WriteError(f"no space left on device writing {final}")
+    last = next((line.strip() for line in reversed(text.splitlines()) if line.strip()), "no output")
+    raise WriteError(f"cannot write {final}: the dataset writer stopped (exit status {child.exitcode}: {last[:200]})")
+
+
+def _child(work: Callable[[], None], log: int, final: Path) -> None:
+    """The forked writer: its output goes to ``log``; an error it can name is one marked line."""
+    import faulthandler
+
+    faulthandler.disable()  # a crash is reported by the parent, in one line
+    os.dup2(log, 1)
+    os.dup2(log, 2)
+    sys.stdout = sys.stderr = open(log, "w", closefd=False)  # noqa: SIM115 - the child's output, to its end
+    try:
+        with _hdf5_errors(final):
+            work()
+    except UserError as exc:
+        os.write(log, f"\n{_FAILED}{' '.join(str(exc).split())}\n".encode())
+        os._exit(3)
+    except BaseException:  # a bug: its traceback is in the log, the parent says the writer stopped
+        traceback.print_exc()
+        sys.stderr.flush()
+        os._exit(1)
+    gc.collect()  # close every HDF5 handle while the process can still report
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
+
+
+@contextmanager
+def _hdf5_errors(final: Path) -> Iterator[None]:
+    """HDF5's failure to write (it raises ``RuntimeError`` naming the errno) as one line naming ``final``."""
+    try:
+        yield
+    except RuntimeError as exc:
+        text = str(exc)
+        if "errno = 28" in text or "No space left" in text:
+            raise WriteError(f"no space left on device writing {final}") from None
+        if "errno = " not in text:
+            raise
+        raise WriteError(f"cannot write {final}: {' '.join(text.split())[:200]}") from None
 
 
 @contextmanager
