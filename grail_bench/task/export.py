@@ -82,12 +82,16 @@ def export(task: GRTask, seeds: int | Sequence[int], out: str | Path) -> list[Pa
         for left in (out / ident).parent.glob(f".{(out / ident).name}.*.tmp"):
             shutil.rmtree(left, ignore_errors=True)
     done: list[Path] = []
+    namespace = out / NAMESPACE / _NAMESPACE_METADATA
+    had_namespace = namespace.exists()
     try:
         for seed, ident in zip(seeds, idents):
             done.append(_write(minari, task, seed, ident, spec, out / ident))
     except BaseException:
         for path in done:
             shutil.rmtree(path, ignore_errors=True)
+        if not had_namespace:
+            namespace.unlink(missing_ok=True)
         for path in (out / NAMESPACE, out):  # the folders the export created, if nothing else is in them now
             with contextlib.suppress(OSError):
                 path.rmdir()
