@@ -208,6 +208,17 @@ def test_an_old_store_opened_for_writing_is_migrated_only_by_rows_written(tmp_pa
     assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] > 7
 
 
+def test_a_current_store_opened_for_writing_is_unchanged_until_rows_are_written(tmp_path):
+    path = store_with(tmp_path / "s.sqlite", [row(0)])
+    conn = sqlite3.connect(path)
+    conn.execute("PRAGMA journal_mode=DELETE")  # e.g. a store copied from elsewhere
+    conn.close()
+    before = sha(path)
+    with ResultsStore(path) as store:
+        assert store.completed(TASK, "bc", "mse", "abc", "prefix") == {(0, 0.5)}
+    assert sha(path) == before and sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]
+
+
 def test_a_refused_run_leaves_an_old_store_byte_identical_and_creates_none(tmp_path):
     path = old_schema_store(tmp_path)
     before = sha(path)

@@ -130,7 +130,7 @@ class ResultsStore:
     def __init__(self, path: str | Path = ":memory:", read_only: bool = False) -> None:
         self.path = str(path)
         self.read_only = read_only
-        self._pending: str | None = None  # "create" or "migrate": what the first add does to the file first
+        self._pending: str | None = None  # "create", "migrate" or "wal": what the first add does to the file first
         try:
             if self.path == ":memory:":
                 self._conn = sqlite3.connect(self.path)
@@ -188,7 +188,7 @@ class ResultsStore:
                 self._pending = "migrate"  # the file is migrated by the first add, in its transaction
             return
         if not read_only:
-            self._conn.execute("PRAGMA journal_mode=WAL")
+            self._pending = "wal"  # the first add puts the file in WAL mode (a reading command leaves it as it was)
 
     def _materialize(self) -> None:
         """Before the first rows are written: create the store file (whole, through a temporary name) or
@@ -237,7 +237,10 @@ class ResultsStore:
         if not by_kind:
             return 0
         try:
-            if self._pending is not None:
+            if self._pending == "wal":
+                self._conn.execute("PRAGMA journal_mode=WAL")
+                self._pending = None
+            elif self._pending is not None:
                 self._materialize()
             with self._conn:
                 before = self._conn.total_changes
