@@ -63,7 +63,8 @@ def _writer(path: str, offset: int) -> None:
 
 def test_concurrent_writers_lose_nothing(tmp_path):
     path = str(tmp_path / "r.sqlite")
-    ResultsStore(path).close()
+    with ResultsStore(path) as store:
+        store.create()
     ctx = mp.get_context("spawn")
     procs = [ctx.Process(target=_writer, args=(path, k * 1000)) for k in range(3)]
     for p in procs:

@@ -190,6 +190,28 @@ class ResultsStore:
         if not read_only:
             self._pending = "wal"  # the first add puts the file in WAL mode (a reading command leaves it as it was)
 
+    def create(self) -> None:
+        """Write the store file now, as the first :meth:`add` would: an empty store is created, an older one
+        migrated.
+
+        Raises:
+            StoreError: If it is read-only, or the file cannot be written (a full disk: one line; no file left).
+        """
+        if self.read_only:
+            raise StoreError(f"results store {self.path} was opened read-only")
+        try:
+            self._write_ready()
+        except sqlite3.Error as exc:
+            raise StoreError(_sqlite_message("write to", self.path, exc)) from None
+
+    def _write_ready(self) -> None:
+        """What must happen to the file before rows are written to it (see ``_pending``)."""
+        if self._pending == "wal":
+            self._conn.execute("PRAGMA journal_mode=WAL")
+            self._pending = None
+        elif self._pending is not None:
+            self._materialize()
+
     def _materialize(self) -> None:
         """Before the first rows are written: create the store file (whole, through a temporary name) or
         migrate the older store in place (in one transaction), then write through the file."""
@@ -237,11 +259,7 @@ class ResultsStore:
         if not by_kind:
             return 0
         try:
-            if self._pending == "wal":
-                self._conn.execute("PRAGMA journal_mode=WAL")
-                self._pending = None
-            elif self._pending is not None:
-                self._materialize()
+            self._write_ready()
             with self._conn:
                 before = self._conn.total_changes
                 tables = _tables()
