@@ -153,7 +153,7 @@ def test_export_to_a_disk_without_room_is_one_line_and_leaves_nothing(tmp_path, 
     out = tmp_path / "out"
     out.mkdir()
     (out / "mine.txt").write_text("kept")
-    result = cli("export", "-t", "GRAIL/MiniGrid-Suboptimal-v0", "--out", str(out))
+    result = cli("export", "-t", "GRAIL/MiniGrid-Biased-v0", "--out", str(out))
     one_error_line(result, "no space left on device writing")
     assert listing(out) == {"mine.txt": b"kept"}
 
@@ -176,7 +176,7 @@ def test_a_dataset_writer_that_crashes_is_one_line_and_leaves_nothing(tmp_path, 
 
     monkeypatch.setattr(export_module, "minari_module", lambda: types.SimpleNamespace(create_dataset_from_buffers=crash))
     out = tmp_path / "out"
-    result = cli("export", "-t", "GRAIL/MiniGrid-Suboptimal-v0", "--out", str(out))
+    result = cli("export", "-t", "GRAIL/MiniGrid-Biased-v0", "--out", str(out))
     one_error_line(result, f"no space left on device writing {out}")
     assert "HDF5-DIAG" not in capfd.readouterr().err
     assert not out.exists()
