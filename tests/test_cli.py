@@ -145,7 +145,8 @@ def test_leaderboard_without_results(tmp_path):
     assert not (tmp_path / "store.sqlite").exists(), "reading must not create a store"
     from grail_bench.harness.store import ResultsStore
 
-    ResultsStore(tmp_path / "store.sqlite").close()
+    with ResultsStore(tmp_path / "store.sqlite") as store:
+        store.create()
     out = cli(["leaderboard"], tmp_path)
     assert out.returncode == 2 and "no results in" in out.stderr
 

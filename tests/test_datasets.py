@@ -227,10 +227,10 @@ def test_export_into_a_relative_folder(tmp_path, monkeypatch):
 def test_a_failed_export_leaves_nothing_behind(tmp_path, monkeypatch):
     real_write = export_module._write
 
-    def write_one_then_fail(minari, task, seed, ident, spec, out):
+    def write_one_then_fail(minari, task, seed, ident, spec, final):
         if seed == 1:
-            raise OSError(28, "No space left on device", str(out / ident))
-        real_write(minari, task, seed, ident, spec, out)
+            raise OSError(28, "No space left on device", str(final))
+        return real_write(minari, task, seed, ident, spec, final)
 
     monkeypatch.setattr(export_module, "_write", write_one_then_fail)
     out = tmp_path / "out"

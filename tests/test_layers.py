@@ -177,7 +177,11 @@ def test_a_new_mode_is_one_entry_in_the_registry(tmp_path, monkeypatch):
 def test_every_mode_has_a_table_in_the_store(tmp_path):
     import sqlite3
 
-    ResultsStore(tmp_path / "r.sqlite").close()
+    from grail_bench.harness.diagnostics import FitRow
+
+    with ResultsStore(tmp_path / "r.sqlite") as store:
+        assert not (tmp_path / "r.sqlite").exists()  # created by the first rows written, not by opening
+        store.add([FitRow("GRAIL/MiniGrid-Biased-v0", "bc", "h", 0, "offline", "{}")])
     tables = {r[0] for r in sqlite3.connect(tmp_path / "r.sqlite").execute("SELECT name FROM sqlite_master")}
     assert {m.table for m in modes.MODES.values()} <= tables
 

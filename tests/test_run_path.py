@@ -336,7 +336,8 @@ def test_the_cli_refuses_them_in_one_line_leaving_the_store_unchanged(monkeypatc
                                                                        items, message):
     _no_training(monkeypatch)
     store = tmp_path / "s.sqlite"
-    ResultsStore(store).close()
+    with ResultsStore(store) as created:
+        created.create()
     before = store.read_bytes()
     args = ["run", "-t", task_id, "-r", "bc", "-r", name, "--set", "bc.n_epochs=1", "--seeds", "1", "-o", "0.3",
             "--store", str(store), "--no-progress"]

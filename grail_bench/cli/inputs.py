@@ -85,9 +85,10 @@ def outputs(files: Sequence[Optional[Path]] = (), folders: Sequence[Optional[Pat
 
 
 def write_text(path: Path, text: str, what: str) -> None:
-    """Write an output file (its folders created) and say so."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text, encoding="utf-8")
+    """Write an output file whole (its folders created; :mod:`grail_bench.core.atomic`) and say so."""
+    from grail_bench.core import atomic
+
+    atomic.write_text(path, text)
     say(f"{what} written to {path}")
 
 

@@ -10,14 +10,18 @@ nothing is ever silently reused.
 Concurrent processes (a parallel sweep) share the cache safely: each key has a
 lock file, held while an entry is read or trained and written, so a second
 process asking for a model being trained waits and then reuses it; the model
-and its sidecar are each written to a temporary name and moved into place.
+and its sidecar are each written to a temporary name and moved into place
+(:mod:`grail_bench.core.atomic`). An entry read back is checked before use: a
+malformed sidecar, a model that is not named arrays, an array holding NaN, or
+one the caller's ``check`` refuses (a wrong key or shape) is discarded with one
+warning naming it, and retrained.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import os
+import math
 import pickle
 import time
 import warnings
@@ -26,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from grail_bench.core.atomic import write_text, write_with
 from grail_bench.core.paths import cache_dir
 
 
@@ -68,14 +73,41 @@ def _load_arrays(path: Path) -> dict[str, Any]:
         return {name: data[name] for name in data.files}
 
 
-def _write_atomic(path: Path, write: Callable[[Path], None]) -> None:
-    """Write through a temporary name, then move into place (never a half-written file under ``path``)."""
-    tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+class Unusable(ValueError):
+    """A cache entry read back is not what grail-bench wrote (the reason is the message)."""
+
+
+def _sidecar(meta: Path) -> dict[str, Any]:
+    """An entry's sidecar, checked to be the JSON object grail-bench writes."""
+    info = json.loads(meta.read_text(encoding="utf-8"))
+    if not isinstance(info, dict) or not isinstance(info.get("sha256"), str):
+        raise Unusable("its sidecar is malformed")
+    seconds = info.get("train_seconds", 0.0)
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not math.isfinite(seconds) or seconds < 0:
+        raise Unusable("its sidecar's training time is malformed")
+    if not isinstance(info.get("extra") or {}, dict):
+        raise Unusable("its sidecar's extra data is malformed")
+    return info
+
+
+def _check_state(state: Any) -> None:
+    """Refuse a loaded model that is not named arrays or tensors, or holds a NaN."""
+    import numpy as np
+
+    if not isinstance(state, dict) or not all(isinstance(name, str) for name in state):
+        raise Unusable("it is not a set of named arrays")
+    for name, value in state.items():
+        if hasattr(value, "detach"):  # a torch tensor
+            value = value.detach().cpu().numpy() if value.dtype.is_floating_point else None
+        elif isinstance(value, dict):
+            _check_state(value)
+            continue
+        elif not hasattr(value, "dtype"):
+            continue  # a number or a setting kept beside the weights
+        if value is not None and value.dtype.kind == "O":
+            raise Unusable(f"its array {name!r} holds objects")
+        if value is not None and value.dtype.kind in "fc" and bool(np.isnan(value).any()):
+            raise Unusable(f"its array {name!r} holds NaN")
 
 
 class Busy(Exception):
@@ -110,7 +142,8 @@ def _paths(kind: str, key: dict[str, Any], suffix: str, root: Path | None) -> tu
 
 def _cached(kind: str, key: dict[str, Any], train: Callable[[], Any], suffix: str,
             save: Callable[[dict[str, Any], Path], None], load: Callable[[Path], dict[str, Any]],
-            root: Path | None, wait: bool = True, spent: float = 0.0) -> Cached:
+            root: Path | None, wait: bool = True, spent: float = 0.0,
+            check: Callable[[dict[str, Any]], None] | None = None) -> Cached:
     from filelock import FileLock, Timeout
 
     model, meta, lock_file = _paths(kind, key, suffix, root)
@@ -123,24 +156,34 @@ def _cached(kind: str, key: dict[str, Any], train: Callable[[], Any], suffix: st
         if model.exists() or meta.exists():
             problem = None
             try:
-                info = json.loads(meta.read_text(encoding="utf-8"))
+                info = _sidecar(meta)
                 if info.get("key") != json.loads(json.dumps(key, sort_keys=True, default=str)):
                     problem = "it was trained for another configuration"
                 elif info.get("sha256") != _sha256(model):
                     problem = "its weights do not match their checksum"
                 else:
-                    return Cached(load(model), float(info.get("train_seconds", 0.0)), True, dict(info.get("extra") or {}))
-            except (OSError, ValueError, RuntimeError, EOFError, KeyError, pickle.UnpicklingError,
-                    zipfile.BadZipFile) as exc:
+                    state = load(model)
+                    _check_state(state)
+                    if check is not None:
+                        try:
+                            check(state)
+                        except (ValueError, RuntimeError, KeyError, TypeError, IndexError) as exc:
+                            raise Unusable(" ".join(str(exc).split())[:300] or type(exc).__name__) from None
+                    return Cached(state, float(info.get("train_seconds", 0.0)), True, dict(info.get("extra") or {}))
+            except Unusable as exc:
+                problem = str(exc)
+            except (OSError, ValueError, RuntimeError, EOFError, KeyError, TypeError, IndexError,
+                    pickle.UnpicklingError, zipfile.BadZipFile) as exc:
                 problem = f"it cannot be read ({type(exc).__name__})"
             warnings.warn(f"cached model {model} is unusable: {problem}; retraining", CacheWarning, stacklevel=3)
         start = time.perf_counter()
         state, extra = _split(train())
         seconds = spent + time.perf_counter() - start
-        _write_atomic(model, lambda tmp: save(state, tmp))
+        meta.unlink(missing_ok=True)  # a model without its sidecar reads as unusable, never as another's
+        write_with(model, lambda tmp: save(state, tmp))
         sidecar = json.dumps({"key": key, "sha256": _sha256(model), "train_seconds": seconds, "extra": extra},
                              sort_keys=True, default=str)
-        _write_atomic(meta, lambda tmp: tmp.write_text(sidecar, encoding="utf-8"))
+        write_text(meta, sidecar)
     finally:
         lock.release()
     return Cached(state, seconds, False, extra)
@@ -155,7 +198,8 @@ def _split(trained: Any) -> tuple[dict[str, Any], dict[str, Any]]:
 
 
 def cached(kind: str, key: dict[str, Any], train: Callable[[], Any], *, arrays: bool = False,
-           root: Path | None = None, wait: bool = True, spent: float = 0.0) -> Cached:
+           root: Path | None = None, wait: bool = True, spent: float = 0.0,
+           check: Callable[[dict[str, Any]], None] | None = None) -> Cached:
     """Load a cached model for ``key`` or train, save and return a new one, with what training returned beside it.
 
     Args:
@@ -168,10 +212,17 @@ def cached(kind: str, key: dict[str, Any], train: Callable[[], Any], *, arrays: 
         wait: When another process is training this model, wait for it (default) or raise :class:`Busy`.
         spent: Seconds already spent training this model before the call (e.g. its share of a batch of
             models trained together), recorded with what ``train`` takes when it runs.
+        check: Called on a model read from the cache; raising ``ValueError`` (its message the reason) or
+            ``RuntimeError`` (e.g. ``load_state_dict`` on a wrong shape) discards the entry, warned in one line,
+            and retrains. A model holding NaN, or that is not named arrays, is discarded without it.
+
+    Raises:
+        grail_bench.core.atomic.WriteError: The trained model could not be written (one line; nothing
+            half-written is left).
     """
     if arrays:
-        return _cached(kind, key, train, ".npz", _save_arrays, _load_arrays, root, wait, spent)
-    return _cached(kind, key, train, ".pt", _save_torch, _load_torch, root, wait, spent)
+        return _cached(kind, key, train, ".npz", _save_arrays, _load_arrays, root, wait, spent, check)
+    return _cached(kind, key, train, ".pt", _save_torch, _load_torch, root, wait, spent, check)
 
 
 def needs_training(kind: str, key: dict[str, Any], *, arrays: bool = False, root: Path | None = None) -> bool:
@@ -183,8 +234,7 @@ def needs_training(kind: str, key: dict[str, Any], *, arrays: bool = False, root
     model, meta, lock_file = _paths(kind, key, ".npz" if arrays else ".pt", root)
     if model.exists() and meta.exists():
         try:
-            if json.loads(meta.read_text(encoding="utf-8")).get("key") == json.loads(
-                    json.dumps(key, sort_keys=True, default=str)):
+            if _sidecar(meta).get("key") == json.loads(json.dumps(key, sort_keys=True, default=str)):
                 return False
         except (OSError, ValueError):
             pass
@@ -198,14 +248,16 @@ def needs_training(kind: str, key: dict[str, Any], *, arrays: bool = False, root
 
 
 def cached_state_dict(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]],
-                      root: Path | None = None, wait: bool = True) -> tuple[dict[str, Any], float]:
+                      root: Path | None = None, wait: bool = True,
+                      check: Callable[[dict[str, Any]], None] | None = None) -> tuple[dict[str, Any], float]:
     """:func:`cached` for a torch ``state_dict``: ``(state_dict, seconds)``."""
-    entry = cached(kind, key, train, root=root, wait=wait)
+    entry = cached(kind, key, train, root=root, wait=wait, check=check)
     return entry.state, entry.seconds
 
 
 def cached_arrays(kind: str, key: dict[str, Any], train: Callable[[], dict[str, Any]],
-                  root: Path | None = None) -> tuple[dict[str, Any], float, bool]:
+                  root: Path | None = None,
+                  check: Callable[[dict[str, Any]], None] | None = None) -> tuple[dict[str, Any], float, bool]:
     """:func:`cached` for named numpy arrays (``.npz``): ``(arrays, seconds, reused)``."""
-    entry = cached(kind, key, train, arrays=True, root=root)
+    entry = cached(kind, key, train, arrays=True, root=root, check=check)
     return entry.state, entry.seconds, entry.reused

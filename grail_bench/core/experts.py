@@ -56,8 +56,9 @@ def sac_expert(kind: str, env: gym.Env, key: dict[str, Any], steps: int, seed: i
     full_key = {**key, "seed": seed, "steps": steps, "net": list(net_arch),
                 "versions": [version("stable-baselines3"), version("torch")]}
     with single_thread():
-        state, _ = cached_state_dict(kind, full_key, lambda: learn(make_sac(env, net_arch, seed), steps)[0])
         policy = empty_policy("sac", env.observation_space, env.action_space, net_arch)
+        state, _ = cached_state_dict(kind, full_key, lambda: learn(make_sac(env, net_arch, seed), steps)[0],
+                                     check=policy.load_state_dict)  # a wrong key or shape: retrained
     policy.load_state_dict(state)
     policy.set_training_mode(False)
     return deterministic_actor(policy)

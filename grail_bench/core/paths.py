@@ -22,12 +22,15 @@ def cache_dir() -> Path:
 
 
 def check_writable(path: str | Path, folder: bool = False) -> Path:
-    """``path``, once checked to be writable as a file (or, with ``folder``, as a folder).
+    """``path``, once checked to be writable as a file (or, with ``folder``, as a folder); nothing is created.
 
-    The folder that will hold it is created (as writing the output would)
-    and a probe file is written in it and removed, so even a process
-    running as root learns now, not after a run, that a folder cannot be
-    written. An existing file at ``path`` is left untouched.
+    A probe file is written and removed in the nearest folder that exists
+    on the way to ``path`` (its own folder, or the folder that would hold the
+    folders a write creates), so even a process running as root learns now,
+    not after a run, that it cannot be written. Folders are created only by
+    the write itself (:mod:`grail_bench.core.atomic`), so a command refused
+    later leaves no empty folder behind. An existing file at ``path`` is left
+    untouched.
 
     Raises:
         UserError: Naming the path and why it cannot be written.
@@ -37,8 +40,11 @@ def check_writable(path: str | Path, folder: bool = False) -> Path:
     if path.exists() and path.is_dir() != folder:
         raise UserError(f"cannot write the {what} {path}: it is a {'file' if folder else 'folder'}")
     home = path if folder else path.parent
+    while not home.exists() and home != home.parent:
+        home = home.parent
+    if not home.is_dir():
+        raise UserError(f"cannot write the {what} {path}: {home} is a file")
     try:
-        home.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=home):
             pass
     except OSError as exc:

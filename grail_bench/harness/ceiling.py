@@ -59,7 +59,6 @@ from __future__ import annotations
 import itertools
 import json
 import math
-import os
 from collections import defaultdict
 from dataclasses import asdict, dataclass, replace
 from functools import partial
@@ -68,6 +67,7 @@ from typing import Any, Callable, Hashable, Iterable, Iterator, NamedTuple, Sequ
 
 import numpy as np
 
+from grail_bench.core.atomic import write_text
 from grail_bench.core.bounds import Range
 from grail_bench.core.cache import key_digest
 from grail_bench.core.errors import UserError
@@ -399,18 +399,22 @@ def _cache_path(task: GRTask, label: str, level: float, samples: int,
 
 
 def _parse(key: dict[str, Any], text: str | None) -> Ceiling | None:
-    """The ceiling of a cache entry's text if it is ``key``'s, else None (compute it again)."""
+    """The ceiling of a cache entry's text if it is ``key``'s and well formed, else None (compute it again)."""
     try:
         stored = json.loads(text) if text else {}
         if stored.get("key") == json.loads(json.dumps(key)):
-            return Ceiling(**stored["ceiling"])
-    except (ValueError, TypeError, AttributeError):
+            ceiling = Ceiling(**stored["ceiling"])
+            numbers = (ceiling.observability, ceiling.accuracy, ceiling.stderr, ceiling.chance, ceiling.samples)
+            if all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in numbers) \
+                    and 0 <= ceiling.accuracy <= 1 and ceiling.stderr >= 0 and ceiling.samples >= 0:
+                return ceiling
+    except (ValueError, TypeError, AttributeError, KeyError):
         pass
     return None
 
 
 def _read(key: dict[str, Any], path: Path) -> Ceiling | None:
-    """The stored ceiling, or None when it is missing or unreadable (compute it again)."""
+    """The stored ceiling, or None when it is missing, unreadable or malformed (compute it again)."""
     try:
         return _parse(key, path.read_text(encoding="utf-8"))
     except OSError:
@@ -422,10 +426,7 @@ def _entry(key: dict[str, Any], ceiling: Ceiling) -> str:
 
 
 def _write(key: dict[str, Any], path: Path, ceiling: Ceiling) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".tmp{os.getpid()}")
-    tmp.write_text(_entry(key, ceiling), encoding="utf-8")
-    tmp.replace(path)
+    write_text(path, _entry(key, ceiling))
 
 
 def bayes_ceiling(task: GRTask, protocol: str, level: float, *, rounding: str | None = None, method: str = "auto",

@@ -30,7 +30,11 @@ Commands that only read (the leaderboard, studies) open a store with
 ``read_only=True``: the file must already be a grail-bench store, and nothing
 is created or changed beside it, so a store in a read-only folder, or one
 committed to a repository, reads as it is. Commands that write learn before any
-work (:func:`check_store_writable`) that the store can take their rows.
+work (:func:`check_store_writable`) that the store can take their rows, but
+change the disk only when they write rows: the file is created (whole, under a
+temporary name first) or an older schema migrated by the first
+:meth:`ResultsStore.add`. A full disk is one line (``no space left on device
+writing <path>``); SQLite's transactions keep the rows stored before.
 
 Task versions. Rows record the fingerprint of the task they ran (``task_fingerprint``, schema 10; NULL before).
 Rows stored under a task version whose meaning has since moved to a newer one (``tasks/versions.toml``,
@@ -44,12 +48,17 @@ Default location: ``$GRAIL_BENCH_STORE``, else
 
 from __future__ import annotations
 
+import errno
+import json
 import os
+import shutil
 import sqlite3
 from dataclasses import asdict, fields, replace
+from functools import lru_cache
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable, get_args, get_type_hints
 
+from grail_bench.core.atomic import WriteError, temporary_folder, write_error
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import check_writable, data_dir
 from grail_bench.harness import diagnostics
@@ -110,7 +119,12 @@ class ResultsStore:
     """Append-only results database.
 
     Args:
-        path: Database file (created with its folder if missing), or ``":memory:"``.
+        path: Database file, or ``":memory:"``. A missing (or empty) file is
+            created, with its folder, by the first :meth:`add` that has rows,
+            whole (built under a temporary name and moved into place); a store
+            of an older schema is read upgraded in memory and migrated in place
+            by that first :meth:`add` too, so a command refused before it
+            writes leaves the disk as it was.
         read_only: Read an existing store without creating or changing any
             file: a store of an older schema is upgraded in memory only, and
             :meth:`add` is refused.
@@ -124,22 +138,26 @@ class ResultsStore:
     def __init__(self, path: str | Path = ":memory:", read_only: bool = False) -> None:
         self.path = str(path)
         self.read_only = read_only
+        self._pending: str | None = None  # "create", "migrate" or "wal": what the first add does to the file first
         try:
             if self.path == ":memory:":
                 self._conn = sqlite3.connect(self.path)
-                self._upgrade(set(), 0)
+                _upgrade(self._conn, set(), 0)
             elif read_only:
                 self._conn = _connect_read_only(Path(self.path).expanduser())
                 self._checked(read_only=True, fresh=False)
             else:
                 file = _check_writable_path(Path(self.path).expanduser())
-                fresh = not file.exists() or file.stat().st_size == 0  # an empty file is an empty database
-                if not fresh:
+                if not file.exists() or file.stat().st_size == 0:  # an empty file is an empty database
+                    self._pending = "create"  # created (whole) by the first add
+                    self._conn = sqlite3.connect(":memory:")
+                    _upgrade(self._conn, set(), 0)
+                else:
                     _check_header(file)
-                self._conn = sqlite3.connect(file, timeout=60.0)
-                self._checked(read_only=False, fresh=fresh)
+                    self._conn = sqlite3.connect(file, timeout=60.0)
+                    self._checked(read_only=False, fresh=False)
         except sqlite3.Error as exc:
-            raise StoreError(f"cannot use results store {self.path}: {exc}") from None
+            raise StoreError(_sqlite_message("use", self.path, exc)) from None
         except OSError as exc:
             raise StoreError(f"cannot use results store {self.path}: {exc.strerror or exc}") from None
 
@@ -157,37 +175,73 @@ class ResultsStore:
         write access instead)."""
         version = self._conn.execute("PRAGMA user_version").fetchone()[0]
         tables = {r[0] for r in self._conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        if not tables and not version:  # an SQLite file with nothing in it (made by another tool): empty
+            fresh = True
         if not fresh and "results" not in tables:
             what = "an SQLite file but " if tables else ""
             raise StoreError(f"{self.path} is {what}not a grail-bench results store")
         if version > SCHEMA_VERSION:
             raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
         current = version >= SCHEMA_VERSION and not {table for table, _ in _tables().values()} - tables
-        if read_only:
-            if not current:  # an older schema: read a copy upgraded in memory, the file stays as it was
-                memory = sqlite3.connect(":memory:")
-                self._conn.backup(memory)
-                self._conn.close()
-                self._conn = memory
-                self._upgrade(tables, version)
-            return
-        self._conn.execute("PRAGMA journal_mode=WAL")
-        if current:  # nothing to write: reading leaves the file as it was, but a run must learn now if it can write
+        if not read_only:  # a run must learn now if it can write, though the file is changed only by add
             self._conn.execute("BEGIN IMMEDIATE")
             self._conn.execute("ROLLBACK")
-        else:
-            self._upgrade(tables, version)
+        if not current:  # an older schema: read a copy upgraded in memory, the file stays as it was
+            memory = sqlite3.connect(":memory:")
+            self._conn.backup(memory)
+            self._conn.close()
+            self._conn = memory
+            _upgrade(self._conn, tables, version)
+            if not read_only:
+                self._pending = "migrate"  # the file is migrated by the first add, in its transaction
+            return
+        if not read_only:
+            self._pending = "wal"  # the first add puts the file in WAL mode (a reading command leaves it as it was)
 
-    def _upgrade(self, tables: set[str], version: int) -> None:
-        """Migrate an older schema and create the missing tables, in one transaction."""
-        with self._conn:
-            if tables and version < 2:
-                _migrate_v1(self._conn)
-            if tables and version < SCHEMA_VERSION:
-                _add_missing_columns(self._conn)
-            for kind, (table, key) in _tables().items():
-                self._conn.execute(_create(kind, table, key))
-            self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+    def create(self) -> None:
+        """Write the store file now, as the first :meth:`add` would: an empty store is created, an older one
+        migrated.
+
+        Raises:
+            StoreError: If it is read-only, or the file cannot be written (a full disk: one line; no file left).
+        """
+        if self.read_only:
+            raise StoreError(f"results store {self.path} was opened read-only")
+        try:
+            self._write_ready()
+        except sqlite3.Error as exc:
+            raise StoreError(_sqlite_message("write to", self.path, exc)) from None
+
+    def _write_ready(self) -> None:
+        """What must happen to the file before rows are written to it (see ``_pending``)."""
+        if self._pending == "wal":
+            self._conn.execute("PRAGMA journal_mode=WAL")
+            self._pending = None
+        elif self._pending is not None:
+            self._materialize()
+
+    def _materialize(self) -> None:
+        """Before the first rows are written: create the store file (whole, through a temporary name) or
+        migrate the older store in place (in one transaction), then write through the file."""
+        file = Path(self.path).expanduser()
+        if self._pending == "create":
+            _create_store(file)
+        conn = sqlite3.connect(file, timeout=60.0)
+        try:
+            version = conn.execute("PRAGMA user_version").fetchone()[0]
+            tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            if (tables or version) and "results" not in tables:
+                raise StoreError(f"{self.path} is not a grail-bench results store")
+            if version > SCHEMA_VERSION:
+                raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
+            if version < SCHEMA_VERSION or {table for table, _ in _tables().values()} - tables:
+                _upgrade(conn, tables, version)
+            conn.execute("PRAGMA journal_mode=WAL")
+        except BaseException:
+            conn.close()
+            raise
+        self._conn.close()
+        self._conn, self._pending = conn, None
 
     def close(self) -> None:
         self._conn.close()
@@ -210,7 +264,10 @@ class ResultsStore:
         by_kind: dict[type, list[tuple]] = {}
         for r in rows:
             by_kind.setdefault(type(r), []).append(tuple(asdict(r).values()))
+        if not by_kind:
+            return 0
         try:
+            self._write_ready()
             with self._conn:
                 before = self._conn.total_changes
                 tables = _tables()
@@ -218,7 +275,9 @@ class ResultsStore:
                     self._conn.executemany(_insert(kind, *tables[kind]), values)
                 return self._conn.total_changes - before
         except sqlite3.Error as exc:
-            raise StoreError(f"cannot write to results store {self.path}: {exc}") from None
+            raise StoreError(_sqlite_message("write to", self.path, exc)) from None
+        except OSError as exc:
+            raise StoreError(write_error(exc, self.path).args[0]) from None
 
     def rows(self, **where: Any) -> list[ResultRow]:
         """Stored :class:`ResultRow` rows, optionally filtered by column equality (a list means any of)."""
@@ -247,13 +306,23 @@ class ResultsStore:
         order = [c for c in ("task", "recognizer", "scorer", "observability", "mode", "seed") if c in columns]
         sql += " ORDER BY " + ", ".join(order)
         try:
-            found = [kind(*r) for r in self._conn.execute(sql, params)]
+            found = self._conn.execute(sql, params).fetchall()
         except sqlite3.Error as exc:
             raise StoreError(f"cannot read results store {self.path}: {exc}") from None
+        check = _row_checker(kind)
+        out = []
+        for values in found:
+            problem = check(values)
+            if problem is not None:
+                named = dict(zip(columns, values))
+                raise StoreError(f"results store {self.path}, table {table}, row (task {named['task']!r}, recognizer "
+                                 f"{named['recognizer']!r}, seed {named['seed']!r}): {problem}; fix or delete that "
+                                 "row (every other row is kept)")
+            out.append(kind(*values))
         if not versioned:
-            return found
-        found = _resolved(found)
-        return found if wanted is None else [r for r in found if r.task in wanted]
+            return out
+        out = _resolved(out)
+        return out if wanted is None else [r for r in out if r.task in wanted]
 
     def completed(self, task: str, recognizer: str, scorer: str, config_hash: str, protocol: str,
                   kind: type[Row] | Mode = ResultRow) -> set[tuple[int, float | None]]:
@@ -334,6 +403,57 @@ class CeilingCache:
             return False
 
 
+#: Columns holding JSON text: parsed when read (their readers index into them), or only checked to be whole
+#: (bracketed: a truncated text is not) where parsing every row would slow reading a large store.
+_JSON = frozenset({"curve", "held_out", "confusion"})
+_JSON_WHOLE = frozenset({"config", "versions", "provenance", "reliability", "diagnostics"})
+
+
+@lru_cache(maxsize=None)
+def _row_checker(kind: type) -> Callable[[tuple], str | None]:
+    """A check of one stored row of ``kind`` as read (a tuple in field order): None, or what is wrong with it
+    (a value of the wrong type, a NULL where a value is required, malformed JSON, a
+    confusion matrix that is not square). Rows are written by grail-bench; this finds hand-edited ones."""
+    hints = get_type_hints(kind)
+    checks = []
+    for f in fields(kind):
+        hint = hints[f.name]
+        optional = type(None) in get_args(hint)
+        base = next((a for a in get_args(hint) if a is not type(None)), hint) if optional else hint
+        want = {int: (int,), float: (int, float), str: (str,)}.get(base)
+        checks.append((f.name, optional, want))
+
+    def check(values: tuple) -> str | None:
+        for (name, optional, want), value in zip(checks, values):
+            if value is None:
+                if not optional:
+                    return f"{name} is NULL"
+                continue
+            if want == (int,) and isinstance(value, float) and value.is_integer():
+                continue  # a count in a column SQLite typed REAL (a mode's own column)
+            if want is not None and (isinstance(value, bool) or not isinstance(value, want)):
+                return f"{name} is {value!r}, not {'a number' if want != (str,) else 'text'}"
+            if name in _JSON_WHOLE and not (value[:1], value[-1:]) in (("{", "}"), ("[", "]")):
+                return f"{name} is not valid JSON"
+            if name in _JSON:
+                try:
+                    parsed = json.loads(value)
+                except ValueError:
+                    return f"{name} is not valid JSON"
+                if name == "confusion" and not _square(parsed):
+                    return "confusion is not a square matrix of numbers"
+        return None
+
+    return check
+
+
+def _square(matrix: Any) -> bool:
+    """Whether ``matrix`` is a non-empty square list of lists of numbers."""
+    return (isinstance(matrix, list) and len(matrix) > 0
+            and all(isinstance(row, list) and len(row) == len(matrix)
+                    and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row) for row in matrix))
+
+
 def _insert(kind: type, table: str, key: tuple[str, ...]) -> str:
     """The statement storing one row of ``kind``: ignored if its key is stored, unless the stored row is stale."""
     names = [f.name for f in fields(kind)]
@@ -369,8 +489,74 @@ def check_store_writable(path: str | Path) -> Path:
             finally:
                 conn.close()
         except sqlite3.Error as exc:
-            raise StoreError(f"cannot write to results store {file}: {exc}") from None
+            raise StoreError(_sqlite_message("write to", str(file), exc)) from None
     return file
+
+
+def _upgrade(conn: sqlite3.Connection, tables: set[str], version: int) -> None:
+    """Migrate an older schema and create the missing tables, in one transaction."""
+    with conn:
+        if tables and version < 2:
+            _migrate_v1(conn)
+        if tables and version < SCHEMA_VERSION:
+            _add_missing_columns(conn)
+        for kind, (table, key) in _tables().items():
+            conn.execute(_create(kind, table, key))
+        conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+
+
+def _sqlite_message(doing: str, path: str, exc: sqlite3.Error) -> str:
+    """One line for an SQLite error on the store at ``path`` (a full disk said as such: SQLite reports one as
+    "database or disk is full", or, failing to grow its WAL index, as "disk I/O error")."""
+    code = getattr(exc, "sqlite_errorcode", None) or 0
+    if code == sqlite3.SQLITE_FULL or (code & 0xFF == sqlite3.SQLITE_IOERR and _disk_full(Path(path))):
+        return f"no space left on device writing {path}"
+    return f"cannot {doing} results store {path}: {exc}"
+
+
+def _disk_full(file: Path) -> bool:
+    """Whether the disk holding ``file`` has (next to) no room left."""
+    try:
+        return shutil.disk_usage(file.expanduser().absolute().parent).free < 1 << 20
+    except OSError:
+        return False
+
+
+def _create_store(file: Path) -> None:
+    """Create an empty store at ``file`` whole: built under a temporary name beside it and moved into place only
+    if no other process created one meanwhile (an empty file there is replaced)."""
+
+    def build(tmp: Path) -> None:
+        conn = sqlite3.connect(tmp)
+        try:
+            with conn:
+                for kind, (table, key) in _tables().items():
+                    conn.execute(_create(kind, table, key))
+                conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+        except sqlite3.Error as exc:
+            if getattr(exc, "sqlite_errorcode", None) == sqlite3.SQLITE_FULL:
+                raise OSError(errno.ENOSPC, "No space left on device") from None
+            raise OSError(errno.EIO, str(exc)) from None
+        finally:
+            conn.close()
+
+    def place(tmp: Path) -> None:
+        build(tmp)
+        if file.exists() and file.stat().st_size:
+            return  # another process created it: keep theirs (write_with replaces it with itself, below)
+        try:
+            os.link(tmp, file)  # atomic, and never over a store created meanwhile
+        except FileExistsError:
+            if file.stat().st_size == 0:
+                os.replace(tmp, file)
+        except OSError:  # a file system without hard links
+            os.replace(tmp, file)
+
+    try:
+        with temporary_folder(file) as folder:
+            place(folder / file.name)
+    except WriteError as exc:
+        raise StoreError(str(exc)) from None
 
 
 def _check_writable_path(file: Path) -> Path:

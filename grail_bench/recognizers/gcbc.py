@@ -236,11 +236,16 @@ class GCBCRecognizer(ScoredRecognizer):
                        "env": cache_key, "seed": seed,
                        "goals": [list(g) for g in ordered], "demos": [demos_digest(demos[g]) for g in ordered],
                        "versions": model_versions()}
-                entry = cached(f"policy-{self.name}", key, train)
+                loaded: dict[str, Any] = {}
+
+                def check(state: dict[str, Any]) -> None:  # a wrong key or shape: the entry is retrained
+                    loaded["policy"] = self._new_policy(encoder, action_space)
+                    loaded["policy"].load_state_dict(state)
+
+                entry = cached(f"policy-{self.name}", key, train, check=check)
                 seconds, reused, extra = entry.seconds, entry.reused, entry.extra
                 if reused:
-                    trained["policy"] = self._new_policy(encoder, action_space)
-                    trained["policy"].load_state_dict(entry.state)
+                    trained["policy"] = loaded["policy"]
         self.encoder, self.bank = encoder, PolicyBank([trained["policy"]])
         self.observation_space, self.action_space = observation_space, action_space
         self.goals = list(demos)

@@ -120,7 +120,8 @@ class GRAQLRecognizer(ScoredRecognizer):
                 else:
                     key = {"recognizer": self.name, "config": settings_key(self.config), "env": cache_key, "goal": list(goal),
                            "seed": own_seed}
-                    entry = cached(f"policy-{self.name}", key, lambda: self._train(env, own_seed), arrays=True)
+                    entry = cached(f"policy-{self.name}", key, lambda: self._train(env, own_seed), arrays=True,
+                                   check=lambda state, env=env: _check_tables(state, env))
                     q, v, cost, hit = entry.state["q"], entry.state["visited"], entry.seconds, entry.reused
                     returns = entry.extra.get("return", [])
                     self.observation_space, self.action_space = env.observation_space, env.action_space
@@ -241,3 +242,15 @@ def _transitions(env: Any) -> tuple[Reset, Step]:
         return int(state_index(obs[None], space)[0]), reward, terminated or bool(info.get("is_success")), truncated
 
     return env_reset, env_step
+
+
+def _check_tables(state: dict[str, Any], env: Any) -> None:
+    """Refuse cached tables that do not fit ``env``: a ``(states, actions)`` Q-table and a ``(states,)`` visited
+    flag per state."""
+    size = n_states(env.observation_space)
+    if set(state) != {"q", "visited"}:
+        raise ValueError(f"it holds {sorted(state)}, not the Q-table and visited states")
+    if state["q"].shape != (size, int(env.action_space.n)) or state["q"].dtype.kind != "f":
+        raise ValueError(f"its Q-table has shape {state['q'].shape}, not {(size, int(env.action_space.n))}")
+    if state["visited"].shape != (size,) or state["visited"].dtype.kind != "b":
+        raise ValueError(f"its visited states have shape {state['visited'].shape}, not {(size,)}")

@@ -161,13 +161,17 @@ class PolicyRecognizer(ScoredRecognizer):
             trained["policy"], curves = train_now()
             return trained["policy"].state_dict(), {"curves": curves}
 
-        entry = cached(f"policy-{self.name}", key, train, wait=wait, spent=spent)
+        loaded: dict[str, BasePolicy] = {}
+
+        def check(state: dict[str, Any]) -> None:  # a wrong key or shape: RuntimeError, the entry retrained
+            loaded["policy"] = self.new_policy(goal, env_factory)
+            loaded["policy"].load_state_dict(state)
+
+        entry = cached(f"policy-{self.name}", key, train, wait=wait, spent=spent, check=check)
         curves = dict(entry.extra.get("curves") or {})
         if "policy" in trained:
             return trained["policy"], entry.seconds, False, curves
-        policy = self.new_policy(goal, env_factory)
-        policy.load_state_dict(entry.state)
-        return policy, entry.seconds, True, curves
+        return loaded["policy"], entry.seconds, True, curves
 
     def _cache_key(self, goal: Goal, demos: Sequence[Trajectory], seed: int, cache_key: str) -> dict[str, Any]:
         """The cache key of a goal's trained policy."""

@@ -235,7 +235,7 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
     def score(self, observed: Any, scorer: str | None = None) -> dict[Goal, float]:
         """Scores of every goal (see :class:`~grail_bench.recognizers.contract.Recognizer`)."""
         chosen, output, actions = self._scored(observed, scorer)
-        return dict(zip(self.goals, chosen.fn(output, actions).tolist()))
+        return dict(zip(self.goals, chosen.scores(output, actions, len(self.goals)).tolist()))
 
     def score_prefixes(self, observed: Any, scorer: str | None = None) -> dict[Goal, np.ndarray]:
         """Scores of every prefix ``k = 1..T`` of ``observed``, per goal a ``(T,)`` array, from one pass.
@@ -245,4 +245,4 @@ class ScoredRecognizer(RecognizerBase, abc.ABC):
         per-step scores are accumulated.
         """
         chosen, output, actions = self._scored(observed, scorer)
-        return dict(zip(self.goals, chosen.prefix_scores(output, actions)))
+        return dict(zip(self.goals, chosen.prefix_scores(output, actions, len(self.goals))))

@@ -92,12 +92,36 @@ class Scorer:
     posterior: bool = False
     steps: Callable[[PolicyOutput, np.ndarray], np.ndarray] | None = None
 
-    def prefix_scores(self, output: PolicyOutput, actions: np.ndarray) -> np.ndarray:
-        """Scores of every prefix ``k = 1..T`` of an observation, ``(K, T)``, from outputs on all ``T`` steps."""
+    def scores(self, output: PolicyOutput, actions: np.ndarray, n_goals: int) -> np.ndarray:
+        """``fn``'s ``(K,)`` scores of one observation, checked.
+
+        Raises:
+            UserError: Unless ``fn`` returned ``n_goals`` real numbers.
+        """
+        return self._checked(self.fn(output, actions), (n_goals,), "fn")
+
+    def prefix_scores(self, output: PolicyOutput, actions: np.ndarray, n_goals: int | None = None) -> np.ndarray:
+        """Scores of every prefix ``k = 1..T`` of an observation, ``(K, T)``, from outputs on all ``T`` steps
+        (checked to be ``(n_goals, T)`` real numbers when ``n_goals`` is given)."""
         if self.steps is not None:
+            if n_goals is not None:
+                steps = self._checked(self.steps(output, actions), (n_goals, len(actions)), "steps")
+                return prefix_means(steps)
             return prefix_means(self.steps(output, actions))
-        columns = [self.fn(output.head(k), actions[:k]) for k in range(1, len(actions) + 1)]
+        columns = [self.fn(output.head(k), actions[:k]) if n_goals is None else
+                   self.scores(output.head(k), actions[:k], n_goals) for k in range(1, len(actions) + 1)]
         return np.stack(columns, axis=1)
+
+    def _checked(self, values: object, shape: tuple[int, ...], what: str) -> np.ndarray:
+        """``values`` as a float array of ``shape``, refused when it is anything else (text, flags, more or fewer
+        scores than goals): a plugin's mistake must not be stored as a row of ties."""
+        array = np.asarray(values) if not isinstance(values, np.ndarray) else values
+        if array.dtype.kind not in "iuf":
+            raise UserError(f"scorer {self.name!r} must return numbers from {what}, got {array.dtype} values")
+        if array.shape != shape:
+            raise UserError(f"scorer {self.name!r} returned shape {array.shape} from {what}; expected {shape} "
+                            f"(one score per goal{'' if len(shape) == 1 else ' and step'})")
+        return array.astype(np.float64, copy=False)
 
     def can_serve(self, exposes: frozenset[str]) -> bool:
         return any(need <= exposes for need in self.needs)

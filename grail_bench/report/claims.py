@@ -37,6 +37,7 @@ import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.harness.modes.offline import OfflineRecord
+from grail_bench.report.escape import md
 from grail_bench.report.configs import configuration
 from grail_bench.stats.robust import stratified_bootstrap
 from grail_bench.task import find_task, variant
@@ -333,8 +334,9 @@ def claims_markdown(results: Sequence[ClaimResult]) -> str:
         first = previous is None or r.claim != previous.claim
         shown_measured = first or previous is None or r.measured != previous.measured
         previous = r
-        cells = [r.claim if first else "", r.source if first else "", readings.get(r.claim, "") if first else "",
-                 r.configuration, r.measured if shown_measured else "",
+        cells = [md(r.claim) if first else "", md(r.source) if first else "",
+                 md(readings.get(r.claim, "")) if first else "", md(r.configuration),
+                 md(r.measured) if shown_measured else "",
                  "–" if math.isnan(r.estimate) else f"{_number(r.estimate)} [{_number(r.low)}, {_number(r.high)}]",
                  f"**{r.verdict}**" if r.verdict == "holds" else r.verdict]
         lines.append("| " + " | ".join(cells) + " |")

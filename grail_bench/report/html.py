@@ -41,6 +41,7 @@ from importlib.metadata import version
 from pathlib import Path
 from typing import Any, Sequence
 
+from grail_bench.core.atomic import write_files
 from grail_bench.harness.ceiling import normalised
 from grail_bench.harness.diagnostics import FitSummary
 from grail_bench.report import plots
@@ -412,20 +413,17 @@ def write_site(board: Leaderboard, out: str | Path, title: str = "grail-bench le
     :func:`build_page`)."""
     out = Path(out)
     page = build_page(board, summaries=summaries, claims=claims)
-    (out / FIGURES).mkdir(parents=True, exist_ok=True)
-    ours = [p for p in out.glob("*.html") if GENERATOR in p.read_text(encoding="utf-8", errors="replace")[:2000]]
-    for old in [*(out / FIGURES).glob("*.svg"), *ours]:
-        old.unlink()
-    index, data, fits = out / "index.html", out / "records.json", out / "fits.json"
-    index.write_text(render(page, title), encoding="utf-8")
-    written = [index]
-    for p in page["pages"]:
-        written.append(out / p.file)
-        written[-1].write_text(render(page, title, p.domain), encoding="utf-8")
-    data.write_text(json_lines(page["records"]), encoding="utf-8")
-    fits.write_text(json.dumps(page["fits"], sort_keys=True, default=str) + "\n", encoding="utf-8")
-    written += [data, fits]
-    for name, svg in page["figures"].items():
-        written.append(out / name)
-        written[-1].write_text(svg, encoding="utf-8")
+    files = {"index.html": render(page, title)}
+    files |= {p.file: render(page, title, p.domain) for p in page["pages"]}
+    files |= {"records.json": json_lines(page["records"]),
+              "fits.json": json.dumps(page["fits"], sort_keys=True, default=str) + "\n"}
+    files |= dict(page["figures"])
+    # Every file rendered first, then all written as one (a failed write leaves the earlier site whole); only
+    # then the pages and figures of an earlier rendering that this one no longer has are removed.
+    stale = [*(out / FIGURES).glob("*.svg"),
+             *(p for p in out.glob("*.html") if GENERATOR in p.read_text(encoding="utf-8", errors="replace")[:2000])]
+    written = write_files({out / name: text for name, text in files.items()})
+    for old in stale:
+        if old not in written:
+            old.unlink()
     return written

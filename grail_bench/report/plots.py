@@ -23,6 +23,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from grail_bench.core.atomic import write_files, write_with
 from grail_bench.report.boards import domain_of, own_scorer_records, short_name
 from grail_bench.task.observation import level_text
 
@@ -46,9 +47,11 @@ def save(fig: Any, out: Path, stem: str) -> list[Path]:
     plt = pyplot()
     paths = [out / f"{stem}.png", out / f"{stem}.svg"]
     fig.tight_layout()
-    fig.savefig(paths[0], dpi=110)
-    fig.savefig(paths[1])
-    plt.close(fig)
+    try:
+        write_files({paths[0]: lambda tmp: fig.savefig(tmp, dpi=110, format="png"),
+                     paths[1]: lambda tmp: fig.savefig(tmp, format="svg")})
+    finally:
+        plt.close(fig)
     return paths
 
 
@@ -56,10 +59,11 @@ def save_png(fig: Any, path: Path) -> Path:
     """Write ``fig`` as one PNG (its folder created), close it, return the path."""
     plt = pyplot()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        write_with(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from grail_bench.core import provenance
+from grail_bench.core.atomic import write_text
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import cache_dir
 from grail_bench.core.seeding import seed_list
@@ -365,7 +366,6 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     from the cache are computed on ``executor`` (default: in this process); ``plans`` are what the sweep
     planned (``run_sweep(...).planned``), so the requests are not planned again. Returns the files written.
     """
-    out.mkdir(parents=True, exist_ok=True)
     grid = _owned(rows, profile.grid_requests(only), plans)
     by_mode = {name: [r for r in grid if type(r) is mode.row] for name, mode in MODES.items()}
     offline = by_mode.pop("offline")
@@ -378,15 +378,15 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     written: list[Path] = []
     if offline:
         written.append(out / "TABLES.md")
-        written[-1].write_text(markdown(board.boards, board.records, ci=True, title=title, fits=board.fits,
-                                        variants=board.variants, archive=board.archive), encoding="utf-8")
+        write_text(written[-1], markdown(board.boards, board.records, ci=True, title=title, fits=board.fits,
+                                         variants=board.variants, archive=board.archive))
         written += plots.write_all(board.records, out, models=model_sizes(board.records))
         written += write_robust(board, out)
     written += write_studies(board, out)
     written += write_budgets(rows, profile.studies(only), out, title, plans)
     if site:
         written += write_site(board, out / "site", title=title)
-    (out / "manifest.json").write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+    write_text(out / "manifest.json", json.dumps(meta, indent=2) + "\n")
     written.append(out / "manifest.json")
     return written
 
@@ -432,25 +432,23 @@ def write_budgets(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Req
     if not curves:
         return []
     written = [out / "BUDGETS.md", out / "budgets.json"]
-    written[0].write_text(budgets_markdown(curves, title), encoding="utf-8")
-    written[1].write_text(json.dumps([c.to_dict() for c in curves], indent=1) + "\n", encoding="utf-8")
+    write_text(written[0], budgets_markdown(curves, title))
+    write_text(written[1], json.dumps([c.to_dict() for c in curves], indent=1) + "\n")
     return written + plots.save(plots.budgets(curves), out, "budgets")
 
 
 def write_robust(board: leaderboard.Leaderboard, out: Path, reps: int = 2000) -> list[Path]:
     """``PROFILES.md`` and ``performance_profiles.png`` (domains with Bayes ceilings), ``CALIBRATION.md`` and
     ``reliability.png`` (recognizers with a posterior): reporting beyond means."""
-    out.mkdir(parents=True, exist_ok=True)
     summaries = domain_summaries(board.boards, reps)
-    written = [out / "PROFILES.md"]
-    written[0].write_text(profiles_markdown(summaries), encoding="utf-8")
+    written = [write_text(out / "PROFILES.md", profiles_markdown(summaries))]
     data = profile_figure_data(summaries)
     if data:
         written += plots.save(plots.profiles(data), out, "performance_profiles")
     calibration = calibration_rows(board.records)
     if calibration:
         written.append(out / "CALIBRATION.md")
-        written[-1].write_text(calibration_markdown(calibration), encoding="utf-8")
+        write_text(written[-1], calibration_markdown(calibration))
         written += plots.save(plots.reliability(calibration), out, "reliability")
     return written
 
@@ -460,7 +458,7 @@ def write_studies(board: leaderboard.Leaderboard, out: Path) -> list[Path]:
     written = []
     for name, study in board.studies.items():
         written.append(out / f"{name.upper().replace('-', '_')}.md")
-        written[-1].write_text(mode_markdown(study.records, study.mode), encoding="utf-8")
+        write_text(written[-1], mode_markdown(study.records, study.mode))
         if name == "online":
             written.append(plots.save_png(plots.online(study.records, study.curves), out / "online.png"))
     return written

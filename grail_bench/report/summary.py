@@ -26,6 +26,7 @@ import numpy as np
 
 from grail_bench.harness.ceiling import normalised
 from grail_bench.report.boards import Board
+from grail_bench.report.escape import md
 from grail_bench.stats.robust import (
     Interval,
     optimality_gap,
@@ -236,14 +237,14 @@ def profiles_markdown(summaries: Sequence[DomainSummary]) -> str:
     for s in shown:
         taus = [0.25, 0.5, 0.75, 0.9]
         index = [int(np.argmin(np.abs(TAUS - t))) for t in taus]
-        lines += [f"## {s.title} ({s.profile_strata} strata)", "",
+        lines += [f"## {md(s.title)} ({s.profile_strata} strata)", "",
                   "| method | optimality gap | " + " | ".join(f"share > {t:.2f}" for t in taus) + " |",
                   "|---|---|" + "---|" * len(taus)]
         for n in s.names:
             gap = s.gaps[n]
             point, low, high = s.profiles[n]
             cells = [f"{point[i]:.2f} [{low[i]:.2f}, {high[i]:.2f}]" for i in index]
-            lines.append(f"| {n} | {gap.point:.2f} [{gap.low:.2f}, {gap.high:.2f}] | " + " | ".join(cells) + " |")
+            lines.append(f"| {md(n)} | {gap.point:.2f} [{gap.low:.2f}, {gap.high:.2f}] | " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
 

@@ -10,7 +10,6 @@ table says what bracketed or marked values are.
 
 from __future__ import annotations
 
-import html
 import textwrap
 from typing import Any, Sequence
 
@@ -18,16 +17,12 @@ from rich.table import Table
 from rich.text import Text
 
 from grail_bench.harness.modes import Mode
+from grail_bench.report.escape import md
 from grail_bench.report.layout import Fitted, grid_table, stacked
 from grail_bench.report.rows import AblationRow, BudgetCurve, CalibrationRow, timing_rows
 from grail_bench.task.observation import level_text
 
 TASK_PREFIX = "GRAIL/"
-
-
-def md(text: str) -> str:
-    """Text safe in a Markdown table cell: HTML escaped (``<`` -> ``&lt;``), ``|`` escaped."""
-    return html.escape(str(text), quote=False).replace("|", "\\|")
 
 
 def timing_table(records: Sequence[Any]) -> Fitted:
@@ -80,7 +75,7 @@ def ablation_markdown(rows: Sequence[AblationRow]) -> str:
              "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for r in rows:
         brier, nll, ece = _calibration(r)
-        lines.append(f"| {r.task} | {md(r.recognizer)} | {md(r.scorer)} | " + " | ".join(_ablation_cells(r, levels))
+        lines.append(f"| {md(r.task)} | {md(r.recognizer)} | {md(r.scorer)} | " + " | ".join(_ablation_cells(r, levels))
                      + f" | {r.score_us:.0f} | {brier} | {nll} | {ece} |")
     return "\n".join(lines) + "\n"
 
@@ -105,8 +100,9 @@ def mode_table(records: Sequence[Any], mode: Mode) -> Fitted:
 def mode_markdown(records: Sequence[Any], mode: Mode) -> str:
     """A mode's records as a Markdown document (title, what the table shows, the table)."""
     header, rows = mode_grid(records, mode)
-    lines = [f"# {mode.title}", "", mode.intro, "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    lines = [f"# {mode.title}", "", mode.intro, "", "| " + " | ".join(map(md, header)) + " |",
+             "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(map(md, row)) + " |" for row in rows]
     return "\n".join(lines) + "\n"
 
 
@@ -210,17 +206,17 @@ def budgets_markdown(curves: Sequence[BudgetCurve], title: str) -> str:
              "whole fit's seconds (s/goal x goals) against the goal count: 1 is linear (one model per goal), 0 flat.",
              ""]
     for c in curves:
-        lines += [f"## {c.recognizer}: {c.param} on {c.task.removeprefix(TASK_PREFIX)} "
-                  f"({c.protocol}, {level_text(c.observability)} observed)", ""]
+        lines += [f"## {md(c.recognizer)}: {md(c.param)} on {md(c.task.removeprefix(TASK_PREFIX))} "
+                  f"({md(c.protocol)}, {level_text(c.observability)} observed)", ""]
         if c.scaling:
             lines += [f"Fit cost exponent: b = {_num(c.exponent)}.", ""]
         else:
             lines += [f"Plateau: {c.param} = {c.plateau}." if c.plateau is not None
                       else "Plateau: not determined (only one value has rows).", ""]
-        lines += [f"| {c.param} | seeds | F1 | 95 % interval | fit s/goal |", "|---|---|---|---|---|"]
+        lines += [f"| {md(c.param)} | seeds | F1 | 95 % interval | fit s/goal |", "|---|---|---|---|---|"]
         for p in c.points:
             mark = " (plateau)" if p.value == c.plateau else ""
-            lines.append(f"| {p.value}{mark} | {p.n_seeds} | {p.f1_mean:.2f} | [{p.f1_ci95_low:.2f}, "
+            lines.append(f"| {md(p.value)}{mark} | {p.n_seeds} | {p.f1_mean:.2f} | [{p.f1_ci95_low:.2f}, "
                          f"{p.f1_ci95_high:.2f}] | {p.fit_seconds_per_goal:.2f} |")
         lines.append("")
     return "\n".join(lines)
@@ -235,7 +231,7 @@ def calibration_markdown(rows: Sequence[CalibrationRow]) -> str:
              "bins; `reliability.png` draws the bins.", "",
              "| domain | recognizer/scorer | records | Brier | NLL | ECE |", "|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r.domain} | {md(r.column)} | {r.records} | {_num(r.brier)} | {_num(r.nll)} | {_num(r.ece)} |")
+        lines.append(f"| {md(r.domain)} | {md(r.column)} | {r.records} | {_num(r.brier)} | {_num(r.nll)} | {_num(r.ece)} |")
     return "\n".join(lines) + "\n"
 
 
@@ -262,6 +258,6 @@ def runs_markdown(records: Sequence[Any], fits: dict | None = None, intervals: b
               "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for t in timing_rows(records, fits):
         ranking = " | ".join(_num(v) for v in (t.top2, t.mean_rank, t.set_precision, t.set_recall, t.set_spread))
-        lines.append(f"| {t.task} | {md(t.column)} | {t.seeds} | {t.fit_seconds_per_goal:.2f} | "
+        lines.append(f"| {md(t.task)} | {md(t.column)} | {t.seeds} | {t.fit_seconds_per_goal:.2f} | "
                      f"{t.score_us_per_observation:.0f} | {t.tie_rate:.1%} | {ranking} | {t.reached or '–'} |")
     return lines

@@ -2,8 +2,8 @@
 
 Every table is built once as a header and rows of text (a *grid*), then drawn
 by rich or written as Markdown; nothing here computes a statistic or a ceiling.
-Names in Markdown are escaped (``<`` reads ``&lt;``), so no configuration's name
-becomes markup.
+Names in Markdown are escaped by :func:`grail_bench.report.escape.md`, so no
+configuration's name becomes markup.
 """
 
 from __future__ import annotations
@@ -26,7 +26,8 @@ from grail_bench.report.boards import (
 from grail_bench.report.layout import Fitted, grid_table, stacked
 from grail_bench.report.reference import MARKS
 from grail_bench.report.summary import DomainSummary
-from grail_bench.report.tables import md, runs_markdown
+from grail_bench.report.escape import md
+from grail_bench.report.tables import runs_markdown
 from grail_bench.task.observation import level_text
 
 Grid = tuple[list[str], list[list[tuple[str, bool]]]]  # header; per row, (text, bold) cells

@@ -5,7 +5,8 @@ every process of a parallel sweep that runs a unit of the task needed them
 again. A domain that sets ``cache_demos = True`` has each goal's
 demonstrations generated once per regime, parameters, seed and count, and read
 back from grail-bench's cache (:mod:`grail_bench.core.cache`: ``.npz`` with a
-checksummed sidecar, never unpickled; a second process waits for the first).
+checksummed sidecar, never unpickled; a second process waits for the first; an
+entry whose arrays do not fit together is regenerated, see :func:`check`).
 The key also holds a digest of the domain's source and of the rollout and
 expert code, so editing a demonstrator regenerates its demonstrations.
 Trajectories come back identical: the same arrays, and infos holding
@@ -69,8 +70,33 @@ def goal_demos(task: TaskView, domain: Domain, goal: Goal, n: int, seed: int,
            "env": dict(task.env_params), "goal": list(goal), "seed": seed, "n": n,
            "source": source_digest(type(domain).__module__),
            "versions": package_versions(_PACKAGES + tuple(getattr(domain, "packages", ())))}
-    entry = cached(KIND, key, lambda: pack(generate(), domain.name), arrays=True)
+    entry = cached(KIND, key, lambda: pack(generate(), domain.name), arrays=True, check=lambda a: check(a, n))
     return unpack(entry.state)
+
+
+def check(arrays: dict[str, np.ndarray], n: int | None = None) -> None:
+    """Refuse arrays :func:`pack` did not write (of ``n`` demonstrations, if given).
+
+    Raises:
+        ValueError: Naming what is wrong (the cache then regenerates the entry).
+    """
+    if set(arrays) != {"obs", "acts", "lengths", "success"}:
+        raise ValueError(f"it holds {sorted(arrays)}, not obs, acts, lengths and success")
+    lengths, acts, obs, success = arrays["lengths"], arrays["acts"], arrays["obs"], arrays["success"]
+    if lengths.ndim != 1 or lengths.dtype.kind not in "iu" or (n is not None and len(lengths) != n):
+        raise ValueError(f"its lengths have shape {lengths.shape} and type {lengths.dtype}, not {n} counts")
+    if (lengths < 0).any():
+        raise ValueError("it holds a negative length")
+    steps = int(lengths.sum())
+    if obs.ndim < 1 or len(obs) != steps + len(lengths) or len(acts) != steps or success.shape != (steps,):
+        raise ValueError(f"its arrays ({len(obs)} observations, {len(acts)} actions, {len(success)} flags) do "
+                         f"not match its lengths ({steps} steps in {len(lengths)} demonstrations)")
+    for name in ("obs", "acts"):
+        if arrays[name].dtype.kind not in "iufb" or (arrays[name].dtype.kind == "f"
+                                                     and not np.isfinite(arrays[name]).all()):
+            raise ValueError(f"its {name} are not finite numbers")
+    if success.dtype.kind != "b":
+        raise ValueError("its success flags are not booleans")
 
 
 def pack(demos: Sequence[Trajectory], domain: str = "the domain") -> dict[str, np.ndarray]:

@@ -142,7 +142,14 @@ def prefix_scores(recognizer: Capabilities, observed: Trajectory, scorer: str | 
                          for k in range(1, n + 1)])
     if not isinstance(scores, Mapping) or {tuple(g) for g in scores} != set(goals):
         raise RecognizerError(f"recognizer {name!r} must return prefix scores for every candidate goal {list(goals)}")
-    out = np.stack([np.asarray(scores[g], dtype=float) for g in goals], axis=1)
+    given = [np.asarray(scores[g]) for g in goals]
+    if not all(a.dtype.kind in "iuf" for a in given):  # no text, no flags
+        raise RecognizerError(f"recognizer {name!r} must return numbers as prefix scores, got "
+                              f"{', '.join(sorted({str(a.dtype) for a in given}))}")
+    if any(a.shape != (n,) for a in given):
+        raise RecognizerError(f"recognizer {name!r} returned prefix scores of shapes "
+                              f"{sorted({a.shape for a in given})}; expected {n} per goal")
+    out = np.stack([a.astype(float) for a in given], axis=1)
     if out.shape != (n, len(goals)) or not np.all(np.isfinite(out)):
         raise RecognizerError(f"recognizer {name!r} returned prefix scores of shape {out.shape} or non-finite "
                               f"values; expected {(n, len(goals))} finite scores")

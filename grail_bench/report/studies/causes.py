@@ -26,6 +26,7 @@ from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES
 from grail_bench.harness.planning import RecognizerSpec, plan
 from grail_bench.harness.store import ResultsStore
+from grail_bench.report.escape import md
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.task import make_task
 from grail_bench.task.observation import level_text
@@ -103,5 +104,5 @@ def _cell(label: str, f1: dict[int, float], paper: str, ceiling: Ceiling, fits: 
              f"{fmt(mean(others)) if others else '–'} ({len(others)})")
     pairs = [margins(fits[s]) for s in f1 if s in fits]
     probabilities = f"{mean(p[0] for p in pairs):.2f} / {mean(p[1] for p in pairs):.2f}" if pairs else "–"
-    return (f"| {label} | {mean(f1.values()):.2f} | {paper} | {ceiling.accuracy:.2f} | "
+    return (f"| {md(label)} | {mean(f1.values()):.2f} | {paper} | {ceiling.accuracy:.2f} | "
             f"{fmt(sum(goals) / len(goals)) if goals else '–'} | {split} | {probabilities} |")

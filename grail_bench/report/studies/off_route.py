@@ -32,6 +32,7 @@ from grail_bench.domains.minigrid.demos import optimal_successors, shortest_path
 from grail_bench.domains.minigrid.grid import FORWARD, STAY
 from grail_bench.harness.api import evaluate
 from grail_bench.recognizers.registry import register_recognizer, unregister_recognizer
+from grail_bench.report.escape import md
 from grail_bench.task import make_task
 from grail_bench.task.observation import level_text
 
@@ -134,7 +135,7 @@ def run(tasks: Sequence[str], params: Mapping[str, Any] | None = None, seeds: in
             for name, config in VARIANTS.items():
                 records = evaluate(task, [(NAME, config)], seeds=seeds, task_params=dict(params or {}))
                 levels = " / ".join(f"{level_text(r.observability)}: {r.f1.mean:.2f}" for r in records)
-                lines.append(f"| {task.removeprefix('GRAIL/')} | {name} | {levels} |")
+                lines.append(f"| {md(task.removeprefix('GRAIL/'))} | {md(name)} | {levels} |")
     finally:
         unregister_recognizer(NAME)
     return "\n".join(lines) + "\n"
