@@ -117,7 +117,8 @@ def test_ceilings_are_cached_in_the_store_and_computed_again_when_the_task_chang
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     cell = Cell("GRAIL/MiniGrid-Biased-v0", TaskOverrides.of({}), "prefix", 0.2)
     store = CeilingCache(tmp_path / "mine.sqlite")
-    ResultsStore(tmp_path / "mine.sqlite").close()
+    with ResultsStore(tmp_path / "mine.sqlite") as results:
+        results.create()
     first = ceilings_for([cell], samples=50, store=store)
     assert len(store.get(store_digests := [*_digests(store)])) == 1 == len(store_digests)
 
