@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import dataclasses
 import sqlite3
 from dataclasses import asdict
 
@@ -142,8 +143,11 @@ def test_a_schema_1_store_is_migrated_without_losing_rows(tmp_path):
         # Legacy random rows stay apart from the new subset cells, so a resumed run redraws them.
         assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "subset") == set()
         assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix") == {(0, 0.3), (1, 0.3)}
-    with ResultsStore(path) as store:  # reopening a migrated store changes nothing
-        assert len(store.rows()) == 3
+    assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == 1  # reading migrates nothing
+    with ResultsStore(path) as store:  # the first rows written migrate it
+        store.add([dataclasses.replace(rows[0], seed=2)])
+    with ResultsStore(path) as store:
+        assert len(store.rows()) == 4
     assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
 
 

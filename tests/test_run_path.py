@@ -263,7 +263,7 @@ def test_evaluate_refuses_bad_inputs_before_any_training(monkeypatch, task_id, r
     ((TASK, ["bc"]), {}, "a recognizer is named by a string"),
     ((TASK, "bc", -1), {}, "seeds must be integers in 0.."),
     ((TASK, "bc", 0), {"config": "n_epochs=1"}, "a recognizer's config is a mapping"),
-    ((TASK, "bc", 0), {"config": {"n_epochs": 0}}, "recognizer 'bc': n_epochs and batch_size must be positive"),
+    ((TASK, "bc", 0), {"config": {"n_epochs": 0}}, "recognizer 'bc': n_epochs=0 is out of range"),
     ((TASK, "bc", 0), {"task_params": "x"}, "task parameters must be a mapping"),
     ((7, "bc", 0), {}, "a task is named by its GRAIL/ ID"),
 ])
