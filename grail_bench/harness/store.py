@@ -26,6 +26,15 @@ may have tied), is stale: :meth:`ResultsStore.completed` leaves it out, so the
 next ``run`` or ``reproduce`` recomputes it, and :meth:`ResultsStore.add`
 replaces it with the new row of the same key.
 
+Shared tables (schema 10). What many rows share is stored once, keyed by the
+SHA-256 of its JSON text (:func:`ref`): a row's recognizer configuration in
+``configs``, its package versions in ``versions`` and its provenance in
+``provenance`` (:data:`SHARED`); the row holds the metrics and the references
+(``config_ref``, ``versions_ref``, ``provenance_ref``). Rows read and written
+through this module carry the JSON as before. A store of an older schema is
+normalised by :func:`migrate` when a command opens it to write; a command that
+only reads reads it as it is.
+
 Commands that only read (the leaderboard, studies) open a store with
 ``read_only=True``: the file must already be a grail-bench store, and nothing
 is created or changed beside it, so a store in a read-only folder, or one
@@ -38,6 +47,7 @@ Default location: ``$GRAIL_BENCH_STORE``, else
 
 from __future__ import annotations
 
+import hashlib
 import os
 import sqlite3
 from dataclasses import asdict, fields
@@ -50,9 +60,11 @@ from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
 
-SCHEMA_VERSION = 9
-__all__ = ["SCHEMA_VERSION", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
-           "ZeroShotRow", "check_store_writable", "default_store_path", "stale"]
+SCHEMA_VERSION = 10
+#: The first schema whose row tables reference the shared tables (:data:`SHARED`) instead of repeating the JSON.
+NORMALISED = 10
+__all__ = ["NORMALISED", "SCHEMA_VERSION", "SHARED", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
+           "ZeroShotRow", "check_store_writable", "default_store_path", "migrate", "ref", "stale"]
 _HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite database file
 _SIDECARS = ("-wal", "-journal")  # present while a connection has the store open (or after a crash)
 
@@ -66,6 +78,8 @@ _TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash":
           "config": "TEXT", "versions": "TEXT", "provenance": "TEXT", "n_trajectories": "INTEGER",
           "curve": "TEXT", "held_out": "TEXT", "confusion": "TEXT", "mode": "TEXT", "diagnostics": "TEXT",
           "ties": "TEXT"}
+#: Row field -> the shared table holding its JSON once; the row's column is ``{field}_ref``, the table's key its hash.
+SHARED = {"config": "configs", "versions": "versions", "provenance": "provenance"}
 #: SQL condition of a stale row (see the module docstring): stored under the old tie rule, and it may have tied.
 _STALE = "{t}.ties IS NULL AND ({t}.n_ties IS NULL OR {t}.n_ties > 0)"
 
@@ -76,6 +90,16 @@ def stale(row: Row) -> bool:
     return row.ties is None and (row.n_ties is None or row.n_ties > 0)
 
 
+def ref(text: str | None) -> str | None:
+    """The key of a shared JSON text (see the module docstring): the hex SHA-256 of its UTF-8 bytes."""
+    return None if text is None else hashlib.sha256(text.encode()).hexdigest()
+
+
+def _column(name: str) -> str:
+    """The column of a row field in a normalised table."""
+    return f"{name}_ref" if name in SHARED else name
+
+
 def _tables() -> dict[type, tuple[str, tuple[str, ...]]]:
     """Row type -> (table, primary key): every mode's, and the fit diagnostics'."""
     out = {mode.row: (mode.table, mode.key) for mode in MODES.values()}
@@ -84,8 +108,9 @@ def _tables() -> dict[type, tuple[str, tuple[str, ...]]]:
 
 
 def _create(kind: type, table: str, key: tuple[str, ...]) -> str:
+    """The statement creating a (normalised) row table of ``kind``."""
     return (f"CREATE TABLE IF NOT EXISTS {table} ("
-            + ", ".join(f"{f.name} {_TYPES.get(f.name, 'REAL')}" + (" NOT NULL" if f.name in key else "")
+            + ", ".join(f"{_column(f.name)} {_TYPES.get(f.name, 'REAL')}" + (" NOT NULL" if f.name in key else "")
                         for f in fields(kind))
             + ", created_at TEXT NOT NULL DEFAULT (datetime('now'))"
             + f", PRIMARY KEY ({', '.join(key)}))")
@@ -120,6 +145,7 @@ class ResultsStore:
             if self.path == ":memory:":
                 self._conn = sqlite3.connect(self.path)
                 self._upgrade(set(), 0)
+                self._layout()
             elif read_only:
                 self._conn = _connect_read_only(Path(self.path).expanduser())
                 self._checked(read_only=True, fresh=False)
@@ -154,14 +180,18 @@ class ResultsStore:
             raise StoreError(f"{self.path} is {what}not a grail-bench results store")
         if version > SCHEMA_VERSION:
             raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
-        current = version >= SCHEMA_VERSION and not {table for table, _ in _tables().values()} - tables
+        missing = {table for table, _ in _tables().values()} - tables
+        current = version >= SCHEMA_VERSION and not missing
         if read_only:
-            if not current:  # an older schema: read a copy upgraded in memory, the file stays as it was
+            # Schema 10 changed only the layout, which reading follows as it finds it: an older schema is read
+            # from a copy upgraded in memory (not normalised), and the file stays as it was.
+            if version < NORMALISED - 1 or missing:
                 memory = sqlite3.connect(":memory:")
                 self._conn.backup(memory)
                 self._conn.close()
                 self._conn = memory
-                self._upgrade(tables, version)
+                self._upgrade(tables, version, normalise=False)
+            self._layout()
             return
         self._conn.execute("PRAGMA journal_mode=WAL")
         if current:  # nothing to write: reading leaves the file as it was, but a run must learn now if it can write
@@ -169,17 +199,18 @@ class ResultsStore:
             self._conn.execute("ROLLBACK")
         else:
             self._upgrade(tables, version)
+        self._layout()
 
-    def _upgrade(self, tables: set[str], version: int) -> None:
-        """Migrate an older schema and create the missing tables, in one transaction."""
-        with self._conn:
-            if tables and version < 2:
-                _migrate_v1(self._conn)
-            if tables and version < SCHEMA_VERSION:
-                _add_missing_columns(self._conn)
-            for kind, (table, key) in _tables().items():
-                self._conn.execute(_create(kind, table, key))
-            self._conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+    def _upgrade(self, tables: set[str], version: int, normalise: bool = True) -> None:
+        """Bring the schema up to date (:func:`migrate`)."""
+        migrate(self._conn, tables, version, normalise=normalise)
+
+    def _layout(self) -> None:
+        """Learn which shared fields each row table references (normalised) rather than holds."""
+        self._refs: dict[str, set[str]] = {}
+        for table, _ in _tables().values():
+            columns = {r[1] for r in self._conn.execute(f"PRAGMA table_info({table})")}
+            self._refs[table] = {name for name in SHARED if _column(name) in columns}
 
     def close(self) -> None:
         self._conn.close()
@@ -200,10 +231,20 @@ class ResultsStore:
         if self.read_only:
             raise StoreError(f"results store {self.path} was opened read-only")
         by_kind: dict[type, list[tuple]] = {}
+        shared: dict[str, dict[str, str]] = {table: {} for table in SHARED.values()}
         for r in rows:
-            by_kind.setdefault(type(r), []).append(tuple(asdict(r).values()))
+            values = asdict(r)
+            for name, table in SHARED.items():
+                if values.get(name) is not None:
+                    key = ref(values[name])
+                    shared[table][key] = values[name]
+                    values[name] = key
+            by_kind.setdefault(type(r), []).append(tuple(values.values()))
         try:
             with self._conn:
+                for table, texts in shared.items():
+                    self._conn.executemany(f"INSERT OR IGNORE INTO {table} (hash, json) VALUES (?, ?)",
+                                           sorted(texts.items()))
                 before = self._conn.total_changes
                 tables = _tables()
                 for kind, values in by_kind.items():
@@ -222,17 +263,20 @@ class ResultsStore:
         kind = kind.row if isinstance(kind, Mode) else kind
         table = _tables()[kind][0]
         columns = [f.name for f in fields(kind)]
+        refs = self._refs[table]
+        expression = {c: f"{SHARED[c]}.json" if c in refs else f"t.{c}" for c in columns}
+        joins = "".join(f" LEFT JOIN {SHARED[c]} ON {SHARED[c]}.hash = t.{_column(c)}" for c in columns if c in refs)
         clauses, params = [], []
         for column, value in where.items():
             if column not in columns:
                 raise ValueError(f"unknown column {column!r}")
             values = list(value) if isinstance(value, (list, tuple, set)) else [value]
-            clauses.append(f"{column} IN ({', '.join('?' * len(values))})")
+            clauses.append(f"{expression[column]} IN ({', '.join('?' * len(values))})")
             params += values
-        sql = f"SELECT {', '.join(columns)} FROM {table}"
+        sql = f"SELECT {', '.join(expression[c] for c in columns)} FROM {table} AS t{joins}"
         if clauses:
             sql += " WHERE " + " AND ".join(clauses)
-        order = [c for c in ("task", "recognizer", "scorer", "observability", "mode", "seed") if c in columns]
+        order = [f"t.{c}" for c in ("task", "recognizer", "scorer", "observability", "mode", "seed") if c in columns]
         sql += " ORDER BY " + ", ".join(order)
         try:
             return [kind(*r) for r in self._conn.execute(sql, params)]
@@ -252,7 +296,7 @@ class ResultsStore:
 
 def _insert(kind: type, table: str, key: tuple[str, ...]) -> str:
     """The statement storing one row of ``kind``: ignored if its key is stored, unless the stored row is stale."""
-    names = [f.name for f in fields(kind)]
+    names = [_column(f.name) for f in fields(kind)]
     head = f"INTO {table} ({', '.join(names)}) VALUES ({', '.join('?' * len(names))})"
     if "ties" not in names:
         return f"INSERT OR IGNORE {head}"
@@ -327,6 +371,72 @@ def _connect_read_only(file: Path) -> sqlite3.Connection:
                            timeout=60.0)
 
 
+def migrate(conn: sqlite3.Connection, tables: set[str], version: int, normalise: bool = True) -> bool:
+    """Bring an opened store's schema up to date: migrate an older one and create the missing tables.
+
+    The one place a store's file is changed for its schema: call it only for a
+    command that will write (a reading one reads the store as it is, or a copy
+    upgraded in memory with ``normalise=False``). The migration is one
+    transaction; a store normalised by it (schema 9 or older -> 10, see the
+    module docstring) is then vacuumed, returning the space the repeated JSON
+    took.
+
+    Args:
+        conn: The store's connection (no transaction open).
+        tables: The tables the store had when opened (empty: a new store).
+        version: Its ``PRAGMA user_version`` when opened.
+        normalise: Move the rows' shared JSON into the shared tables (schema 10).
+
+    Returns:
+        Whether rows were normalised.
+    """
+    normalised = False
+    with conn:
+        if tables and version < 2:
+            _migrate_v1(conn)
+        if tables and version < SCHEMA_VERSION:
+            _add_missing_columns(conn)
+        for table in SHARED.values():
+            conn.execute(f"CREATE TABLE IF NOT EXISTS {table} (hash TEXT PRIMARY KEY, json TEXT NOT NULL) "
+                         "WITHOUT ROWID")
+        if normalise and tables and version < NORMALISED:
+            normalised = _normalise(conn)
+        for kind, (table, key) in _tables().items():
+            conn.execute(_create(kind, table, key))
+        conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+    if normalised and conn.execute("PRAGMA database_list").fetchone()[2]:  # a file, not memory
+        conn.execute("VACUUM")
+    return normalised
+
+
+def _normalise(conn: sqlite3.Connection) -> bool:
+    """Schema 9 -> 10: each row table's ``config``, ``versions`` and ``provenance`` JSON moves into the shared
+    tables once, the row keeping its reference (:func:`ref`); every other column and every row is kept as it is.
+
+    Returns:
+        Whether any table was rewritten.
+    """
+    conn.create_function("grail_ref", 1, ref, deterministic=True)
+    changed = False
+    for kind, (table, key) in _tables().items():
+        columns = [r[1] for r in conn.execute(f"PRAGMA table_info({table})")]
+        inline = [c for c in columns if c in SHARED]
+        if not inline:
+            continue
+        for name in inline:
+            conn.execute(f"INSERT OR IGNORE INTO {SHARED[name]} (hash, json) SELECT grail_ref(v), v FROM "
+                         f"(SELECT DISTINCT {name} AS v FROM {table} WHERE {name} IS NOT NULL)")
+        conn.execute(f"ALTER TABLE {table} RENAME TO {table}__inline")
+        conn.execute(_create(kind, table, key))
+        target = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
+        kept = [c for c in columns if _column(c) in target]
+        conn.execute(f"INSERT INTO {table} ({', '.join(_column(c) for c in kept)}) SELECT "
+                     f"{', '.join(f'grail_ref({c})' if c in SHARED else c for c in kept)} FROM {table}__inline")
+        conn.execute(f"DROP TABLE {table}__inline")
+        changed = True
+    return changed
+
+
 def _migrate_v1(conn: sqlite3.Connection) -> None:
     """Schema 1 -> 2: the ``sampling`` column becomes ``protocol``; every row is kept.
 
@@ -350,6 +460,8 @@ def _add_missing_columns(conn: sqlite3.Connection) -> None:
         columns = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
         if not columns:  # not there yet: created whole
             continue
+        normalised = any(_column(name) in columns for name in SHARED)
         for f in fields(kind):
-            if f.name not in columns:
-                conn.execute(f"ALTER TABLE {table} ADD COLUMN {f.name} {_TYPES.get(f.name, 'REAL')}")
+            column = _column(f.name) if normalised else f.name
+            if column not in columns:
+                conn.execute(f"ALTER TABLE {table} ADD COLUMN {column} {_TYPES.get(f.name, 'REAL')}")
