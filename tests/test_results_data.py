@@ -1,0 +1,132 @@
+"""Results as data: the published format (export, import, schema), its determinism and round trip."""
+
+from __future__ import annotations
+
+import dataclasses
+import gzip
+import json
+from pathlib import Path
+
+import pytest
+from test_site import fit_rows, online_rows, open_set_rows, rows
+from typer.testing import CliRunner
+
+from grail_bench.cli import app
+from grail_bench.harness import published
+from grail_bench.harness.store import ResultsStore, _tables
+from grail_bench.report import leaderboard
+from grail_bench.report.html import write_site
+from grail_bench.report.text import markdown
+
+runner = CliRunner()
+
+
+def all_rows(path: Path) -> dict[str, list]:
+    with ResultsStore(path, read_only=True) as store:
+        return {kind.__name__: store.select(kind) for kind in _tables()}
+
+
+@pytest.fixture()
+def store(tmp_path: Path) -> Path:
+    """A store of offline rows on two domains (provenance on some), online and open-set rows and fit diagnostics."""
+    path = tmp_path / "original.sqlite"
+    with ResultsStore(path) as s:
+        s.add([*rows(3), *online_rows(), *open_set_rows()])
+        s.add(fit_rows())
+    return path
+
+
+def files_of(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def lines_of(folder: Path) -> set[str]:
+    """Every line of every published file (decompressed), prefixed by its file's name without ``.gz``."""
+    out = set()
+    for p in folder.rglob("*.jsonl*"):
+        text = (gzip.decompress(p.read_bytes()) if p.suffix == ".gz" else p.read_bytes()).decode()
+        out |= {f"{p.relative_to(folder).as_posix().removesuffix('.gz')}:{line}" for line in text.splitlines()}
+    return out
+
+
+def test_the_shipped_schema_is_the_one_the_row_types_make():
+    assert published.schema() == published.build_schema()  # regenerate results.schema.json if a row type changed
+
+
+def test_export_import_round_trip_is_equal_row_for_row_and_exports_byte_identical(store, tmp_path, monkeypatch):
+    monkeypatch.setattr(published, "GZIP_ABOVE", 8192)  # some files compressed, some not
+    out = tmp_path / "pub"
+    with ResultsStore(store, read_only=True) as s:
+        written = published.export(s, out)
+    names = {p.relative_to(out).as_posix() for p in written}
+    assert {n.removesuffix(".gz") for n in names} == {
+        "format.json", "configs.jsonl", "versions.jsonl", "provenance.jsonl", "minigrid/offline.jsonl",
+        "panda_reach/offline.jsonl", "minigrid/online.jsonl", "minigrid/open_set.jsonl", "minigrid/fits.jsonl"}
+    assert any(n.endswith(".gz") for n in names) and any(n.endswith(".jsonl") for n in names)
+    rebuilt = tmp_path / "rebuilt.sqlite"
+    with ResultsStore(rebuilt) as s:
+        assert published.load(out, s) == sum(len(v) for v in all_rows(store).values())
+    assert all_rows(rebuilt) == all_rows(store)
+    again = tmp_path / "again"
+    with ResultsStore(rebuilt, read_only=True) as s:
+        published.export(s, again)
+    assert files_of(again) == files_of(out)  # gzip included: no name, no time in its header
+
+
+def test_boards_markdown_and_page_of_the_rebuilt_store_are_those_of_the_original(store, tmp_path):
+    out = tmp_path / "pub"
+    with ResultsStore(store, read_only=True) as s:
+        published.export(s, out)
+    rebuilt = tmp_path / "rebuilt.sqlite"
+    with ResultsStore(rebuilt) as s:
+        published.load(out, s)
+    made = []
+    for path, site in ((store, tmp_path / "site_a"), (rebuilt, tmp_path / "site_b")):
+        got = all_rows(path)
+        board = leaderboard.build(got["ResultRow"], None, None, fits=got["FitRow"],
+                                  studies={"online": got["OnlineRow"], "open-set": got["OpenSetRow"]})
+        text = markdown(board.boards, board.records, fits=board.fits, variants=board.variants, archive=board.archive)
+        write_site(board, site)
+        made.append((text, files_of(site)))
+    assert made[0][0] == made[1][0] and "MiniGrid" in made[0][0]
+    assert made[0][1] == made[1][1] and "index.html" in made[0][1]
+
+
+def test_a_republish_with_one_more_task_adds_only_its_lines(store, tmp_path):
+    out = tmp_path / "pub"
+    with ResultsStore(store) as s:
+        published.export(s, out)
+        before = lines_of(out)
+        extra = [dataclasses.replace(r, task="GRAIL/MiniGrid-Suboptimal-v0") for r in s.rows()
+                 if r.task == "GRAIL/MiniGrid-Optimal-v0"]
+        s.add(extra)
+        published.export(s, out)
+    added = lines_of(out) - before
+    assert before <= lines_of(out)
+    assert len(added) == len(extra) and all('"GRAIL/MiniGrid-Suboptimal-v0"' in line for line in added)
+
+
+def test_import_refuses_a_row_that_breaks_the_schema_naming_file_and_line(store, tmp_path):
+    out = tmp_path / "pub"
+    with ResultsStore(store, read_only=True) as s:
+        published.export(s, out)
+    file = out / "minigrid" / "online.jsonl"
+    lines = file.read_text().splitlines()
+    bad = json.loads(lines[1])
+    bad["seed"] = "one"
+    file.write_text("\n".join([lines[0], json.dumps(bad), *lines[2:]]) + "\n")
+    target = tmp_path / "t.sqlite"
+    result = runner.invoke(app, ["results", "import", str(out), "--store", str(target)])
+    assert result.exit_code == 2 and "online.jsonl:2: seed: 'one' is not of type 'integer'" in result.stderr
+    assert not target.exists()
+
+
+def test_cli_schema_export_and_import(store, tmp_path):
+    result = runner.invoke(app, ["results", "schema"])
+    assert result.exit_code == 0 and set(json.loads(result.stdout)["$defs"]) >= set(published.KINDS)
+    out = tmp_path / "pub"
+    assert runner.invoke(app, ["results", "export", "--store", str(store), "--out", str(out)]).exit_code == 0
+    target = tmp_path / "t.sqlite"
+    result = runner.invoke(app, ["results", "import", str(out), "--store", str(target)])
+    assert result.exit_code == 0, result.output
+    assert all_rows(target) == all_rows(store)
