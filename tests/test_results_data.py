@@ -130,3 +130,122 @@ def test_cli_schema_export_and_import(store, tmp_path):
     result = runner.invoke(app, ["results", "import", str(out), "--store", str(target)])
     assert result.exit_code == 0, result.output
     assert all_rows(target) == all_rows(store)
+
+
+# --- per-instance outputs ---------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory) -> Path:
+    """A tiny offline run (bc, one epoch, two seeds, two levels, two scorers, one a posterior) in its own store."""
+    from grail_bench.harness.planning import RecognizerSpec
+    from grail_bench.harness.api import request
+    from grail_bench.harness.sweep import run_sweep
+
+    path = tmp_path_factory.mktemp("run") / "run.sqlite"
+    req = request("GRAIL/MiniGrid-Optimal-v0", [RecognizerSpec("bc", {"n_epochs": 1}, ("mse", "loglik"))],
+                  seeds=[0, 1], observability=[0.3, 1.0])
+    with ResultsStore(path) as s:
+        run_sweep([req], s)
+    return path
+
+
+def test_every_offline_metric_is_recomputed_exactly_from_the_per_instance_outputs(tiny_run):
+    from grail_bench.harness.outputs import OutputRow, disagreements, recompute
+
+    with ResultsStore(tiny_run, read_only=True) as s:
+        rows, kept = s.rows(), {(o.scorer, o.seed, o.observability): o for o in s.select(OutputRow)}
+    assert len(rows) == len(kept) == 8 and {r.scorer for r in rows} == {"mse", "loglik"}
+    for r in rows:
+        outputs = kept[(r.scorer, r.seed, r.observability)]
+        y_true, lengths, scores = outputs.arrays()
+        assert len(y_true) == len(lengths) == scores.shape[0] == r.n_observations and scores.shape[1] == 2
+        assert disagreements(r, outputs) == []
+        assert (r.brier is not None) == (r.scorer == "loglik") == bool(outputs.posterior)
+    wrong = dataclasses.replace(rows[0], f1=rows[0].f1 + 0.01, n_ties=rows[0].n_ties + 1)
+    assert disagreements(wrong, kept[(wrong.scorer, wrong.seed, wrong.observability)]) == ["f1", "n_ties"]
+    assert recompute(outputs)["confusion"] == r.confusion
+
+
+# --- submissions --------------------------------------------------------------------------------------------------
+
+SOURCE = {"lab": "Example Lab", "recognizer": "bc", "version": "1.0", "url": "https://example.org/bc"}
+
+
+@pytest.fixture()
+def submission(tiny_run, tmp_path) -> Path:
+    """The tiny run published as a submission, with its per-instance outputs and source.json."""
+    out = tmp_path / "submission"
+    with ResultsStore(tiny_run, read_only=True) as s:
+        published.export(s, out)
+    (out / "source.json").write_text(json.dumps(SOURCE))
+    return out
+
+
+def edit_lines(file: Path, change) -> None:  # noqa: ANN001
+    lines = [json.loads(line) for line in file.read_text().splitlines()]
+    file.write_text("".join(json.dumps(line) + "\n" for line in change(lines)))
+
+
+def test_validate_accepts_a_complete_submission(submission):
+    result = runner.invoke(app, ["results", "validate", str(submission)])
+    assert result.exit_code == 0, result.output
+    assert "is valid: 2 fits, 8 offline, 8 outputs rows" in result.stdout
+
+
+def test_validate_refuses_a_wrong_metric(submission):
+    edit_lines(submission / "minigrid" / "offline.jsonl",
+               lambda lines: [dict(line, f1=line["f1"] + 0.01) if i == 3 else line for i, line in enumerate(lines)])
+    result = runner.invoke(app, ["results", "validate", str(submission)])
+    assert result.exit_code == 2
+    assert "stated f1 differ from those its outputs give" in result.stderr and "1 problem(s)" in result.stderr
+
+
+def test_validate_refuses_a_missing_seed(submission):
+    edit_lines(submission / "minigrid" / "offline.jsonl", lambda lines: [line for line in lines if line["seed"] != 0])
+    result = runner.invoke(app, ["results", "validate", str(submission)])
+    assert result.exit_code == 2 and "seeds are 0..1 but 0 missing" in result.stderr
+
+
+def test_validate_refuses_an_unknown_task(submission):
+    for name in ("offline", "outputs", "fits"):
+        edit_lines(submission / "minigrid" / f"{name}.jsonl",
+                   lambda lines: [dict(line, task="GRAIL/MiniGrid-Optimal-v9") for line in lines])
+    result = runner.invoke(app, ["results", "validate", str(submission)])
+    assert result.exit_code == 2 and "unknown task GRAIL/MiniGrid-Optimal-v9" in result.stderr
+
+
+def test_merge_labels_the_rows_by_their_source_and_the_leaderboard_shows_them_as_submitted(submission, tmp_path):
+    target = tmp_path / "mine.sqlite"
+    result = runner.invoke(app, ["results", "merge", str(submission), "--store", str(target)])
+    assert result.exit_code == 0 and "18 rows merged" in result.stdout
+    with ResultsStore(target, read_only=True) as s:
+        assert {json.loads(r.source)["lab"] for r in s.rows()} == {"Example Lab"}
+    result = runner.invoke(app, ["leaderboard", "--store", str(target), "--no-ceiling",
+                                 "--markdown", str(tmp_path / "board.md")])
+    assert result.exit_code == 0, result.output
+    assert "BC-GRAIL · n_epochs 1 · submitted by Example Lab" in (tmp_path / "board.md").read_text()
+    again = tmp_path / "again"
+    assert runner.invoke(app, ["results", "export", "--store", str(target), "--out", str(again)]).exit_code == 0
+    assert json.loads((again / "sources.jsonl").read_text())["json"] == json.dumps(SOURCE, sort_keys=True)
+
+
+def test_merge_refuses_an_invalid_submission_and_one_without_a_source(submission, tmp_path):
+    target = tmp_path / "mine.sqlite"
+    (submission / "source.json").unlink()
+    result = runner.invoke(app, ["results", "merge", str(submission), "--store", str(target)])
+    assert result.exit_code == 2 and "has no source.json" in result.stderr
+    edit_lines(submission / "minigrid" / "offline.jsonl", lambda lines: [dict(lines[0], n_ties=5), *lines[1:]])
+    result = runner.invoke(app, ["results", "merge", str(submission), "--store", str(target)])
+    assert result.exit_code == 2 and "not merged" in result.stderr and "n_ties" in result.stderr
+    with ResultsStore(target, read_only=True) as s:
+        assert s.rows() == []
+
+
+def test_verify_runs_units_again_and_reports_agreement(submission):
+    result = runner.invoke(app, ["results", "verify", str(submission), "--sample", "1"])
+    assert result.exit_code == 0, result.output
+    assert "agreement: 1/1 units, 4/4 rows" in result.stdout
+    edit_lines(submission / "minigrid" / "offline.jsonl", lambda lines: [dict(line, f1=0.0) for line in lines])
+    result = runner.invoke(app, ["results", "verify", str(submission), "--sample", "1"])
+    assert "agreement: 0/1 units" in result.stdout

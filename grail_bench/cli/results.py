@@ -8,7 +8,7 @@ from typing import Optional
 
 import typer
 
-from grail_bench.cli.inputs import console, errors, open_store, outputs, say
+from grail_bench.cli.inputs import console, err_console, errors, fail, open_store, outputs, say
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Results as data: the published format (JSON Lines under a JSON Schema), to export, import, "
@@ -54,3 +54,58 @@ def import_(
             added = store.add(published.all_rows())
             where = store.path
     say(f"{added} of {len(published.all_rows())} rows added to {where}")
+
+
+@app.command()
+def validate(
+    path: Path = typer.Argument(..., help="A submission: a published folder (or one row file in one)."),
+) -> None:
+    """Check a submission: the schema, that its tasks exist, that seeds and levels are complete, and that its
+    metrics are those its per-instance outputs give."""
+    from grail_bench.harness.submissions import MAX_LISTED
+    from grail_bench.harness.submissions import validate as validate_submission
+
+    with errors():
+        published, problems = validate_submission(path)
+    if problems:
+        for problem in problems[:MAX_LISTED]:
+            err_console.print(f"problem: {problem}", highlight=False, markup=False, soft_wrap=True)
+        more = f", {len(problems) - MAX_LISTED} not listed" if len(problems) > MAX_LISTED else ""
+        raise fail(f"{path} is not valid: {len(problems)} problem(s){more}")
+    counts = ", ".join(f"{len(rows)} {kind}" for kind, rows in sorted(published.rows.items()))
+    say(f"{path} is valid: {counts} rows; every offline metric recomputed from its outputs")
+
+
+@app.command()
+def merge(
+    path: Path = typer.Argument(..., help="A valid submission folder, with its source.json."),
+    store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE", help=STORE_HELP),
+) -> None:
+    """Bring a validated submission into a store, its rows labelled by their source (shown as submitted)."""
+    from grail_bench.harness.submissions import merge as merge_submission
+
+    with errors():
+        with open_store(store_path) as store:
+            added = merge_submission(path, store)
+            where = store.path
+    say(f"{added} rows merged into {where}")
+
+
+@app.command()
+def verify(
+    path: Path = typer.Argument(..., help="A submission folder (or one row file in one)."),
+    sample: int = typer.Option(3, "--sample", "-n", min=1, max=1000, help="Offline units to run again here."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the draw of units."),
+) -> None:
+    """Run a sample of a submission's units again from its recognizer's entry point (installed here) and report
+    how many rows agree exactly."""
+    from grail_bench.harness.submissions import verify as verify_submission
+
+    with errors():
+        with console.status(f"running {sample} unit(s) again"):
+            results = verify_submission(path, sample, seed)
+    for r in results:
+        say(f"{r.unit}: {r.agreeing}/{r.rows} rows agree (largest F1 gap {r.max_f1_gap:.3g})")
+    agree = sum(r.agreeing == r.rows for r in results)
+    say(f"agreement: {agree}/{len(results)} units, {sum(r.agreeing for r in results)}/"
+        f"{sum(r.rows for r in results)} rows")

@@ -31,22 +31,26 @@ from pathlib import Path
 from typing import Any, Iterable, Iterator
 
 from grail_bench.core.errors import UserError
-from grail_bench.harness import diagnostics
+from grail_bench.harness import diagnostics, outputs
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, OnlineRow, OpenSetRow, ResultRow, ZeroShotRow
+from grail_bench.harness.outputs import OutputRow, pack
 from grail_bench.harness.store import SHARED, ResultsStore, ref
 
 FORMAT = {"format": "grail-bench results", "version": 1}
 #: Row kind (a file's stem) -> its row type.
 KINDS: dict[str, type] = {"offline": ResultRow, "online": OnlineRow, "open_set": OpenSetRow,
-                          "zero_shot": ZeroShotRow, "fits": FitRow}
+                          "zero_shot": ZeroShotRow, "fits": FitRow, "outputs": OutputRow}
+#: Row kind -> the fields that identify a row (its sort key).
+KEYS = {kind: next(m.key for m in MODES.values() if m.row is row_type) for kind, row_type in KINDS.items()
+        if row_type not in (FitRow, OutputRow)} | {"fits": diagnostics.KEY, "outputs": outputs.KEY}
 #: Shared field -> the file holding its JSON texts once.
 SHARED_FILES = {name: f"{table}.jsonl" for name, table in SHARED.items()}
 #: Files larger than this (bytes, uncompressed) are written gzip-compressed.
 GZIP_ABOVE = 1 << 20
 SCHEMA_FILE = "results.schema.json"
 _HASH = {"type": "string", "pattern": "^[0-9a-f]{64}$"}
-_TYPES = {"str": "string", "int": "integer", "float": "number"}
+_TYPES = {"str": "string", "int": "integer", "float": "number", "bool": "boolean"}
 
 
 class PublishedError(UserError):
@@ -89,6 +93,12 @@ def build_schema() -> dict[str, Any]:
     for kind, row_type in KINDS.items():
         properties, required = {}, []
         for f in fields(row_type):
+            if f.name == "data":  # an OutputRow's arrays, as lists
+                properties |= {"y_true": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+                               "lengths": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+                               "scores": {"type": "array", "items": {"type": "array", "items": {"type": "number"}}}}
+                required += ["y_true", "lengths", "scores"]
+                continue
             name = f"{f.name}_ref" if f.name in SHARED else f.name
             base, _, optional = str(f.type).partition(" | ")
             spec = dict(_HASH) if f.name in SHARED else {"type": _TYPES[base]}
@@ -145,6 +155,12 @@ def dumps(value: Any) -> str:
 
 def line_of(row: Any) -> dict[str, Any]:
     """A row as a line of its file: its fields, the shared JSON replaced by its hash."""
+    if isinstance(row, OutputRow):
+        y_true, lengths, scores = row.arrays()
+        out = {k: v for k, v in asdict(row).items() if k != "data"} | {
+            "posterior": bool(row.posterior), "y_true": y_true.tolist(), "lengths": lengths.tolist(),
+            "scores": scores.tolist()}
+        return out
     out = asdict(row)
     for name in SHARED:
         if name in out:
@@ -154,9 +170,7 @@ def line_of(row: Any) -> dict[str, Any]:
 
 def row_key(kind: str, line: dict[str, Any]) -> tuple:
     """A line's sort key: the row's key (as the store's primary key), then everything else."""
-    row_type = KINDS[kind]
-    key = diagnostics.KEY if row_type is FitRow else next(m.key for m in MODES.values() if m.row is row_type)
-    return tuple(line[k] for k in key)
+    return tuple(line[k] for k in KEYS[kind])
 
 
 @cache
@@ -182,7 +196,7 @@ def render(rows_by_kind: dict[str, Iterable[Any]], shared_texts: bool = True) ->
     shared: dict[str, dict[str, str]] = {name: {} for name in SHARED}
     for kind, rows in rows_by_kind.items():
         for row in rows:
-            plain = asdict(row)
+            plain = {} if isinstance(row, OutputRow) else asdict(row)
             for name in SHARED:
                 if plain.get(name) is not None:
                     shared[name][ref(plain[name])] = plain[name]
@@ -343,6 +357,11 @@ def read(path: Path, check: bool = True) -> Published:
 
 def _row(kind: str, line: dict[str, Any], shared: dict[str, dict[str, str]], where: str) -> Any:
     values = dict(line)
+    if kind == "outputs":
+        arrays = [values.pop(name, None) for name in ("y_true", "lengths", "scores")]
+        if any(a is None for a in arrays) or not len(arrays[0]) == len(arrays[1]) == len(arrays[2]):
+            raise PublishedError(f"{where}: y_true, lengths and scores must hold one entry per observation")
+        values["data"] = pack(*arrays)
     for name in SHARED:
         key = f"{name}_ref"
         if key in values:

@@ -9,7 +9,8 @@ observability, observation protocol); ``online`` (every prefix scored), one
 :class:`OnlineRow` per (task, recognizer, scorer, config hash, seed, protocol);
 ``open_set`` (a goal held out), one :class:`OpenSetRow` per (task, recognizer,
 scorer, config hash, seed, observability, protocol); ``zero_shot`` (goals never
-fitted), one :class:`ZeroShotRow` per the same key. Rows are written in one
+fitted), one :class:`ZeroShotRow` per the same key; and ``outputs`` (schema 10), the per-instance outputs of
+offline rows, one :class:`~grail_bench.harness.outputs.OutputRow` per offline row of a run since. Rows are written in one
 transaction per fitted seed, in WAL mode with a busy timeout, so an
 interrupted run keeps what it finished and concurrent writers lose nothing; a
 row already stored is kept (the first write wins), unless it is stale.
@@ -29,8 +30,9 @@ replaces it with the new row of the same key.
 Shared tables (schema 10). What many rows share is stored once, keyed by the
 SHA-256 of its JSON text (:func:`ref`): a row's recognizer configuration in
 ``configs``, its package versions in ``versions`` and its provenance in
-``provenance`` (:data:`SHARED`); the row holds the metrics and the references
-(``config_ref``, ``versions_ref``, ``provenance_ref``). Rows read and written
+``provenance``, and the submission a merged row came from in ``sources``
+(:data:`SHARED`); the row holds the metrics and the references
+(``config_ref``, ``versions_ref``, ``provenance_ref``, ``source_ref``). Rows read and written
 through this module carry the JSON as before. A store of an older schema is
 normalised by :func:`migrate` when a command opens it to write; a command that
 only reads reads it as it is.
@@ -58,7 +60,9 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.paths import check_writable, data_dir
 from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
+from grail_bench.harness import outputs
 from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
+from grail_bench.harness.outputs import OutputRow
 
 SCHEMA_VERSION = 10
 #: The first schema whose row tables reference the shared tables (:data:`SHARED`) instead of repeating the JSON.
@@ -77,9 +81,9 @@ _TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash":
           "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
           "config": "TEXT", "versions": "TEXT", "provenance": "TEXT", "n_trajectories": "INTEGER",
           "curve": "TEXT", "held_out": "TEXT", "confusion": "TEXT", "mode": "TEXT", "diagnostics": "TEXT",
-          "ties": "TEXT"}
+          "ties": "TEXT", "posterior": "INTEGER", "data": "BLOB"}
 #: Row field -> the shared table holding its JSON once; the row's column is ``{field}_ref``, the table's key its hash.
-SHARED = {"config": "configs", "versions": "versions", "provenance": "provenance"}
+SHARED = {"config": "configs", "versions": "versions", "provenance": "provenance", "source": "sources"}
 #: SQL condition of a stale row (see the module docstring): stored under the old tie rule, and it may have tied.
 _STALE = "{t}.ties IS NULL AND ({t}.n_ties IS NULL OR {t}.n_ties > 0)"
 
@@ -104,6 +108,7 @@ def _tables() -> dict[type, tuple[str, tuple[str, ...]]]:
     """Row type -> (table, primary key): every mode's, and the fit diagnostics'."""
     out = {mode.row: (mode.table, mode.key) for mode in MODES.values()}
     out[FitRow] = (diagnostics.TABLE, diagnostics.KEY)
+    out[OutputRow] = (outputs.TABLE, outputs.KEY)
     return out
 
 
@@ -208,9 +213,11 @@ class ResultsStore:
     def _layout(self) -> None:
         """Learn which shared fields each row table references (normalised) rather than holds."""
         self._refs: dict[str, set[str]] = {}
+        self._columns: dict[str, set[str]] = {}
         for table, _ in _tables().values():
             columns = {r[1] for r in self._conn.execute(f"PRAGMA table_info({table})")}
             self._refs[table] = {name for name in SHARED if _column(name) in columns}
+            self._columns[table] = columns
 
     def close(self) -> None:
         self._conn.close()
@@ -263,8 +270,9 @@ class ResultsStore:
         kind = kind.row if isinstance(kind, Mode) else kind
         table = _tables()[kind][0]
         columns = [f.name for f in fields(kind)]
-        refs = self._refs[table]
-        expression = {c: f"{SHARED[c]}.json" if c in refs else f"t.{c}" for c in columns}
+        refs, present = self._refs[table], self._columns[table]
+        # A field the file has no column for (a store of schema 9, read as it is) reads as NULL.
+        expression = {c: f"{SHARED[c]}.json" if c in refs else f"t.{c}" if c in present else "NULL" for c in columns}
         joins = "".join(f" LEFT JOIN {SHARED[c]} ON {SHARED[c]}.hash = t.{_column(c)}" for c in columns if c in refs)
         clauses, params = [], []
         for column, value in where.items():
@@ -451,10 +459,11 @@ def _migrate_v1(conn: sqlite3.Connection) -> None:
 
 
 def _add_missing_columns(conn: sqlite3.Connection) -> None:
-    """Schema 2 -> ... -> 9: the columns added since to the tables already there, empty (NULL) for the rows
+    """Schema 2 -> ... -> 10: the columns added since to the tables already there, empty (NULL) for the rows
     already stored: ``provenance``; ``top2``, ``mean_rank``; ``confusion``; the reliability and set metrics;
     schema 8 ``ties`` in every mode's table and ``n_ties`` in those that had none; schema 9 the zero-shot
-    table's ``adapt_seconds_per_goal`` and ``score_us_per_observation``. (Schema 5 added tables, and schema 6
+    table's ``adapt_seconds_per_goal`` and ``score_us_per_observation``; schema 10 ``source`` in every mode's
+    table. (Schema 5 added tables, and schema 6
     the ``fits`` table too.)"""
     for kind, (table, _) in _tables().items():
         columns = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}

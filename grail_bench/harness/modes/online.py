@@ -86,6 +86,7 @@ class OnlineRow(Run):
     provenance: str | None = None
     n_ties: int | None = None  # prefixes whose best score tied (None: stored before it was counted)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
+    source: str | None = None  # JSON of the submission the row came from (lab, ...); None: run here
 
 
 @dataclass(frozen=True, kw_only=True)

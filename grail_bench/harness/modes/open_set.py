@@ -82,6 +82,7 @@ class OpenSetRow(Run):
     provenance: str | None = None
     n_ties: int | None = None  # observations whose best known goals tied (None: stored before it was counted)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
+    source: str | None = None  # JSON of the submission the row came from (lab, ...); None: run here
 
 
 @dataclass(frozen=True, kw_only=True)
