@@ -77,10 +77,14 @@ def check(published: Published, need_outputs: bool = True) -> list[str]:
     they give.
     """
     problems: list[str] = []
-    unknown = sorted({(r.task, json.dumps(task_params(r.config), sort_keys=True)) for r in published.all_rows()
-                      if hasattr(r, "config") and not _task_exists(r.task, json.dumps(task_params(r.config),
-                                                                                      sort_keys=True))})
-    problems += [f"unknown task {task} (or parameters {params} it does not take)" for task, params in unknown]
+    used = {(r.task, json.dumps(task_params(r.config) if hasattr(r, "config") else {}, sort_keys=True))
+            for r in published.all_rows()}
+    unknown = sorted((task, params) for task, params in used if not _task_exists(task, params))
+    for task in sorted({task for task, _ in unknown}):
+        if not _task_exists(task, "{}"):
+            problems.append(f"unknown task {task} (no such task ID, or not this version of it)")
+        else:
+            problems += [f"task {task} does not take the parameters {params}" for t, params in unknown if t == task]
     for kind, rows in published.rows.items():
         if kind in ("fits", "outputs"):
             continue
