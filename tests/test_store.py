@@ -42,6 +42,7 @@ def inline(conn: sqlite3.Connection) -> None:
                 conn.execute(f"ALTER TABLE {table} DROP COLUMN {name}_ref")
     for shared in SHARED.values():
         conn.execute(f"DROP TABLE IF EXISTS {shared}")
+    conn.execute("DROP TABLE IF EXISTS outputs")  # added by schema 10 too
 
 
 def test_add_is_idempotent_and_first_write_wins(tmp_path):
@@ -432,7 +433,7 @@ def test_read_only_opens_an_old_schema_store_with_its_old_rule_rows(tmp_path):
 
 
 def test_a_schema_9_store_is_normalised_when_opened_to_write_and_read_as_it_is_otherwise(tmp_path):
-    from grail_bench.harness.store import OnlineRow
+    from grail_bench.harness.store import OnlineRow, OutputRow
 
     path = tmp_path / "v9.sqlite"
     config = '{"recognizer": "bc", "params": {"n_epochs": 3}}'
@@ -447,12 +448,13 @@ def test_a_schema_9_store_is_normalised_when_opened_to_write_and_read_as_it_is_o
     conn.execute("VACUUM")
     conn.close()
     before = snapshot(tmp_path)
-    with ResultsStore(path, read_only=True) as reader:  # read as it is: nothing written
+    with ResultsStore(path, read_only=True) as reader:  # read as it is, the file itself: nothing written
         assert reader.rows() == rows and reader.select(OnlineRow) == [_online(0)]
         assert reader.rows(config=config, seed=[1, 2]) == rows[1:3]
+        assert reader.select(OutputRow) == [] and reader._conn.execute("PRAGMA database_list").fetchone()[2]
     assert snapshot(tmp_path) == before
     with ResultsStore(path) as store:
-        assert store.rows() == rows and store.select(OnlineRow) == [_online(0)]
+        assert store.rows() == rows and store.select(OnlineRow) == [_online(0)] and store.select(OutputRow) == []
         assert store.rows(config=config, seed=[1, 2]) == rows[1:3]
     conn = sqlite3.connect(path)
     assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION

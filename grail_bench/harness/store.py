@@ -9,9 +9,10 @@ observability, observation protocol); ``online`` (every prefix scored), one
 :class:`OnlineRow` per (task, recognizer, scorer, config hash, seed, protocol);
 ``open_set`` (a goal held out), one :class:`OpenSetRow` per (task, recognizer,
 scorer, config hash, seed, observability, protocol); ``zero_shot`` (goals never
-fitted), one :class:`ZeroShotRow` per the same key; and ``outputs`` (schema 10), the per-instance outputs of
-offline rows, one :class:`~grail_bench.harness.outputs.OutputRow` per offline row of a run since. Rows are written in one
-transaction per fitted seed, in WAL mode with a busy timeout, so an
+fitted), one :class:`ZeroShotRow` per the same key; and ``outputs`` (schema
+10), the per-instance outputs of offline rows, one
+:class:`~grail_bench.harness.outputs.OutputRow` per offline row run since. Rows
+are written in one transaction per fitted seed, in WAL mode with a busy timeout, so an
 interrupted run keeps what it finished and concurrent writers lose nothing; a
 row already stored is kept (the first write wins), unless it is stale.
 
@@ -32,8 +33,8 @@ SHA-256 of its JSON text (:func:`ref`): a row's recognizer configuration in
 ``configs``, its package versions in ``versions`` and its provenance in
 ``provenance``, and the submission a merged row came from in ``sources``
 (:data:`SHARED`); the row holds the metrics and the references
-(``config_ref``, ``versions_ref``, ``provenance_ref``, ``source_ref``). Rows read and written
-through this module carry the JSON as before. A store of an older schema is
+(``config_ref``, ``versions_ref``, ``provenance_ref``, ``source_ref``). Rows
+read and written through this module carry the JSON as before. A store of an older schema is
 normalised by :func:`migrate` when a command opens it to write; a command that
 only reads reads it as it is.
 
@@ -58,17 +59,17 @@ from typing import Any, Iterable
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import check_writable, data_dir
-from grail_bench.harness import diagnostics
+from grail_bench.harness import diagnostics, outputs
 from grail_bench.harness.diagnostics import FitRow
-from grail_bench.harness import outputs
 from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
 from grail_bench.harness.outputs import OutputRow
 
 SCHEMA_VERSION = 10
 #: The first schema whose row tables reference the shared tables (:data:`SHARED`) instead of repeating the JSON.
 NORMALISED = 10
-__all__ = ["NORMALISED", "SCHEMA_VERSION", "SHARED", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
-           "ZeroShotRow", "check_store_writable", "default_store_path", "migrate", "ref", "stale"]
+__all__ = ["NORMALISED", "SCHEMA_VERSION", "SHARED", "FitRow", "OnlineRow", "OpenSetRow", "OutputRow", "ResultRow",
+           "ResultsStore", "Row", "StoreError", "ZeroShotRow", "check_store_writable", "default_store_path", "migrate",
+           "ref", "stale"]
 _HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite database file
 _SIDECARS = ("-wal", "-journal")  # present while a connection has the store open (or after a crash)
 
@@ -188,9 +189,10 @@ class ResultsStore:
         missing = {table for table, _ in _tables().values()} - tables
         current = version >= SCHEMA_VERSION and not missing
         if read_only:
-            # Schema 10 changed only the layout, which reading follows as it finds it: an older schema is read
-            # from a copy upgraded in memory (not normalised), and the file stays as it was.
-            if version < NORMALISED - 1 or missing:
+            # Schema 10 changed the layout, which reading follows as it finds it, and added a table, which reads
+            # as empty where missing: a store of schema 9 is read as it is; an older one from a copy upgraded in
+            # memory (not normalised). The file stays as it was.
+            if version < NORMALISED - 1 or missing - {outputs.TABLE}:
                 memory = sqlite3.connect(":memory:")
                 self._conn.backup(memory)
                 self._conn.close()
@@ -271,6 +273,8 @@ class ResultsStore:
         table = _tables()[kind][0]
         columns = [f.name for f in fields(kind)]
         refs, present = self._refs[table], self._columns[table]
+        if not present:  # a table added since the store was written (read as it is): no rows
+            return []
         # A field the file has no column for (a store of schema 9, read as it is) reads as NULL.
         expression = {c: f"{SHARED[c]}.json" if c in refs else f"t.{c}" if c in present else "NULL" for c in columns}
         joins = "".join(f" LEFT JOIN {SHARED[c]} ON {SHARED[c]}.hash = t.{_column(c)}" for c in columns if c in refs)
