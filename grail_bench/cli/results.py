@@ -82,11 +82,12 @@ def merge(
     store_path: Optional[Path] = typer.Option(None, "--store", envvar="GRAIL_BENCH_STORE", help=STORE_HELP),
 ) -> None:
     """Bring a validated submission into a store, its rows labelled by their source (shown as submitted)."""
-    from grail_bench.harness.submissions import merge as merge_submission
+    from grail_bench.harness.submissions import merge_rows
 
     with errors():
+        rows = merge_rows(path)  # checked before the store is opened: a refused submission leaves it untouched
         with open_store(store_path) as store:
-            added = merge_submission(path, store)
+            added = store.add(rows)
             where = store.path
     say(f"{added} rows merged into {where}")
 

@@ -134,13 +134,9 @@ def validate(path: Path, need_outputs: bool = True) -> tuple[Published, list[str
     return published, check(published, need_outputs)
 
 
-def merge(path: Path, store: ResultsStore) -> int:
-    """Bring a valid submission's rows into a store, each labelled by the submission's source.
-
-    Rows whose key the store holds already are kept out (the first write wins, as for runs).
-
-    Returns:
-        How many rows were new.
+def merge_rows(path: Path) -> list[Any]:
+    """A valid submission's rows, each labelled by the submission's source (what :func:`merge` stores); read and
+    checked before any store is opened, so a refused submission leaves the store as it was.
 
     Raises:
         SubmissionError: If it is not valid (naming its first problem) or has no ``source.json``.
@@ -150,8 +146,18 @@ def merge(path: Path, store: ResultsStore) -> int:
         more = f" (and {len(problems) - 1} more; see `grail-bench results validate`)" if len(problems) > 1 else ""
         raise SubmissionError(f"not merged: {problems[0]}{more}")
     source = json.dumps(read_source(published.root), sort_keys=True)
-    rows = [r if isinstance(r, (FitRow, OutputRow)) else replace(r, source=source) for r in published.all_rows()]
-    return store.add(rows)
+    return [r if isinstance(r, (FitRow, OutputRow)) else replace(r, source=source) for r in published.all_rows()]
+
+
+def merge(path: Path, store: ResultsStore) -> int:
+    """Bring a valid submission's rows into a store, each labelled by the submission's source (:func:`merge_rows`).
+
+    Rows whose key the store holds already are kept out (the first write wins, as for runs).
+
+    Returns:
+        How many rows were new.
+    """
+    return store.add(merge_rows(path))
 
 
 @dataclass(frozen=True)
