@@ -248,3 +248,25 @@ def test_verify_runs_units_again_and_reports_agreement(submission):
     edit_lines(submission / "minigrid" / "offline.jsonl", lambda lines: [dict(line, f1=0.0) for line in lines])
     result = runner.invoke(app, ["results", "verify", str(submission), "--sample", "1"])
     assert "agreement: 0/1 units" in result.stdout
+
+
+@pytest.mark.parametrize("kind", ["offline", "online", "open_set", "zero_shot", "fits", "shared"])
+def test_the_quick_line_check_agrees_with_the_schema_validator(kind):
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    quick, full = published._quick(kind), published._validator(kind)
+    spec = published.schema()["$defs"][kind]
+    assert quick is not None
+    scalars = st.one_of(st.none(), st.booleans(), st.integers(-3, 3), st.floats(allow_nan=False), st.text(max_size=3),
+                        st.just("0" * 64), st.just(1.0))
+    names = st.sampled_from([*spec["properties"], "extra"])
+
+    @settings(max_examples=300, deadline=None, derandomize=True)
+    @given(st.dictionaries(names, scalars), st.sampled_from([*spec["required"]]), scalars)
+    def agree(line, name, value):
+        whole = {n: line.get(n, value) for n in spec["required"]} | line  # mostly complete lines
+        for candidate in (line, whole, whole | {name: value}):
+            assert quick(candidate) == full.is_valid(candidate), candidate
+
+    agree()

@@ -59,6 +59,9 @@ def import_(
 @app.command()
 def validate(
     path: Path = typer.Argument(..., help="A submission: a published folder (or one row file in one)."),
+    need_outputs: bool = typer.Option(True, "--outputs/--no-outputs",
+                                      help="Require per-instance outputs of every offline row and recompute its "
+                                           "metrics (--no-outputs: for rows published before outputs were kept)."),
 ) -> None:
     """Check a submission: the schema, that its tasks exist, that seeds and levels are complete, and that its
     metrics are those its per-instance outputs give."""
@@ -66,14 +69,15 @@ def validate(
     from grail_bench.harness.submissions import validate as validate_submission
 
     with errors():
-        published, problems = validate_submission(path)
+        published, problems = validate_submission(path, need_outputs)
     if problems:
         for problem in problems[:MAX_LISTED]:
             err_console.print(f"problem: {problem}", highlight=False, markup=False, soft_wrap=True)
         more = f", {len(problems) - MAX_LISTED} not listed" if len(problems) > MAX_LISTED else ""
         raise fail(f"{path} is not valid: {len(problems)} problem(s){more}")
     counts = ", ".join(f"{len(rows)} {kind}" for kind, rows in sorted(published.rows.items()))
-    say(f"{path} is valid: {counts} rows; every offline metric recomputed from its outputs")
+    checked = "every offline metric recomputed from its outputs" if need_outputs else "outputs not checked"
+    say(f"{path} is valid: {counts} rows; {checked}")
 
 
 @app.command()
