@@ -5,10 +5,12 @@ A published folder holds
 * ``format.json``: ``{"format": "grail-bench results", "version": 1}``;
 * the shared tables, one JSON object a line, ``{"hash": ..., "json": ...}`` (the exact JSON text and the hex
   SHA-256 of its UTF-8 bytes, :func:`grail_bench.harness.store.ref`): ``configs.jsonl`` (recognizer
-  configurations), ``versions.jsonl`` (package versions) and ``provenance.jsonl`` (:data:`SHARED_FILES`);
+  configurations), ``versions.jsonl`` (package versions), ``provenance.jsonl`` and ``sources.jsonl`` (the
+  submissions merged rows came from; :data:`SHARED_FILES`);
 * the rows, one file per domain and kind (``minigrid/offline.jsonl``, ``minigrid/online.jsonl``,
-  ``minigrid/open_set.jsonl``, ``minigrid/zero_shot.jsonl``, ``minigrid/fits.jsonl``; :data:`KINDS`): one row a
-  line, its fields as the store holds them, the shared JSON referenced by hash (``config_ref``, ...).
+  ``minigrid/open_set.jsonl``, ``minigrid/zero_shot.jsonl``, ``minigrid/fits.jsonl`` and the offline rows'
+  per-instance outputs ``minigrid/outputs.jsonl``; :data:`KINDS`): one row a line, its fields as the store holds
+  them, the shared JSON referenced by hash (``config_ref``, ...).
 
 Every file is sorted (rows by their key, shared entries by hash) and written with sorted keys and no spaces, so
 the same store gives byte-identical files and a republish that adds rows adds only their lines. A file larger
@@ -112,11 +114,11 @@ def build_schema() -> dict[str, Any]:
                       "description": f"One row of a <domain>/{kind}.jsonl file ({row_type.__name__}).",
                       "properties": properties}
     return {"$schema": "https://json-schema.org/draft/2020-12/schema",
-            "$id": "https://github.com/grail-bench/grail-bench/results.schema.json",
+            "$id": "urn:grail-bench:results:1",
             "title": "grail-bench published results",
             "description": "Each line of a published file is one object of the definition its file names: "
-                           "format.json is `format`; configs.jsonl, versions.jsonl and provenance.jsonl are "
-                           "`shared`; <domain>/<kind>.jsonl[.gz] is `<kind>`.",
+                           "format.json is `format`; configs.jsonl, versions.jsonl, provenance.jsonl and "
+                           "sources.jsonl are `shared`; <domain>/<kind>.jsonl[.gz] is `<kind>`.",
             "$defs": defs}
 
 
@@ -209,7 +211,7 @@ def line_of(row: Any) -> dict[str, Any]:
 
 
 def row_key(kind: str, line: dict[str, Any]) -> tuple:
-    """A line's sort key: the row's key (as the store's primary key), then everything else."""
+    """A line's sort key: the row's key (the store's primary key, unique in a file)."""
     return tuple(line[k] for k in KEYS[kind])
 
 
