@@ -15,3 +15,6 @@ $GB leaderboard --ablation --plot leaderboard/ablation.png --markdown leaderboar
 # Beyond the paper (leaderboard/run_online.sh): online recognition and open set.
 $GB leaderboard --online --read-only --plot leaderboard/online.png --markdown leaderboard/ONLINE.md > /dev/null
 $GB leaderboard --open-set --markdown leaderboard/OPEN_SET.md > /dev/null
+# The results as data (docs/guides/results.md): JSON Lines under the schema `grail-bench results schema` prints;
+# the same store gives byte-identical files, and new runs add only their lines.
+$GB results export --out leaderboard/published > /dev/null

@@ -28,6 +28,23 @@ def row(seed: int = 0, observability: float = 0.1, f1: float = 0.5, recognizer: 
                      config="{}", versions="{}")
 
 
+def inline(conn: sqlite3.Connection) -> None:
+    """Make a store's row tables hold their configuration, versions and provenance JSON in every row (schema 9)."""
+    from grail_bench.harness.store import SHARED
+
+    tables = [r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")]
+    for table in tables:
+        columns = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
+        for name, shared in SHARED.items():
+            if f"{name}_ref" in columns:
+                conn.execute(f"ALTER TABLE {table} ADD COLUMN {name} TEXT")
+                conn.execute(f"UPDATE {table} SET {name} = (SELECT json FROM {shared} WHERE hash = {name}_ref)")
+                conn.execute(f"ALTER TABLE {table} DROP COLUMN {name}_ref")
+    for shared in SHARED.values():
+        conn.execute(f"DROP TABLE IF EXISTS {shared}")
+    conn.execute("DROP TABLE IF EXISTS outputs")  # added by schema 11 too
+
+
 def test_add_is_idempotent_and_first_write_wins(tmp_path):
     with ResultsStore(tmp_path / "r.sqlite") as store:
         assert store.add([row(0), row(1)]) == 2
@@ -108,6 +125,7 @@ def test_schema_2_store_gains_provenance_and_keeps_rows(tmp_path):
     with ResultsStore(path) as store:
         store.add([row(seed=s) for s in range(3)])
     conn = sqlite3.connect(path)  # make it a schema-2 file: no provenance column
+    inline(conn)
     conn.execute("ALTER TABLE results DROP COLUMN provenance")
     conn.execute("PRAGMA user_version = 2")
     conn.commit()
@@ -198,6 +216,7 @@ def test_read_only_sees_the_rows_of_a_store_being_written(tmp_path):
 def test_read_only_old_schema_is_upgraded_in_memory_only(tmp_path):
     path = stored(tmp_path)
     conn = sqlite3.connect(path)  # a schema-2 file: no provenance column, no other tables
+    inline(conn)
     conn.execute("ALTER TABLE results DROP COLUMN provenance")
     for table in ("online", "open_set", "zero_shot", "fits"):
         conn.execute(f"DROP TABLE IF EXISTS {table}")
@@ -317,6 +336,7 @@ def test_read_only_file_is_refused_for_writing_at_once(tmp_path):
 def _old_schema(path: Path) -> None:
     """Make ``path`` a schema-7 store: no ``ties`` column anywhere, no ``n_ties`` outside ``results``."""
     conn = sqlite3.connect(path)
+    inline(conn)
     for table in ("results", "online", "open_set", "zero_shot"):
         conn.execute(f"ALTER TABLE {table} DROP COLUMN ties")
     for table in ("online", "open_set", "zero_shot"):
@@ -408,3 +428,51 @@ def test_read_only_opens_an_old_schema_store_with_its_old_rule_rows(tmp_path):
         assert store.completed("GRAIL/T-v0", "bc", "mse", "abc", "prefix") == {(1, 0.1)}
     assert snapshot(tmp_path) == before
     assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == 7
+
+
+# --- schema 11: configurations, versions and provenance stored once -------------------------------------------
+
+
+def test_a_schema_9_store_is_normalised_by_its_first_write_and_read_as_it_is_before(tmp_path):
+    from grail_bench.harness.store import OnlineRow, OutputRow
+
+    path = tmp_path / "v9.sqlite"
+    config = '{"recognizer": "bc", "params": {"n_epochs": 3}}'
+    rows = [dataclasses.replace(row(s, f1=0.1 * s), config=config, provenance='{"host": "a"}' if s else None)
+            for s in range(4)]
+    with ResultsStore(path) as store:
+        store.add([*rows, _online(0)])
+    conn = sqlite3.connect(path)
+    inline(conn)
+    conn.execute("PRAGMA user_version = 9")
+    conn.commit()
+    conn.execute("VACUUM")
+    conn.close()
+    before = snapshot(tmp_path)
+    with ResultsStore(path, read_only=True) as reader:  # read as it is, the file itself: nothing written
+        assert reader.rows() == rows and reader.select(OnlineRow) == [_online(0)]
+        assert reader.rows(config=config, seed=[1, 2]) == rows[1:3]
+        assert reader.select(OutputRow) == [] and reader._conn.execute("PRAGMA database_list").fetchone()[2]
+    assert snapshot(tmp_path) == before
+    with ResultsStore(path) as store:  # opened to write: read as it is until the first rows are written
+        assert store.rows() == rows and store.select(OnlineRow) == [_online(0)] and store.select(OutputRow) == []
+        assert sqlite3.connect(path).execute("PRAGMA user_version").fetchone()[0] == 9
+        store.create()  # as the first add does: normalised
+        assert store.rows() == rows and store.select(OnlineRow) == [_online(0)] and store.select(OutputRow) == []
+        assert store.rows(config=config, seed=[1, 2]) == rows[1:3]
+    conn = sqlite3.connect(path)
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION
+    columns = {r[1] for r in conn.execute("PRAGMA table_info(results)")}
+    assert {"config_ref", "versions_ref", "provenance_ref"} <= columns and "config" not in columns
+    assert conn.execute("SELECT COUNT(*) FROM configs").fetchone()[0] == 2  # "{}" (online) and the offline one
+    assert conn.execute("SELECT COUNT(*) FROM provenance").fetchone()[0] == 1
+
+
+def test_shared_json_is_stored_once_however_many_rows_carry_it(tmp_path):
+    path = tmp_path / "r.sqlite"
+    with ResultsStore(path) as store:
+        store.add([dataclasses.replace(row(s), config='{"a": 1}', provenance='{"p": 1}') for s in range(50)])
+        assert {r.config for r in store.rows()} == {'{"a": 1}'}
+    conn = sqlite3.connect(path)
+    assert [conn.execute(f"SELECT COUNT(*) FROM {t}").fetchone()[0] for t in ("configs", "versions", "provenance")] \
+        == [1, 1, 1]

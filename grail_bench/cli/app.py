@@ -27,6 +27,7 @@ from grail_bench.cli.inputs import (
 from grail_bench.cli.inputs import executor as make_executor
 from grail_bench.cli.inputs import params as parse_params
 from grail_bench.cli.inputs import settings as parse_settings
+from grail_bench.cli.results import app as results_app
 from grail_bench.task.observation import level_text
 
 
@@ -43,6 +44,7 @@ class _Commands(TyperGroup):
 
 app = typer.Typer(cls=_Commands, add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="grail-bench: goal-recognition benchmarks on gymnasium.")
+app.add_typer(results_app, name="results")
 
 DEFAULT_TASK = "GRAIL/MiniGrid-Biased-v0"
 DEFAULT_RECOGNIZERS = ["bc", "graql"]

@@ -9,8 +9,10 @@ observability, observation protocol); ``online`` (every prefix scored), one
 :class:`OnlineRow` per (task, recognizer, scorer, config hash, seed, protocol);
 ``open_set`` (a goal held out), one :class:`OpenSetRow` per (task, recognizer,
 scorer, config hash, seed, observability, protocol); ``zero_shot`` (goals never
-fitted), one :class:`ZeroShotRow` per the same key. Rows are written in one
-transaction per fitted seed, in WAL mode with a busy timeout, so an
+fitted), one :class:`ZeroShotRow` per the same key; and ``outputs`` (schema
+11), the per-instance outputs of offline rows, one
+:class:`~grail_bench.harness.outputs.OutputRow` per offline row run since. Rows
+are written in one transaction per fitted seed, in WAL mode with a busy timeout, so an
 interrupted run keeps what it finished and concurrent writers lose nothing; a
 row already stored is kept (the first write wins), unless it is stale.
 
@@ -25,6 +27,16 @@ count ties (online, open-set and zero-shot rows before schema 8: any of them
 may have tied), is stale: :meth:`ResultsStore.completed` leaves it out, so the
 next ``run`` or ``reproduce`` recomputes it, and :meth:`ResultsStore.add`
 replaces it with the new row of the same key.
+
+Shared tables (schema 11). What many rows share is stored once, keyed by the
+SHA-256 of its JSON text (:func:`ref`): a row's recognizer configuration in
+``configs``, its package versions in ``versions`` and its provenance in
+``provenance``, and the submission a merged row came from in ``sources``
+(:data:`SHARED`); the row holds the metrics and the references
+(``config_ref``, ``versions_ref``, ``provenance_ref``, ``source_ref``). Rows
+read and written through this module carry the JSON as before. A store of an older schema is
+normalised by :func:`migrate` when a command opens it to write; a command that
+only reads reads it as it is.
 
 Commands that only read (the leaderboard, studies) open a store with
 ``read_only=True``: the file must already be a grail-bench store, and nothing
@@ -49,6 +61,7 @@ Default location: ``$GRAIL_BENCH_STORE``, else
 from __future__ import annotations
 
 import errno
+import hashlib
 import json
 import os
 import shutil
@@ -61,15 +74,19 @@ from typing import Any, Callable, Iterable, get_args, get_type_hints
 from grail_bench.core.atomic import WriteError, temporary_folder, write_error
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import check_writable, data_dir
-from grail_bench.harness import diagnostics
+from grail_bench.harness import diagnostics, outputs
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
+from grail_bench.harness.outputs import OutputRow
 from grail_bench.harness.planning import task_params
 from grail_bench.task import versions
 
-SCHEMA_VERSION = 10
-__all__ = ["SCHEMA_VERSION", "CeilingCache", "FitRow", "OnlineRow", "OpenSetRow", "ResultRow", "ResultsStore", "Row", "StoreError",
-           "ZeroShotRow", "check_store_writable", "default_store_path", "stale"]
+SCHEMA_VERSION = 11
+#: The first schema whose row tables reference the shared tables (:data:`SHARED`) instead of repeating the JSON.
+NORMALISED = 11
+__all__ = ["NORMALISED", "SCHEMA_VERSION", "SHARED", "CeilingCache", "FitRow", "OnlineRow", "OpenSetRow", "OutputRow",
+           "ResultRow", "ResultsStore", "Row", "StoreError", "ZeroShotRow", "check_store_writable",
+           "default_store_path", "migrate", "ref", "stale"]
 _HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite database file
 _SIDECARS = ("-wal", "-journal")  # present while a connection has the store open (or after a crash)
 
@@ -82,7 +99,9 @@ _TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash":
           "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
           "config": "TEXT", "versions": "TEXT", "provenance": "TEXT", "n_trajectories": "INTEGER",
           "curve": "TEXT", "held_out": "TEXT", "confusion": "TEXT", "mode": "TEXT", "diagnostics": "TEXT",
-          "ties": "TEXT", "task_fingerprint": "TEXT"}
+          "ties": "TEXT", "task_fingerprint": "TEXT", "posterior": "INTEGER", "data": "BLOB"}
+#: Row field -> the shared table holding its JSON once; the row's column is ``{field}_ref``, the table's key its hash.
+SHARED = {"config": "configs", "versions": "versions", "provenance": "provenance", "source": "sources"}
 #: SQL condition of a stale row (see the module docstring): stored under the old tie rule, and it may have tied.
 _STALE = "{t}.ties IS NULL AND ({t}.n_ties IS NULL OR {t}.n_ties > 0)"
 
@@ -93,16 +112,28 @@ def stale(row: Row) -> bool:
     return row.ties is None and (row.n_ties is None or row.n_ties > 0)
 
 
+def ref(text: str | None) -> str | None:
+    """The key of a shared JSON text (see the module docstring): the hex SHA-256 of its UTF-8 bytes."""
+    return None if text is None else hashlib.sha256(text.encode()).hexdigest()
+
+
+def _column(name: str) -> str:
+    """The column of a row field in a normalised table."""
+    return f"{name}_ref" if name in SHARED else name
+
+
 def _tables() -> dict[type, tuple[str, tuple[str, ...]]]:
     """Row type -> (table, primary key): every mode's, and the fit diagnostics'."""
     out = {mode.row: (mode.table, mode.key) for mode in MODES.values()}
     out[FitRow] = (diagnostics.TABLE, diagnostics.KEY)
+    out[OutputRow] = (outputs.TABLE, outputs.KEY)
     return out
 
 
 def _create(kind: type, table: str, key: tuple[str, ...]) -> str:
+    """The statement creating a (normalised) row table of ``kind``."""
     return (f"CREATE TABLE IF NOT EXISTS {table} ("
-            + ", ".join(f"{f.name} {_TYPES.get(f.name, 'REAL')}" + (" NOT NULL" if f.name in key else "")
+            + ", ".join(f"{_column(f.name)} {_TYPES.get(f.name, 'REAL')}" + (" NOT NULL" if f.name in key else "")
                         for f in fields(kind))
             + ", created_at TEXT NOT NULL DEFAULT (datetime('now'))"
             + f", PRIMARY KEY ({', '.join(key)}))")
@@ -142,7 +173,8 @@ class ResultsStore:
         try:
             if self.path == ":memory:":
                 self._conn = sqlite3.connect(self.path)
-                _upgrade(self._conn, set(), 0)
+                migrate(self._conn, set(), 0)
+                self._layout()
             elif read_only:
                 self._conn = _connect_read_only(Path(self.path).expanduser())
                 self._checked(read_only=True, fresh=False)
@@ -151,7 +183,8 @@ class ResultsStore:
                 if not file.exists() or file.stat().st_size == 0:  # an empty file is an empty database
                     self._pending = "create"  # created (whole) by the first add
                     self._conn = sqlite3.connect(":memory:")
-                    _upgrade(self._conn, set(), 0)
+                    migrate(self._conn, set(), 0)
+                    self._layout()
                 else:
                     _check_header(file)
                     self._conn = sqlite3.connect(file, timeout=60.0)
@@ -182,21 +215,25 @@ class ResultsStore:
             raise StoreError(f"{self.path} is {what}not a grail-bench results store")
         if version > SCHEMA_VERSION:
             raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
-        current = version >= SCHEMA_VERSION and not {table for table, _ in _tables().values()} - tables
+        missing = {table for table, _ in _tables().values()} - tables
+        current = version >= SCHEMA_VERSION and not missing
         if not read_only:  # a run must learn now if it can write, though the file is changed only by add
             self._conn.execute("BEGIN IMMEDIATE")
             self._conn.execute("ROLLBACK")
-        if not current:  # an older schema: read a copy upgraded in memory, the file stays as it was
+        # Reading follows the layout it finds (inline or shared JSON; a column added since reads as NULL, a table
+        # added since as empty), so a store of schema 2 or newer with every table of its time is read as it is.
+        # An older one is read from a copy upgraded in memory (not normalised). The file stays as it was.
+        if not current and (version < 2 or missing - {outputs.TABLE}):
             memory = sqlite3.connect(":memory:")
             self._conn.backup(memory)
             self._conn.close()
             self._conn = memory
-            _upgrade(self._conn, tables, version)
-            if not read_only:
-                self._pending = "migrate"  # the file is migrated by the first add, in its transaction
-            return
+            migrate(self._conn, tables, version, normalise=False)
+        self._layout()
         if not read_only:
-            self._pending = "wal"  # the first add puts the file in WAL mode (a reading command leaves it as it was)
+            # The first add migrates the file in its transaction, or puts it in WAL mode (a reading command
+            # leaves it as it was).
+            self._pending = "wal" if current else "migrate"
 
     def create(self) -> None:
         """Write the store file now, as the first :meth:`add` would: an empty store is created, an older one
@@ -222,7 +259,7 @@ class ResultsStore:
 
     def _materialize(self) -> None:
         """Before the first rows are written: create the store file (whole, through a temporary name) or
-        migrate the older store in place (in one transaction), then write through the file."""
+        migrate the older store in place (in one transaction, normalising it), then write through the file."""
         file = Path(self.path).expanduser()
         if self._pending == "create":
             _create_store(file)
@@ -235,13 +272,23 @@ class ResultsStore:
             if version > SCHEMA_VERSION:
                 raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
             if version < SCHEMA_VERSION or {table for table, _ in _tables().values()} - tables:
-                _upgrade(conn, tables, version)
+                migrate(conn, tables, version)
             conn.execute("PRAGMA journal_mode=WAL")
         except BaseException:
             conn.close()
             raise
         self._conn.close()
         self._conn, self._pending = conn, None
+        self._layout()
+
+    def _layout(self) -> None:
+        """Learn which shared fields each row table references (normalised) rather than holds."""
+        self._refs: dict[str, set[str]] = {}
+        self._columns: dict[str, set[str]] = {}
+        for table, _ in _tables().values():
+            columns = {r[1] for r in self._conn.execute(f"PRAGMA table_info({table})")}
+            self._refs[table] = {name for name in SHARED if _column(name) in columns}
+            self._columns[table] = columns
 
     def close(self) -> None:
         self._conn.close()
@@ -262,13 +309,23 @@ class ResultsStore:
         if self.read_only:
             raise StoreError(f"results store {self.path} was opened read-only")
         by_kind: dict[type, list[tuple]] = {}
+        shared: dict[str, dict[str, str]] = {table: {} for table in SHARED.values()}
         for r in rows:
-            by_kind.setdefault(type(r), []).append(tuple(asdict(r).values()))
+            values = asdict(r)
+            for name, table in SHARED.items():
+                if values.get(name) is not None:
+                    key = ref(values[name])
+                    shared[table][key] = values[name]
+                    values[name] = key
+            by_kind.setdefault(type(r), []).append(tuple(values.values()))
         if not by_kind:
             return 0
         try:
             self._write_ready()
             with self._conn:
+                for table, texts in shared.items():
+                    self._conn.executemany(f"INSERT OR IGNORE INTO {table} (hash, json) VALUES (?, ?)",
+                                           sorted(texts.items()))
                 before = self._conn.total_changes
                 tables = _tables()
                 for kind, values in by_kind.items():
@@ -289,6 +346,12 @@ class ResultsStore:
         kind = kind.row if isinstance(kind, Mode) else kind
         table = _tables()[kind][0]
         columns = [f.name for f in fields(kind)]
+        refs, present = self._refs[table], self._columns[table]
+        if not present:  # a table added since the store was written (read as it is): no rows
+            return []
+        # A field the file has no column for (a store of an older schema, read as it is) reads as NULL.
+        expression = {c: f"{SHARED[c]}.json" if c in refs else f"t.{c}" if c in present else "NULL" for c in columns}
+        joins = "".join(f" LEFT JOIN {SHARED[c]} ON {SHARED[c]}.hash = t.{_column(c)}" for c in columns if c in refs)
         versioned = "config" in columns  # rows whose task ID is read through grail_bench.task.versions
         wanted = None
         clauses, params = [], []
@@ -298,12 +361,12 @@ class ResultsStore:
             values = list(value) if isinstance(value, (list, tuple, set)) else [value]
             if column == "task" and versioned:
                 wanted, values = set(values), sorted(versions.aliases(values))
-            clauses.append(f"{column} IN ({', '.join('?' * len(values))})")
+            clauses.append(f"{expression[column]} IN ({', '.join('?' * len(values))})")
             params += values
-        sql = f"SELECT {', '.join(columns)} FROM {table}"
+        sql = f"SELECT {', '.join(expression[c] for c in columns)} FROM {table} AS t{joins}"
         if clauses:
             sql += " WHERE " + " AND ".join(clauses)
-        order = [c for c in ("task", "recognizer", "scorer", "observability", "mode", "seed") if c in columns]
+        order = [f"t.{c}" for c in ("task", "recognizer", "scorer", "observability", "mode", "seed") if c in columns]
         sql += " ORDER BY " + ", ".join(order)
         try:
             found = self._conn.execute(sql, params).fetchall()
@@ -456,7 +519,7 @@ def _square(matrix: Any) -> bool:
 
 def _insert(kind: type, table: str, key: tuple[str, ...]) -> str:
     """The statement storing one row of ``kind``: ignored if its key is stored, unless the stored row is stale."""
-    names = [f.name for f in fields(kind)]
+    names = [_column(f.name) for f in fields(kind)]
     head = f"INTO {table} ({', '.join(names)}) VALUES ({', '.join('?' * len(names))})"
     if "ties" not in names:
         return f"INSERT OR IGNORE {head}"
@@ -493,18 +556,6 @@ def check_store_writable(path: str | Path) -> Path:
     return file
 
 
-def _upgrade(conn: sqlite3.Connection, tables: set[str], version: int) -> None:
-    """Migrate an older schema and create the missing tables, in one transaction."""
-    with conn:
-        if tables and version < 2:
-            _migrate_v1(conn)
-        if tables and version < SCHEMA_VERSION:
-            _add_missing_columns(conn)
-        for kind, (table, key) in _tables().items():
-            conn.execute(_create(kind, table, key))
-        conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
-
-
 def _sqlite_message(doing: str, path: str, exc: sqlite3.Error) -> str:
     """One line for an SQLite error on the store at ``path`` (a full disk said as such: SQLite reports one as
     "database or disk is full", or, failing to grow its WAL index, as "disk I/O error")."""
@@ -529,10 +580,7 @@ def _create_store(file: Path) -> None:
     def build(tmp: Path) -> None:
         conn = sqlite3.connect(tmp)
         try:
-            with conn:
-                for kind, (table, key) in _tables().items():
-                    conn.execute(_create(kind, table, key))
-                conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+            migrate(conn, set(), 0)
         except sqlite3.Error as exc:
             if getattr(exc, "sqlite_errorcode", None) == sqlite3.SQLITE_FULL:
                 raise OSError(errno.ENOSPC, "No space left on device") from None
@@ -597,6 +645,72 @@ def _connect_read_only(file: Path) -> sqlite3.Connection:
                            timeout=60.0)
 
 
+def migrate(conn: sqlite3.Connection, tables: set[str], version: int, normalise: bool = True) -> bool:
+    """Bring an opened store's schema up to date: migrate an older one and create the missing tables.
+
+    The one place a store's file is changed for its schema: call it only for a
+    command that will write (a reading one reads the store as it is, or a copy
+    upgraded in memory with ``normalise=False``). The migration is one
+    transaction; a store normalised by it (schema 10 or older -> 11, see the
+    module docstring) is then vacuumed, returning the space the repeated JSON
+    took.
+
+    Args:
+        conn: The store's connection (no transaction open).
+        tables: The tables the store had when opened (empty: a new store).
+        version: Its ``PRAGMA user_version`` when opened.
+        normalise: Move the rows' shared JSON into the shared tables (schema 11).
+
+    Returns:
+        Whether rows were normalised.
+    """
+    normalised = False
+    with conn:
+        if tables and version < 2:
+            _migrate_v1(conn)
+        if tables and version < SCHEMA_VERSION:
+            _add_missing_columns(conn)
+        for table in SHARED.values():
+            conn.execute(f"CREATE TABLE IF NOT EXISTS {table} (hash TEXT PRIMARY KEY, json TEXT NOT NULL) "
+                         "WITHOUT ROWID")
+        if normalise and tables and version < NORMALISED:
+            normalised = _normalise(conn)
+        for kind, (table, key) in _tables().items():
+            conn.execute(_create(kind, table, key))
+        conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+    if normalised and conn.execute("PRAGMA database_list").fetchone()[2]:  # a file, not memory
+        conn.execute("VACUUM")
+    return normalised
+
+
+def _normalise(conn: sqlite3.Connection) -> bool:
+    """Schema 10 -> 11: each row table's ``config``, ``versions`` and ``provenance`` JSON moves into the shared
+    tables once, the row keeping its reference (:func:`ref`); every other column and every row is kept as it is.
+
+    Returns:
+        Whether any table was rewritten.
+    """
+    conn.create_function("grail_ref", 1, ref, deterministic=True)
+    changed = False
+    for kind, (table, key) in _tables().items():
+        columns = [r[1] for r in conn.execute(f"PRAGMA table_info({table})")]
+        inline = [c for c in columns if c in SHARED]
+        if not inline:
+            continue
+        for name in inline:
+            conn.execute(f"INSERT OR IGNORE INTO {SHARED[name]} (hash, json) SELECT grail_ref(v), v FROM "
+                         f"(SELECT DISTINCT {name} AS v FROM {table} WHERE {name} IS NOT NULL)")
+        conn.execute(f"ALTER TABLE {table} RENAME TO {table}__inline")
+        conn.execute(_create(kind, table, key))
+        target = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
+        kept = [c for c in columns if _column(c) in target]
+        conn.execute(f"INSERT INTO {table} ({', '.join(_column(c) for c in kept)}) SELECT "
+                     f"{', '.join(f'grail_ref({c})' if c in SHARED else c for c in kept)} FROM {table}__inline")
+        conn.execute(f"DROP TABLE {table}__inline")
+        changed = True
+    return changed
+
+
 def _migrate_v1(conn: sqlite3.Connection) -> None:
     """Schema 1 -> 2: the ``sampling`` column becomes ``protocol``; every row is kept.
 
@@ -615,12 +729,14 @@ def _add_missing_columns(conn: sqlite3.Connection) -> None:
     already stored: ``provenance``; ``top2``, ``mean_rank``; ``confusion``; the reliability and set metrics;
     schema 8 ``ties`` in every mode's table and ``n_ties`` in those that had none; schema 9 the zero-shot
     table's ``adapt_seconds_per_goal`` and ``score_us_per_observation``; schema 10 ``task_fingerprint`` in every
-    mode's table. (Schema 5 added tables, and schema 6
+    mode's table; schema 11 ``source`` in every mode's table. (Schema 5 added tables, and schema 6
     the ``fits`` table too.)"""
     for kind, (table, _) in _tables().items():
         columns = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
         if not columns:  # not there yet: created whole
             continue
+        normalised = any(_column(name) in columns for name in SHARED)
         for f in fields(kind):
-            if f.name not in columns:
-                conn.execute(f"ALTER TABLE {table} ADD COLUMN {f.name} {_TYPES.get(f.name, 'REAL')}")
+            column = _column(f.name) if normalised else f.name
+            if column not in columns:
+                conn.execute(f"ALTER TABLE {table} ADD COLUMN {column} {_TYPES.get(f.name, 'REAL')}")

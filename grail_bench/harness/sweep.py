@@ -31,6 +31,8 @@ from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.executors import Executor, SerialExecutor
 from grail_bench.harness.modes import Row, SeedRun, get_mode
+from grail_bench.harness.modes.base import Outputs
+from grail_bench.harness.outputs import OutputRow, output_row
 from grail_bench.harness.planning import Planned, RecognizerSpec, check_channel, plan
 from grail_bench.harness.store import ResultsStore
 from grail_bench.task import GRTask, make_task
@@ -102,7 +104,7 @@ class Unit:
 class UnitResult:
     """What a worker sends back: the unit's rows and how its models were obtained."""
 
-    rows: list[Row | FitRow]
+    rows: list[Row | FitRow | OutputRow]
     trained: int  # models trained by this unit
     reused: int  # models loaded from the cache
 
@@ -164,12 +166,14 @@ def run_unit(unit: Unit) -> UnitResult:
     """Run one unit (in a worker or in this process); deterministic given the unit."""
     from grail_bench.core.torchutil import single_thread  # here: planning and storing need no torch
 
+    kept: list[Outputs] = []
     job = SeedRun(task=unit.task, planned=unit.planned, seed=unit.seed, observation=unit.observation,
-                  versions=_versions(), demos=_demos(unit.task, unit.seed))
+                  versions=_versions(), demos=_demos(unit.task, unit.seed), outputs=kept)
     with single_thread():  # as every worker does: the same arithmetic wherever a unit runs
         rows, fitted = get_mode(unit.mode).run(job)
     fp = fingerprint(unit.task)  # the task as run: its card's, or a variant's with its parameters
     rows = [replace(r, task_fingerprint=fp) if hasattr(r, "task_fingerprint") else r for r in rows]
+    rows = [*rows, *(output_row(o) for o in kept)]
     if fitted is not None and fitted.diagnostics is not None:
         rows = [*rows, FitRow(unit.task.id, unit.planned.name, unit.planned.config_hash, unit.seed, unit.mode,
                               diagnostics.to_json(fitted.diagnostics))]
@@ -295,9 +299,10 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
                if progress else None)
         with bar or contextlib.nullcontext():
             for _, result in executor.map_unordered(run_unit, units):
-                stored = [replace(r, provenance=origin) for r in result.rows]
-                summary.rows += store.add(r for r in stored if not isinstance(r, FitRow))
+                stored = [r if isinstance(r, OutputRow) else replace(r, provenance=origin) for r in result.rows]
+                summary.rows += store.add(r for r in stored if not isinstance(r, (FitRow, OutputRow)))
                 summary.fits += store.add(r for r in stored if isinstance(r, FitRow))
+                store.add(r for r in stored if isinstance(r, OutputRow))
                 summary.done += 1
                 summary.trained += result.trained
                 summary.reused += result.reused

@@ -43,6 +43,8 @@ class Configuration:
         scorer: The scorer when it is not the method's own, else None.
         config_hash: The stored configuration's hash (archived labels carry its first 6 characters).
         recognizer: The registered recognizer name.
+        submitted_by: The lab whose submission the runs came from (merged from published results, not run
+            here; labels end ``submitted by LAB``), else None.
     """
 
     kind: Kind
@@ -51,6 +53,7 @@ class Configuration:
     scorer: str | None = None
     config_hash: str = ""
     recognizer: str = ""
+    submitted_by: str | None = None
 
     @property
     def label(self) -> str:
@@ -60,6 +63,8 @@ class Configuration:
             parts.append(self.scorer)
         if self.kind == "archived":
             parts = [self.method, f"archived {self.config_hash[:6]}", *([self.scorer] if self.scorer else [])]
+        if self.submitted_by is not None:
+            parts.append(f"submitted by {self.submitted_by}")
         return SEPARATOR.join(parts)
 
     @property
@@ -155,16 +160,18 @@ def configuration(record: Any) -> Configuration:
     ``config_hash``, ``task_params`` and ``recognizer_config``)."""
     method, own = method_of(record.recognizer)
     scorer = None if record.scorer in (own, "default") or own is None else record.scorer
+    source = getattr(record, "source", None)
+    submitted_by = str(source.get("lab", "?")) if source else None
     stored = _canonical_json(record.recognizer_config)
     rebuilt, default = _settings(record.recognizer, stored), _settings(record.recognizer, None)
     current = rebuilt is not None and _current_hash(record.task, _canonical_json(record.task_params),
                                                     record.recognizer, rebuilt) == record.config_hash
     if own is None:  # a plugin no longer installed: nothing to compare with, its runs shown as they are
         return Configuration("variant", method, tuple(sorted(record.recognizer_config.items())), scorer,
-                             record.config_hash, record.recognizer)
+                             record.config_hash, record.recognizer, submitted_by)
     changes = _changes(record.recognizer_config, default)
     kind: Kind = "archived" if not current else "canonical" if not changes and scorer is None else "variant"
-    return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer)
+    return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer, submitted_by)
 
 
 def _changes(stored: dict[str, Any], default_json: str | None) -> tuple[tuple[str, Any], ...]:

@@ -9,6 +9,7 @@ is one module defining these and one line in :data:`grail_bench.harness.modes.MO
 
 from __future__ import annotations
 
+import json
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Callable, Iterable, Sequence
 
@@ -43,6 +44,8 @@ class Record:
         fit_seconds_per_goal: Mean training seconds per goal.
         task_params: The regime and env parameters the runs used.
         recognizer_config: The recognizer's configuration.
+        source: The submission the rows came from (``lab``, ``recognizer``, ``version``, ``url``; see
+            :mod:`grail_bench.harness.submissions`); None for rows run here.
     """
 
     task: str
@@ -55,6 +58,7 @@ class Record:
     fit_seconds_per_goal: float
     task_params: dict[str, Any] = field(default_factory=dict)
     recognizer_config: dict[str, Any] = field(default_factory=dict)
+    source: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The record as JSON-able plain data (the ``--json`` format).
@@ -98,6 +102,7 @@ def record_fields(group: Sequence[Any], intervals: Sequence[str] = (), means: Se
         config_hash=first.config_hash, n_seeds=len(group), seeds=[r.seed for r in group],
         fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
         task_params=task_params(first.config), recognizer_config=recognizer_config(first.config),
+        source=json.loads(first.source) if getattr(first, "source", None) else None,
     )
     if hasattr(first, "observability"):
         fields["observability"] = first.observability
@@ -145,6 +150,25 @@ WHO = (Column("recognizer/scorer", label, label), Column("seeds", lambda r: str(
 
 
 @dataclass(frozen=True)
+class Outputs:
+    """What one row's metrics were computed from, per observation: the true goal, the observed steps, the scores.
+
+    Attributes:
+        row: The row.
+        y_true: Each observation's true goal (index into the task's goals).
+        lengths: Each observation's number of observed steps.
+        scored: Each observation's scores, one per goal.
+        posterior: Whether the scores are log-likelihoods of a posterior.
+    """
+
+    row: Any
+    y_true: list[int]
+    lengths: list[int]
+    scored: list[np.ndarray]
+    posterior: bool
+
+
+@dataclass(frozen=True)
 class SeedRun:
     """Everything one unit's run needs.
 
@@ -155,6 +179,8 @@ class SeedRun:
         observation: How test demonstrations are observed (protocol, rounding, levels).
         versions: JSON of the package versions, stored with each row.
         demos: The seed's demonstrations.
+        outputs: Where a mode that keeps per-instance outputs (offline) appends each row's :class:`Outputs`
+            (None: keep none).
     """
 
     task: GRTask
@@ -163,6 +189,7 @@ class SeedRun:
     observation: ObservationSpec
     versions: str
     demos: Demos
+    outputs: list[Outputs] | None = None
 
 
 @dataclass(frozen=True)

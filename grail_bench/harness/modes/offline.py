@@ -24,7 +24,8 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from grail_bench.harness.modes.base import LEAD, WHO, Column, Mode, Record, Run, SeedRun, cells, record_fields
+from grail_bench.harness.modes.base import (LEAD, WHO, Column, Mode, Outputs, Record, Run, SeedRun, cells,
+                                           record_fields)
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.stats import metrics
 from grail_bench.task.observation import level_text
@@ -62,6 +63,7 @@ class ResultRow(Run):
     set_spread: float | None = None  # each a mean over observations (None: stored before)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
     task_fingerprint: str | None = None  # the task as run (grail_bench.task.versions); None: stored before
+    source: str | None = None  # JSON of the submission the row came from (lab, ...); None: run here
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -111,43 +113,66 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
         order = rng.permutation(len(labelled))
         observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
         for scorer in planned.scorers:
-            y_true, predicted, elapsed_ns, brier, nll, ranks, top2 = [], [], 0, [], [], [], []
-            confidence, in_set, set_sizes = [], [], []
+            y_true, scored, lengths, elapsed_ns = [], [], [], 0
             for label, observed in observations:
                 t0 = time.perf_counter_ns()
                 scores = fitted.recognizer.score(observed, scorer.arg)
                 elapsed_ns += time.perf_counter_ns() - t0
-                values = check_scores(planned.name, scores, task.goals)
+                scored.append(check_scores(planned.name, scores, task.goals))
                 y_true.append(label)
-                predicted.append(metrics.prediction(values))
-                rank, in_top2 = metrics.ranking(values, label)
-                ranks.append(rank)
-                top2.append(in_top2)
-                chosen = metrics.goal_set(values, SET_TOLERANCE)
-                in_set.append(label in chosen)
-                set_sizes.append(len(chosen))
-                if scorer.posterior:
-                    b, n, c = metrics.calibration(values, len(observed.acts), label)
-                    brier.append(b)
-                    nll.append(n)
-                    confidence.append(c)
-            confusion = metrics.expected_confusion(y_true, np.array(predicted), len(task.goals))
-            m = metrics.classification_of(confusion)
-            hit = [p[label] for p, label in zip(predicted, y_true)]  # each prediction's chance of being right
+                lengths.append(len(observed.acts))
             rows.append(ResultRow(
                 task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash,
-                seed=job.seed, observability=level, protocol=spec.label, n_observations=len(y_true),
-                n_ties=metrics.n_tied(np.array(predicted)),
+                seed=job.seed, observability=level, protocol=spec.label,
                 fit_seconds_per_goal=fitted.seconds_per_goal, score_us_per_observation=elapsed_ns / 1e3 / len(y_true),
                 config=planned.config, versions=job.versions,
-                brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None,
-                top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)),
-                confusion=json.dumps(metrics.plain_matrix(confusion)),
-                reliability=json.dumps(metrics.reliability_bins(confidence, hit)) if scorer.posterior else None,
-                set_precision=float(np.mean([hit / size for hit, size in zip(in_set, set_sizes)])),
-                set_recall=float(np.mean(in_set)), set_spread=float(np.mean(set_sizes)), **m,
+                **unit_metrics(y_true, scored, lengths, scorer.posterior, len(task.goals)),
             ))
+            if job.outputs is not None:
+                job.outputs.append(Outputs(rows[-1], y_true, lengths, scored, scorer.posterior))
     return rows, fitted
+
+
+def unit_metrics(y_true: list[int], scored: list[np.ndarray], lengths: list[int], posterior: bool,
+                 n_goals: int) -> dict[str, Any]:
+    """The metrics of one row (one unit, level and scorer) from its per-observation outputs.
+
+    Args:
+        y_true: Each observation's true goal (index into the task's goals).
+        scored: Each observation's scores, one per goal (log-likelihoods for a posterior scorer).
+        lengths: Each observation's number of observed steps.
+        posterior: Whether the scores are log-likelihoods (Brier, NLL and reliability are recorded too).
+        n_goals: The task's candidate goals.
+
+    Returns:
+        The :class:`ResultRow` fields they determine: every metric but the timings.
+    """
+    predicted, brier, nll, ranks, top2, confidence, in_set, set_sizes = [], [], [], [], [], [], [], []
+    for label, values, length in zip(y_true, scored, lengths):
+        predicted.append(metrics.prediction(values))
+        rank, in_top2 = metrics.ranking(values, label)
+        ranks.append(rank)
+        top2.append(in_top2)
+        chosen = metrics.goal_set(values, SET_TOLERANCE)
+        in_set.append(label in chosen)
+        set_sizes.append(len(chosen))
+        if posterior:
+            b, n, c = metrics.calibration(values, length, label)
+            brier.append(b)
+            nll.append(n)
+            confidence.append(c)
+    confusion = metrics.expected_confusion(y_true, np.array(predicted), n_goals)
+    hit = [p[label] for p, label in zip(predicted, y_true)]  # each prediction's chance of being right
+    return dict(
+        n_observations=len(y_true), n_ties=metrics.n_tied(np.array(predicted)),
+        brier=float(np.mean(brier)) if brier else None, nll=float(np.mean(nll)) if nll else None,
+        top2=float(np.mean(top2)), mean_rank=float(np.mean(ranks)),
+        confusion=json.dumps(metrics.plain_matrix(confusion)),
+        reliability=json.dumps(metrics.reliability_bins(confidence, hit)) if posterior else None,
+        set_precision=float(np.mean([hit / size for hit, size in zip(in_set, set_sizes)])),
+        set_recall=float(np.mean(in_set)), set_spread=float(np.mean(set_sizes)),
+        **metrics.classification_of(confusion),
+    )
 
 
 def _mean_or_none(values: list[float | None]) -> float | None:

@@ -83,6 +83,7 @@ class OpenSetRow(Run):
     n_ties: int | None = None  # observations whose best known goals tied (None: stored before it was counted)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
     task_fingerprint: str | None = None  # the task as run (grail_bench.task.versions); None: stored before
+    source: str | None = None  # JSON of the submission the row came from (lab, ...); None: run here
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -73,6 +73,7 @@ class ZeroShotRow(Run):
     n_ties: int | None = None  # observations whose best score tied (None: stored before it was counted)
     ties: str | None = metrics.TIE_RULE  # how ties were broken; None: stored before, towards the lowest index
     task_fingerprint: str | None = None  # the task as run (grail_bench.task.versions); None: stored before
+    source: str | None = None  # JSON of the submission the row came from (lab, ...); None: run here
     adapt_seconds_per_goal: float | None = None  # set_goals' seconds per held-out goal (None: stored before)
     score_us_per_observation: float | None = None  # (None: stored before it was timed)
 
