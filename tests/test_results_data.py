@@ -270,3 +270,15 @@ def test_the_quick_line_check_agrees_with_the_schema_validator(kind):
             assert quick(candidate) == full.is_valid(candidate), candidate
 
     agree()
+
+
+def test_a_compressed_file_that_unpacks_past_the_bound_is_refused(tmp_path, monkeypatch):
+    import gzip
+
+    from grail_bench.harness import published
+
+    monkeypatch.setattr(published, "MAX_FILE_BYTES", 1 << 16)
+    bomb = tmp_path / "offline.jsonl.gz"
+    bomb.write_bytes(gzip.compress(b"{}\n" * (1 << 16)))  # a few hundred bytes that unpack past the bound
+    with pytest.raises(published.PublishedError, match="more than 0 MiB of rows in one file"):
+        list(published.read_lines(bomb))

@@ -50,6 +50,9 @@ KEYS = {kind: next(m.key for m in MODES.values() if m.row is row_type) for kind,
 SHARED_FILES = {name: f"{table}.jsonl" for name, table in SHARED.items()}
 #: Files larger than this (bytes, uncompressed) are written gzip-compressed.
 GZIP_ABOVE = 1 << 20
+#: The most a row file may hold, uncompressed (the published store's largest holds 34 MiB): a compressed
+#: file that unpacks to more is refused before it fills memory.
+MAX_FILE_BYTES = 1 << 30
 SCHEMA_FILE = "results.schema.json"
 _HASH = {"type": "string", "pattern": "^[0-9a-f]{64}$"}
 _TYPES = {"str": "string", "int": "integer", "float": "number", "bool": "boolean"}
@@ -321,7 +324,11 @@ def read_lines(path: Path) -> Iterator[tuple[int, Any]]:
         PublishedError: For a line that is not JSON, or a file that cannot be read.
     """
     try:
-        raw = gzip.decompress(path.read_bytes()) if path.name.endswith(".gz") else path.read_bytes()
+        with (gzip.open(path, "rb") if path.name.endswith(".gz") else path.open("rb")) as handle:
+            raw = handle.read(MAX_FILE_BYTES + 1)
+        if len(raw) > MAX_FILE_BYTES:
+            raise PublishedError(f"{path}: more than {MAX_FILE_BYTES >> 20} MiB of rows in one file; split it by "
+                                 "domain and kind")
         text = raw.decode()
     except (OSError, EOFError, gzip.BadGzipFile, UnicodeDecodeError) as exc:
         raise PublishedError(f"cannot read {path}: {exc}") from None
