@@ -3,6 +3,7 @@
 # OPEN_SET.md from the store the run_*.sh scripts fill.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash leaderboard/store.sh  # the store, built from leaderboard/published when missing
 export GRAIL_BENCH_STORE=leaderboard/results.sqlite COLUMNS=200
 GB=".venv/bin/grail-bench"
 # Every stored run: the main boards show each method's canonical configuration (today's default under its own

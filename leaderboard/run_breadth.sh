@@ -6,6 +6,7 @@
 # store where it stops. Parking needs the extra `parking` (installed by `make`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash leaderboard/store.sh  # the store, built from leaderboard/published when missing
 .venv/bin/grail-bench reproduce --profile breadth --store leaderboard/results.sqlite --out leaderboard/breadth \
     --workers 2 --no-progress --no-site
 # The RL baselines and the later sections were added section by section from worktrees at commits 6300a0e,

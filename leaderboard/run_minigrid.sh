@@ -2,6 +2,7 @@
 # MiniGrid runs behind leaderboard/ (see leaderboard/README.md). Both steps resume from the store where they stop.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash leaderboard/store.sh  # the store, built from leaderboard/published when missing
 GB=".venv/bin/grail-bench"
 # The paper's grid: every MiniGrid task under its default protocol and rounding (subset; biased: prefix;
 # k = ceil(p*T)), BC, GRAQL, GAIL and AIRL, 10 seeds, the four scorers; also writes leaderboard/paper/ (tables

@@ -5,6 +5,7 @@
 # `grail-bench reproduce --profile paper --only online --only open-set`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash leaderboard/store.sh  # the store, built from leaderboard/published when missing
 GB=".venv/bin/grail-bench"
 RECOGNIZERS="-r bc -r graql -r gail -r airl"
 # MiniGrid at ceil rounding (the cards' default, spelled out).

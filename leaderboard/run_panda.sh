@@ -4,6 +4,7 @@
 # configuration). DRACO's models depend only on the goal and seed, so the five regimes of a goal set share them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash leaderboard/store.sh  # the store, built from leaderboard/published when missing
 export GRAIL_BENCH_STORE=leaderboard/results.sqlite
 GB=".venv/bin/grail-bench"
 SCORERS="--scorer mse --scorer wasserstein --scorer loglik"

@@ -3,6 +3,7 @@
 # reused by all four tasks (it learns from the reward alone); the imitation learners train per task.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash leaderboard/store.sh  # the store, built from leaderboard/published when missing
 export GRAIL_BENCH_STORE=leaderboard/results.sqlite
 GB=".venv/bin/grail-bench"
 TASKS="Optimal Biased Noisy-0.1 Noisy-0.3"

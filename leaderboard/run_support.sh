@@ -8,6 +8,7 @@
 # GAIL, AIRL and DRACO at 2 (from a worktree at commit 9c9b5bf). Every command resumes from the store.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+bash leaderboard/store.sh  # the store, built from leaderboard/published when missing
 GB=".venv/bin/grail-bench"
 S=leaderboard/results.sqlite
 RUN="$GB reproduce --profile support --store $S --workers 2 --no-progress --no-site"
