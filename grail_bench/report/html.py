@@ -143,20 +143,25 @@ class DomainPage:
 
 
 def _runs(rows: Sequence[Any]) -> tuple[list[dict[str, Any]], dict[str, int]]:
-    """Distinct provenance stamps (one per invocation), numbered, with the package versions of their rows."""
-    runs: list[dict[str, Any]] = []
-    index: dict[str, int] = {}
+    """Distinct provenance stamps (one per invocation), numbered in the order they were run (then by stamp, so the
+    numbers do not depend on the order the store holds its rows; rows stored before stamps last), with the package
+    versions of their rows."""
+    stamps: dict[str, Any] = {}
     for r in rows:
-        key = r.provenance or f"versions:{r.versions}"
-        if key in index:
-            continue
-        index[key] = len(runs)
+        stamps.setdefault(r.provenance or f"versions:{r.versions}", r)
+    entries = []
+    for key, r in stamps.items():
         entry = json.loads(r.provenance) if r.provenance else {"command": None}
         try:
             entry["versions"] = json.loads(r.versions)
         except ValueError:
             entry["versions"] = {}
-        entry["id"] = len(runs)
+        date = str(entry.get("date") or "")
+        entries.append((not date, date, key, entry))
+    entries.sort(key=lambda e: e[:3])
+    runs, index = [], {}
+    for number, (*_, key, entry) in enumerate(entries):
+        entry["id"], index[key] = number, number
         runs.append(entry)
     return runs, index
 
