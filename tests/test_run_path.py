@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 
 from grail_bench import UserError
 from grail_bench.cli import app
-from grail_bench.harness import sweep
+from grail_bench.harness import published, sweep
 from grail_bench.harness.api import evaluate, inspect_fit, request
 from grail_bench.harness.planning import RecognizerSpec, plan, task_params
 from grail_bench.harness.store import ResultsStore
@@ -119,19 +119,28 @@ def test_task_overrides_round_trip_through_the_store(tmp_path):
 # --- typed settings -----------------------------------------------------------------------------------------------
 
 
+@functools.lru_cache(maxsize=None)
+def _published_configs(store: str, recognizer: str) -> list[tuple[str, str, str]]:
+    """The distinct (task, config hash, config) of a recognizer's published offline rows: from the published
+    results (leaderboard/published) for the main store, from the SQLite file of a study's store otherwise."""
+    if store == "results":
+        rows = [r for path in sorted((LEADERBOARD / "published").glob("*/offline.jsonl*"))
+                for r in published.read(path, check=False).rows.get("offline", []) if r.recognizer == recognizer]
+        return sorted({(r.task, r.config_hash, r.config) for r in rows})
+    con = sqlite3.connect(f"file:{LEADERBOARD / (store + '.sqlite')}?mode=ro", uri=True)
+    try:
+        return con.execute("SELECT DISTINCT task, config_hash, config FROM results WHERE recognizer = ? "
+                           "ORDER BY task, config_hash", (recognizer,)).fetchall()
+    finally:
+        con.close()
+
+
 @pytest.mark.parametrize("name", BUILTINS)
 def test_default_settings_keep_the_published_keys(name):
     """The default Config's key is the ``config`` of published default rows whose hash today's planning reproduces."""
     default = settings_key(RECOGNIZERS.get(name).Config())
-    uri = f"file:{LEADERBOARD / (PUBLISHED[name] + '.sqlite')}?mode=ro"
-    con = sqlite3.connect(uri, uri=True)
-    try:
-        rows = con.execute("SELECT DISTINCT task, config_hash, config FROM results WHERE recognizer = ?",
-                           (name,)).fetchall()
-    finally:
-        con.close()
     reproduced = None
-    for task_id, stored_hash, config in rows:
+    for task_id, stored_hash, config in _published_configs(PUBLISHED[name], name):
         if json.loads(config)["config"] != default:
             continue
         task = find_task(task_id, task_params(config))
