@@ -135,8 +135,9 @@ def list_(
 
 @app.command()
 def run(
-    task: Optional[List[str]] = typer.Option(None, "--task", "-t",
-                                             help=f"A GRAIL/ task ID; repeat for several. Default: {DEFAULT_TASK}"),
+    task: Optional[List[str]] = typer.Option(
+        None, "--task", "-t", help=f"A GRAIL/ task ID, or a symbolic problem set (an archive or folder in the PDDL "
+                                   f"dataset's layout, or a folder of them); repeat for several. Default: {DEFAULT_TASK}"),
     recognizer: Optional[List[str]] = typer.Option(None, "--recognizer", "-r",
                                                    help="Recognizer name; repeat for several (default: bc, graql)."),
     seeds: int = typer.Option(3, "--seeds", "-s", help="Seeds 0..N-1 (the paper uses 10)."),
@@ -194,7 +195,7 @@ def run(
         scorers = tuple(dict.fromkeys(scorer or []))
         setups = _observations(observation, observability, canonical_name(sampling) if sampling else protocol,
                                rounding)
-        tasks = list(dict.fromkeys(task or [DEFAULT_TASK]))
+        tasks = _run_tasks(list(dict.fromkeys(task or [DEFAULT_TASK])))
         reqs = [request(t, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
                         observability=levels, protocol=chosen_protocol, rounding=chosen_rounding,
                         task_params=parse_params(params or []) | ({"demos": demos} if demos else {}), mode=mode,
@@ -202,7 +203,7 @@ def run(
                 for t in tasks for levels, chosen_protocol, chosen_rounding in setups]
         # The executor first: one refused (a bad --workers or --address) leaves no store behind.
         with make_executor(executor, workers, address) as chosen, open_store(store_path) as store:
-            what = tasks[0] if len(tasks) == 1 else f"{len(tasks)} tasks"
+            what = getattr(tasks[0], "id", tasks[0]) if len(tasks) == 1 else f"{len(tasks)} tasks"
             summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{what} ({mode})")
             records = [r for req, planned in summary.planned for r in collect(req, store, planned)]
             where = store.path
@@ -210,6 +211,14 @@ def run(
         say(f"results stored in {where}")
         if json_path is not None:
             write_text(json_path, json.dumps([r.to_dict() for r in records], indent=2) + "\n", "records")
+
+
+def _run_tasks(names: list[str]) -> list:
+    """The tasks a run's ``--task`` values name: an ID as given, a path as its problem set's tasks (one per group
+    of problems sharing domain, template and hypotheses: :mod:`grail_bench.domains.symbolic.problem_set`)."""
+    from grail_bench.domains.symbolic.problem_set import problem_set_tasks
+
+    return [t for name in names for t in (problem_set_tasks(name) if Path(name).exists() else [name])]
 
 
 def _observations(profile: Optional[str], observability: Optional[str], protocol: Optional[str],

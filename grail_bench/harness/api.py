@@ -18,6 +18,7 @@ from grail_bench.harness.sweep import Request, plan_request, run_sweep
 from grail_bench.recognizers.contract import FitDiagnostics
 from grail_bench.stats import metrics
 from grail_bench.task import GRTask, make_task
+from grail_bench.task.registration import remember
 from grail_bench.task.datasets import check_seeds
 from grail_bench.task.observation import ObservationSpec
 from grail_bench.task.overrides import TaskOverrides
@@ -47,23 +48,28 @@ def _specs(recognizers: RecognizerLike | Sequence[RecognizerLike]) -> tuple[Reco
     return tuple(RecognizerSpec.of(item) for item in items)
 
 
-def request(task_id: str, recognizers: RecognizerLike | Sequence[RecognizerLike], *,
+def request(task_id: str | GRTask, recognizers: RecognizerLike | Sequence[RecognizerLike], *,
             seeds: int | Sequence[int] = 3, observability: Iterable[float] | str | None = None,
             protocol: str | None = None, rounding: str | None = None, task_params: Mapping[str, Any] | None = None,
             mode: str = "offline", noise: float = 0.0, channel: str = "pairs") -> Request:
-    """A checked :class:`~grail_bench.harness.sweep.Request` (see :func:`evaluate` for the arguments).
+    """A checked :class:`~grail_bench.harness.sweep.Request` (see :func:`evaluate` for the arguments; the task is
+    an ID or a :class:`~grail_bench.task.GRTask`, e.g. a problem set's).
 
     Raises:
         UserError: For anything :func:`evaluate` would refuse, before any work.
     """
     chosen = get_mode(mode)
-    if not isinstance(task_id, str):
-        raise UserError(f"a task is named by its GRAIL/ ID, got {task_id!r}")
+    if not isinstance(task_id, (str, GRTask)):
+        raise UserError(f"a task is named by its GRAIL/ ID (or is a GRTask), got {task_id!r}")
     if observability is not None and not isinstance(observability, (str, Iterable)):
         raise UserError(f"observability is a list of fractions (e.g. [0.3]) or a comma-separated string, got "
                         f"{observability!r}")
     overrides = TaskOverrides.of(task_params)
-    task = make_task(task_id, **overrides.as_dict())
+    if isinstance(task_id, GRTask):
+        remember(task_id)  # its ID names it in this process (its run's boards read it back)
+        task = task_id.with_overrides(**overrides.as_dict()) if overrides.as_dict() else task_id
+    else:
+        task = make_task(task_id, **overrides.as_dict())
     if observability is not None:
         levels = observability
     else:
@@ -79,7 +85,7 @@ def request(task_id: str, recognizers: RecognizerLike | Sequence[RecognizerLike]
 
 
 def evaluate(
-    task_id: str,
+    task_id: str | GRTask,
     recognizers: RecognizerLike | Sequence[RecognizerLike],
     *,
     seeds: int | Sequence[int] = 3,
@@ -100,7 +106,8 @@ def evaluate(
     run resumes where it stopped.
 
     Args:
-        task_id: A ``GRAIL/`` ID.
+        task_id: A ``GRAIL/`` ID, or a task (e.g. a problem set's:
+            :func:`grail_bench.domains.symbolic.problem_set.problem_set_tasks`).
         recognizers: A name, a ``(name, config)`` pair or a :class:`RecognizerSpec` (which also selects
             scorers), or a sequence of them.
         seeds: ``n`` for seeds ``0..n-1``, or explicit seeds.

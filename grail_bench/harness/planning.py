@@ -101,6 +101,10 @@ def fitted_config(task: GRTask, name: str, settings: Mapping[str, Any]) -> dict[
                        "n_demos": task.n_demos, "n_train": task.n_train}}
     if task.demos:  # demonstrations from a dataset: its content keys the results
         config["task"]["demos"] = source_digest(task.demos)
+    digest = getattr(task.spec, "content_digest", None)
+    content = digest(task) if digest is not None else None
+    if content:  # files the task is made of (a symbolic problem set): their content keys the results
+        config["task"]["content"] = content
     return config
 
 

@@ -36,7 +36,7 @@ from grail_bench.harness.outputs import OutputRow, output_row
 from grail_bench.harness.planning import Planned, RecognizerSpec, check_channel, plan
 from grail_bench.harness.store import ResultsStore
 from grail_bench.task import GRTask, make_task
-from grail_bench.task.observation import ObservationSpec
+from grail_bench.task.observation import DATASET, ObservationSpec
 from grail_bench.task.overrides import TaskOverrides
 from grail_bench.task.versions import fingerprint
 
@@ -167,8 +167,9 @@ def run_unit(unit: Unit) -> UnitResult:
     from grail_bench.core.torchutil import single_thread  # here: planning and storing need no torch
 
     kept: list[Outputs] = []
+    own = unit.observation.protocol == DATASET  # the task's own observations: no demonstration is generated
     job = SeedRun(task=unit.task, planned=unit.planned, seed=unit.seed, observation=unit.observation,
-                  versions=_versions(), demos=_demos(unit.task, unit.seed), outputs=kept)
+                  versions=_versions(), demos={} if own else _demos(unit.task, unit.seed), outputs=kept)
     with single_thread():  # as every worker does: the same arithmetic wherever a unit runs
         rows, fitted = get_mode(unit.mode).run(job)
     fp = fingerprint(unit.task)  # the task as run: its card's, or a variant's with its parameters

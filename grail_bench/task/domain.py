@@ -83,6 +83,13 @@ class Domain(Protocol):
     settings that need one (``off_support="stay"``, BC's ``augment="stay"``) are
     refused where a run is planned on a domain that declares none.
 
+    A domain may also declare ``fixed``: per env parameter a task keeps from its card, why (a one-line pointer
+    shown when an override would change it); and, for tasks carrying observations of their own (a symbolic problem
+    set), ``check_dataset(task)`` (raising a one-line :class:`~grail_bench.core.errors.UserError` for a task with
+    none), ``dataset_observations(task)`` (``[(true goal's index, observed Trajectory), ...]``, what the ``dataset``
+    protocol scores) and ``content_digest(task)`` (a digest of the files the task is made of, which keys its
+    results; None for none).
+
     A domain may also state its demonstrator's action distribution, which the
     reference recognizer ``demonstrator`` (perfect imitation) scores with:
     ``demonstrator_policy(task, goal, support)``, ``support`` being

@@ -247,6 +247,10 @@ class GRTask:
             elif name in spec.regimes[self.regime]:
                 params[name] = value
             elif name in spec.env_defaults:
+                why = (getattr(spec, "fixed", None) or {}).get(name)
+                if why and freeze(value) != freeze(env_params[name]):
+                    raise UserError(f"{self.id} keeps its card's {name} ({env_params[name]!r}), not {value!r}: "
+                                    f"{why}")
                 env_params[name] = value
             else:
                 hint = " (it applies to gym.make, not to a task)" if name in ENV_ONLY else ""

@@ -213,6 +213,28 @@ BUILTIN: dict[str, ObservationProtocol] = {p.name: p for p in (
 )}
 
 
+#: The protocol of a problem set's own observations (a symbolic problem set run as a task: each problem's
+#: ``obs.dat`` scored against its ``real_hyp.dat``, :mod:`grail_bench.domains.symbolic.problem_set`).
+DATASET = "dataset"
+
+
+@dataclass(frozen=True)
+class DatasetProtocol:
+    """The ``dataset`` protocol: a task's own observations, as its domain gives them (a domain's optional
+    ``dataset_observations(task)``), observed whole, at level 1, on the actions channel. It observes no
+    demonstration, so :meth:`select` refuses."""
+
+    name: str = DATASET
+    description: str = ("a problem set's own observations (each problem's obs.dat against its real_hyp.dat), "
+                        "whole, on the actions channel; symbolic problem sets run as tasks (--task PATH)")
+    leaks_goal: bool = False
+
+    def select(self, traj: Trajectory, fraction: float, rng: np.random.Generator,
+               rounding: str = "ceil") -> np.ndarray:
+        raise UserError(f"the {DATASET} protocol observes a problem set's own obs.dat, not a demonstration; it "
+                        "applies to offline runs of a problem set (grail-bench run --task PATH)")
+
+
 class UnknownProtocolError(UserError):
     """No protocol of that name is built in or registered."""
 
@@ -228,6 +250,7 @@ PROTOCOLS: Registry[ProtocolLike] = Registry("observation protocol", GROUP, chec
                                              unknown=UnknownProtocolError)
 for _protocol in BUILTIN.values():
     PROTOCOLS.add(_protocol.name, _protocol)
+PROTOCOLS.add(DATASET, DatasetProtocol())
 
 
 def available_protocols() -> dict[str, str]:
@@ -505,6 +528,11 @@ class ObservationSpec:
         _check_channel(channel)
         noise = check_noise(noise)
         name = get_protocol(protocol).name
+        if name == DATASET:  # a problem set's obs.dat holds actions only, as the dataset gives them
+            if channel == "states" or noise:
+                raise UserError(f"the {DATASET} protocol observes each obs.dat as the problem set gives it (its "
+                                f"actions); drop {'--channel states' if channel == 'states' else '--noise'}")
+            channel = "actions"
         parsed = parse_observability(levels) if (isinstance(levels, str) or list(levels)) else ()
         spurious = None
         if noise:

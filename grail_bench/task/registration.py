@@ -33,6 +33,20 @@ def shipped_tasks() -> dict[str, GRTask]:
     return {task.id: task for task in load_cards()}
 
 
+#: Tasks built in this process outside the cards (a symbolic problem set's), by ID: see :func:`remember`.
+_remembered: dict[str, GRTask] = {}
+
+
+def remember(task: GRTask) -> None:
+    """Make a task built outside the cards (a problem set's, ``symbolic:<name>``) known by its ID in this process,
+    to :func:`make_task` and :func:`find_task` (so the boards of the run that built it name its configurations).
+    A card's ID is never taken over: the card's task stays what the ID means.
+    """
+    if task.id not in shipped_tasks():
+        _remembered[task.id] = task
+        _found.cache_clear()
+
+
 def register_envs() -> list[GRTask]:
     """Register every task card's ID with gymnasium (skipping existing ones).
 
@@ -80,7 +94,7 @@ def make_task(task_id: str, **overrides: Any) -> GRTask:
     Raises:
         UserError: For an ID that is not a GRAIL/ task (close IDs suggested), or an override it cannot apply.
     """
-    tasks = shipped_tasks()
+    tasks = {**_remembered, **shipped_tasks()}
     card = tasks.get(task_id) if isinstance(task_id, str) else None
     if card is None:
         raise UserError(_unknown(task_id, list(tasks)))

@@ -85,6 +85,9 @@ class Symbolic:
         "suboptimal": {"detour_prob": 0.3},
     }
     bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000)}  # published: 50
+    #: Env parameters a task keeps from its card: another problem has other hypotheses, so it is a task of its own.
+    fixed: Mapping[str, str] = {"problem": "run a problem set as a task of its own, with every one of its "
+                                           "hypotheses: grail-bench run --task PATH"}
     ceiling_regimes = frozenset({"optimal", "biased"})
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
@@ -101,6 +104,24 @@ class Symbolic:
     def ends_early(self, env_params: Mapping[str, Any]) -> str | None:
         """Why episodes may end before ``max_steps`` (see :class:`~grail_bench.task.domain.Domain`)."""
         return "episodes end when the goal holds"
+
+    def check_dataset(self, task: Any) -> None:
+        """Refuse, in one line, a task with no observations of its own for the ``dataset`` protocol (only a problem
+        set run as a task has them: :mod:`.problem_set`)."""
+        if not getattr(task, "problems", ()):
+            raise UserError(f"the dataset protocol scores a problem set's own obs.dat; {task.id} is no problem set: "
+                            "run one as its own task (grail-bench run --task PATH)")
+
+    def dataset_observations(self, task: Any) -> list[tuple[int, Any]]:
+        """A problem set's own observations and their true goals' indices (:func:`.problem_set.dataset_observations`)."""
+        from grail_bench.domains.symbolic.problem_set import dataset_observations
+
+        return dataset_observations(task)
+
+    def content_digest(self, task: Any) -> str | None:
+        """sha256 of a problem set's files (None for other tasks): the results of a problem set are keyed by it,
+        so an edited set runs again."""
+        return getattr(task, "digest", "") or None
 
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.symbolic.env import SymbolicEnv

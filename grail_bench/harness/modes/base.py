@@ -20,7 +20,7 @@ from grail_bench.core.trajectory import Demos
 from grail_bench.harness.planning import Fitted, Planned, recognizer_config, task_params
 from grail_bench.stats import metrics
 from grail_bench.task import GRTask
-from grail_bench.task.observation import ObservationSpec
+from grail_bench.task.observation import DATASET, ObservationSpec
 
 
 @dataclass(frozen=True)
@@ -192,6 +192,24 @@ class SeedRun:
     outputs: list[Outputs] | None = None
 
 
+def check_dataset(mode: str, task: GRTask, observation: ObservationSpec) -> None:
+    """Refuse, in one line, a run of the ``dataset`` protocol its task or mode cannot serve: it needs a task with
+    observations of its own (its domain's ``check_dataset``: a symbolic problem set), offline, at level 1.
+
+    Raises:
+        UserError: Saying why.
+    """
+    check = getattr(task.spec, "check_dataset", None)
+    if check is None:
+        raise UserError(f"the {DATASET} protocol scores a task's own observations; {task.id} has none (a symbolic "
+                        "problem set has: grail-bench run --task PATH)")
+    check(task)
+    if mode != "offline":
+        raise UserError(f"the {DATASET} protocol scores each observation once, offline; drop --mode {mode}")
+    if tuple(observation.levels) != (1.0,):
+        raise UserError(f"the {DATASET} protocol observes each observation whole, at level 1; drop --observability")
+
+
 @dataclass(frozen=True)
 class Mode:
     """One kind of run (see the module docstring).
@@ -232,6 +250,8 @@ class Mode:
         Raises:
             UserError: In one line, saying why.
         """
+        if observation.protocol == DATASET:
+            check_dataset(self.name, task, observation)
         if self.takes_levels and not observation.levels:
             raise UserError(f"{self.name} runs score at observability levels; give at least one")
         if not self.takes_levels and observation.levels:

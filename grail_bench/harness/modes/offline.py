@@ -28,7 +28,7 @@ from grail_bench.harness.modes.base import (LEAD, WHO, Column, Mode, Outputs, Re
                                            record_fields)
 from grail_bench.harness.planning import Fitted, check_scores, fit_recognizer
 from grail_bench.stats import metrics
-from grail_bench.task.observation import level_text
+from grail_bench.task.observation import DATASET, level_text
 
 #: A goal is in the set-valued answer when its score is within this share of the scores' range of the best.
 SET_TOLERANCE = 0.1
@@ -99,19 +99,27 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
     which other levels run in the same call. With a scorer that yields a
     posterior (``loglik``), its Brier score and NLL are recorded too. Goals
     tied at the best score share the prediction (see the module docstring).
+    Under the ``dataset`` protocol the observations are the task's own (its
+    domain's ``dataset_observations``), scored whole, and the recognizer is
+    fitted on no demonstration (a problem set holds none).
 
     Returns:
         The rows (one per level and scorer) and the fitted recognizer.
     """
     task, planned, spec = job.task, job.planned, job.observation
-    train, test = task.split(job.demos)
-    fitted = fit_recognizer(task, planned, job.seed, train, test)
-    labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
+    if spec.protocol == DATASET:  # the task's own observations; the dataset holds no demonstration to fit on
+        fitted = fit_recognizer(task, planned, job.seed, {g: [] for g in task.goals}, {})
+        labelled = task.spec.dataset_observations(task)
+    else:
+        train, test = task.split(job.demos)
+        fitted = fit_recognizer(task, planned, job.seed, train, test)
+        labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
     rows = []
     for level in spec.levels:
         rng = spec.rng(job.seed, level)
         order = rng.permutation(len(labelled))
-        observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
+        observations = [(labelled[j][0], labelled[j][1] if spec.protocol == DATASET else
+                         spec.observe(labelled[j][1], level, rng)) for j in order]
         for scorer in planned.scorers:
             y_true, scored, lengths, elapsed_ns = [], [], [], 0
             for label, observed in observations:
