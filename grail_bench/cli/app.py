@@ -216,9 +216,13 @@ def run(
 def _run_tasks(names: list[str]) -> list:
     """The tasks a run's ``--task`` values name: an ID as given, a path as its problem set's tasks (one per group
     of problems sharing domain, template and hypotheses: :mod:`grail_bench.domains.symbolic.problem_set`)."""
+    from grail_bench.domains.symbolic.dataset import ARCHIVE_SUFFIXES
     from grail_bench.domains.symbolic.problem_set import problem_set_tasks
 
-    return [t for name in names for t in (problem_set_tasks(name) if Path(name).exists() else [name])]
+    def is_path(name: str) -> bool:  # an existing one, or one written as a path (a missing one is said so)
+        return Path(name).exists() or name.startswith(("/", "./", "../", "~")) or name.endswith(ARCHIVE_SUFFIXES)
+
+    return [t for name in names for t in (problem_set_tasks(Path(name).expanduser()) if is_path(name) else [name])]
 
 
 def _observations(profile: Optional[str], observability: Optional[str], protocol: Optional[str],

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -94,8 +95,10 @@ def set_name(path: str | Path) -> str:
 
 
 def _group_name(names: list[str]) -> str:
-    prefix = os.path.commonprefix(names).rstrip("_-.")
-    return prefix or names[0]
+    """A group's name: its problems' names without the dataset's ``_hyp-<i>...`` tail (the first, and how many
+    other such names the group holds)."""
+    stems = list(dict.fromkeys(re.sub(r"_hyp-.*$", "", n) for n in names))
+    return stems[0] if len(stems) == 1 else f"{stems[0]}+{len(stems) - 1}"
 
 
 def problem_set_tasks(path: str | Path, max_steps: int = 50) -> list[GRTask]:
@@ -116,10 +119,16 @@ def problem_set_tasks(path: str | Path, max_steps: int = 50) -> list[GRTask]:
     for problem in problem_paths(path):
         texts = read_files(problem)
         groups.setdefault(tuple(texts[f] for f in SHARED), []).append((problem, texts))
-    tasks = []
+    tasks: list[GRTask] = []
+    taken: set[str] = set()
     for members in groups.values():
         names = [problem_name(p) for p, _ in members]
-        task_id = PREFIX + (name if len(groups) == 1 else f"{name}/{_group_name(names)}")
+        task_id = base = PREFIX + (name if len(groups) == 1 else f"{name}/{_group_name(names)}")
+        for k in range(2, len(groups) + 2):  # names alike but files not: numbered, in order
+            if task_id not in taken:
+                break
+            task_id = f"{base}#{k}"
+        taken.add(task_id)
         digest = hashlib.sha256()
         for problem, texts in members:
             parsed = parse_files(texts, problem_name(problem))

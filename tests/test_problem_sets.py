@@ -1,0 +1,172 @@
+"""A symbolic problem set in the dataset's layout runs as a task of its own, with all of its hypotheses and a name
+of its own, and the ``dataset`` protocol scores each problem's own obs.dat against its real_hyp.dat."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_cli_inputs import refused
+from typer.testing import CliRunner
+
+import grail_bench
+from grail_bench.cli import app
+from grail_bench.core.errors import UserError
+from grail_bench.domains.symbolic.dataset import file_texts, write_problem
+from grail_bench.domains.symbolic.generator import GRID_DOMAIN, builtin_problem, observed, write_dataset
+from grail_bench.domains.symbolic.problem import PLACEHOLDER, GRProblem
+from grail_bench.domains.symbolic.problem_set import dataset_observations, problem_set_tasks
+from grail_bench.harness.modes import ResultRow
+from grail_bench.harness.store import ResultsStore
+from grail_bench.recognizers import make_recognizer
+from grail_bench.stats import metrics
+
+ARMS = 5
+
+
+def star() -> GRProblem:
+    """A robot in the middle of five corridors two cells long; the candidate goals are the corridors' ends, so
+    a goal's optimal plan (the only one) passes no other goal's cell: a whole plan says which goal it is."""
+    cells = ["c"] + [f"a{i}{j}" for i in range(ARMS) for j in (1, 2)]
+    links = [("c", f"a{i}1") for i in range(ARMS)] + [(f"a{i}1", f"a{i}2") for i in range(ARMS)]
+    init = [("robot-at", "c")] + [("adjacent", a, b) for x, y in links for a, b in ((x, y), (y, x))]
+    facts = "\n    ".join(f"({' '.join(atom)})" for atom in init)
+    template = (f"(define (problem star)\n  (:domain grid-navigation)\n  (:objects {' '.join(cells)} - cell)\n"
+                f"  (:init\n    {facts})\n  (:goal (and\n    {PLACEHOLDER}\n  )))\n")
+    hyps = tuple(((("robot-at", f"a{i}2"),)) for i in range(ARMS))
+    return GRProblem("star", GRID_DOMAIN, template, hyps, hyps[0], ())
+
+
+def write_set(folder: Path, problem: GRProblem, level: int, seed: int = 0, name: str = "star") -> Path:
+    """One problem per hypothesis, its obs.dat ``level`` percent of an optimal plan (the generator's draw)."""
+    rng = np.random.default_rng(seed)
+    for goal in range(len(problem.hypotheses)):
+        write_problem(observed(problem, goal, level, rng), folder / f"{name}_hyp-{goal}_{level}.tar.bz2")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory) -> Path:
+    return write_set(tmp_path_factory.mktemp("sets") / "star", star(), 100)
+
+
+def test_a_problem_set_with_five_hypotheses_is_a_task_with_five_goals_and_its_own_name(whole):
+    (task,) = problem_set_tasks(whole)
+    assert task.id == "symbolic:star" and task.goals == tuple((i,) for i in range(ARMS))
+    assert task.protocol == "dataset" and task.observability == (1.0,) and len(task.problems) == ARMS
+    (one,) = problem_set_tasks(whole / "star_hyp-3_100.tar.bz2")  # one archive is a set of one problem
+    assert one.id == "symbolic:star_hyp-3_100" and len(one.goals) == ARMS
+    labels = [label for label, _ in dataset_observations(task)]
+    assert labels == list(range(ARMS))  # each problem's real_hyp.dat, in the order of the archives
+
+
+def test_whole_optimal_plans_are_recognised_and_stored_under_the_sets_name(whole, tmp_path):
+    store = tmp_path / "r.sqlite"
+    result = CliRunner().invoke(app, ["run", "--task", str(whole), "-r", "landmarks", "-r", "prp", "--seeds", "1",
+                                      "--no-progress", "--json", str(tmp_path / "r.json")],
+                                env={"COLUMNS": "200", "GRAIL_BENCH_STORE": str(store)})
+    output = result.output
+    assert result.exit_code == 0, output
+    records = json.loads((tmp_path / "r.json").read_text())
+    assert {r["recognizer"] for r in records} == {"landmarks", "prp"}
+    for r in records:
+        assert r["task"] == "symbolic:star" and r["protocol"] == "dataset+actions" and r["observability"] == 1.0
+        assert r["accuracy_mean"] == 1.0 and r["confusion"] == np.eye(ARMS, dtype=int).tolist()
+    with ResultsStore(store, read_only=True) as rows:
+        assert {(r.task, r.n_observations) for r in rows.select(ResultRow)} == {("symbolic:star", ARMS)}
+    assert "symbolic:star" in output and "Landmarks" in output  # the run's board shows it (not archived)
+
+
+def test_the_dataset_protocol_scores_each_obs_dat_as_the_recognizer_does_directly(tmp_path):
+    """At 30 % observed, ties and misses occur: the stored accuracy is the recognizer's own answers on each
+    problem's obs.dat (expected accuracy, ties shared uniformly), computed here without the harness."""
+    folder = write_set(tmp_path / "grid", builtin_problem("grid"), 30, seed=3, name="grid")
+    write_set(folder, builtin_problem("grid"), 10, seed=4, name="grid")
+    (task,) = problem_set_tasks(folder)
+    records = grail_bench.evaluate(task, "landmarks", seeds=1)
+    (record,) = records
+    rec = make_recognizer("landmarks")
+    rec.fit({g: [] for g in task.goals}, task.env_factory())
+    hits = []
+    for label, observation in dataset_observations(task):
+        scores = np.array([rec.score(observation)[g] for g in task.goals])
+        hits.append(metrics.prediction(scores)[label])
+    assert len(hits) == 6 and record.accuracy_mean == pytest.approx(np.mean(hits))
+    assert 0.0 < record.accuracy_mean < 1.0  # the case is not trivial
+
+
+def test_problems_that_differ_in_their_files_are_tasks_of_their_own(tmp_path):
+    folder = write_set(tmp_path / "mixed", builtin_problem("grid"), 100, name="grid")
+    write_set(folder, builtin_problem("blocks"), 100, name="blocks")
+    tasks = problem_set_tasks(folder)
+    assert [(t.id, len(t.goals), len(t.problems)) for t in tasks] == [
+        ("symbolic:mixed/blocks", 4, 4), ("symbolic:mixed/grid", 3, 3)]
+
+
+def test_an_edited_problem_set_runs_again(tmp_path):
+    folder = write_set(tmp_path / "star", star(), 100)
+    store = ResultsStore(tmp_path / "r.sqlite")
+    (task,) = problem_set_tasks(folder)
+    first = grail_bench.evaluate(task, "landmarks", seeds=1, store=store)
+    write_problem(replace(star(), observations=(("move", "c", "a01"),)), folder / "star_hyp-0_100.tar.bz2")
+    (task,) = problem_set_tasks(folder)
+    second = grail_bench.evaluate(task, "landmarks", seeds=1, store=store)
+    assert first[0].config_hash != second[0].config_hash and len(store.select(ResultRow)) == 2
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda p: p / "nowhere", "problem set {p}/nowhere does not exist"),
+    (lambda p: (p / "empty").mkdir() or p / "empty", "problem set {p}/empty holds no problem"),
+    (lambda p: (p / "half").mkdir() or (p / "half" / "domain.pddl").write_text(GRID_DOMAIN) and p / "half",
+     "lacks template.pddl, hyps.dat, obs.dat, real_hyp.dat"),
+    (lambda p: _with(p, "real_hyp.dat", "(robot-at c)\n"), "real_hyp.dat (robot-at c) is not among hyps.dat"),
+    (lambda p: _with(p, "hyps.dat", "(robot-at a02)\n"), "hyps.dat lists 1 hypothesis"),
+], ids=["missing", "empty", "lacking-files", "true-goal-unknown", "one-hypothesis"])
+def test_a_malformed_problem_set_is_one_line(tmp_path, make, message):
+    path = make(tmp_path)
+    expected = message.format(p=tmp_path)
+    with pytest.raises(UserError, match=None) as err:
+        problem_set_tasks(path)
+    assert expected in str(err.value) and "\n" not in str(err.value)
+    refused(["run", "--task", str(path), "-r", "landmarks", "--no-progress"], tmp_path / "r.sqlite", expected)
+
+
+def _with(folder: Path, name: str, text: str) -> Path:
+    texts = file_texts(replace(star(), observations=(("move", "c", "a01"),)))
+    texts[name] = text
+    (folder / "p").mkdir()
+    for member, body in texts.items():
+        (folder / "p" / member).write_text(body)
+    return folder / "p"
+
+
+def test_an_observed_action_the_problem_lacks_is_one_line_naming_the_file(tmp_path):
+    path = _with(tmp_path, "obs.dat", "(move c a99)\n")
+    refused(["run", "--task", str(path), "-r", "landmarks", "--no-progress"], tmp_path / "r.sqlite",
+            f"{path}: obs.dat: (move c a99) is no reachable ground operator")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["run", "-t", "GRAIL/Symbolic-Grid-Optimal-v0", "--param", "problem={set}"],
+     "keeps its card's problem ('grid'), not '{set}': run a problem set as a task of its own"),
+    (["run", "-t", "GRAIL/Symbolic-Grid-Optimal-v0", "-r", "landmarks", "--protocol", "dataset"],
+     "GRAIL/Symbolic-Grid-Optimal-v0 is no problem set: run one as its own task (grail-bench run --task PATH)"),
+    (["run", "-t", "{set}", "-r", "landmarks", "--observability", "0.5"], "at level 1; drop --observability"),
+    (["run", "-t", "{set}", "-r", "landmarks", "--online"], "scores each observation once, offline; drop --mode online"),
+    (["run", "-t", "{set}", "-r", "landmarks", "--channel", "states"], "drop --channel states"),
+    (["run", "-t", "{set}", "-r", "bc"], "bc cannot use the actions channel"),
+], ids=["param-problem", "card-dataset", "levels", "online", "states", "bc"])
+def test_what_a_problem_set_cannot_be_given_is_refused_in_one_line(whole, tmp_path, args, message):
+    args = [a.format(set=whole) for a in args]
+    refused([*args, "--no-progress"], tmp_path / "r.sqlite", message.format(set=whole))
+    with pytest.raises(UserError, match="run a problem set as a task of its own"):
+        grail_bench.make_task("GRAIL/Symbolic-Grid-Optimal-v0", problem=str(whole))
+
+
+def test_the_generators_dataset_layout_runs_level_by_level(tmp_path):
+    write_dataset(tmp_path, names=["grid"], levels=[100], seed=0)
+    (task,) = problem_set_tasks(tmp_path / "grid" / "100")
+    assert task.id == "symbolic:grid/100" and len(task.goals) == 3
