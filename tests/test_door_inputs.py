@@ -33,6 +33,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.domains.symbolic import dataset
 from grail_bench.domains.symbolic.dataset import load_problem, read_files, write_problem
 from grail_bench.domains.symbolic.generator import builtin_problem
+from grail_bench.domains.symbolic.problem_set import problem_set_tasks
 from grail_bench.recognizers.registry import make_recognizer
 from grail_bench.task import cards
 from grail_bench.task.cards import CardError, load_cards, skipped_cards
@@ -413,8 +414,8 @@ def _problem_folder(tmp_path: Path, name: str, encoding: str, file: str = "domai
 def test_a_broken_problem_file_is_one_line_naming_it(tmp_path, make, message):
     problem = make(tmp_path)
     with pytest.raises(UserError, match=message):
-        grail_bench.make_task(SYMBOLIC, problem=str(problem))
-    unchanged(tmp_path, ["run", "-t", SYMBOLIC, "--param", f"problem={problem}"], message)
+        problem_set_tasks(problem)
+    unchanged(tmp_path, ["run", "-t", str(problem), "-r", "landmarks"], message)
 
 
 def _zip(path: Path) -> Path:

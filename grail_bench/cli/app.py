@@ -571,7 +571,8 @@ def protocols() -> None:
         rows = []
         for name, target in available_protocols().items():
             chosen = BUILTIN.get(name) or get_protocol(name)
-            rows.append((name, chosen.leaks_goal, chosen.description + ("" if name in BUILTIN else f" ({target})")))
+            own = name in BUILTIN or target == "built-in"
+            rows.append((name, chosen.leaks_goal, chosen.description + ("" if own else f" ({target})")))
     console.print(protocols_table(rows))
     say("k = max(1, ceil(p * T)) or max(1, int(p * T)) pairs (gr_libs'), by each task's rounding "
         "(`grail-bench tasks`) or --rounding.")
