@@ -60,7 +60,7 @@ def request(task_id: str | GRTask, recognizers: RecognizerLike | Sequence[Recogn
     """
     chosen = get_mode(mode)
     if not isinstance(task_id, (str, GRTask)):
-        raise UserError(f"a task is named by its GRAIL/ ID (or is a GRTask), got {task_id!r}")
+        raise UserError(f"a task is named by its GRAIL/ ID, got {task_id!r} (or is a GRTask, e.g. a problem set's)")
     if observability is not None and not isinstance(observability, (str, Iterable)):
         raise UserError(f"observability is a list of fractions (e.g. [0.3]) or a comma-separated string, got "
                         f"{observability!r}")
