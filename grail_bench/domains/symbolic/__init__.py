@@ -15,6 +15,8 @@ Modules, one job each:
 * :mod:`.planner`: optimal planning (A* with h_max) and the DAG of every optimal plan (:class:`~.planner.PlanGraph`);
 * :mod:`.problem`: :class:`~.problem.GRProblem`, one recognition problem and its grounded model;
 * :mod:`.dataset`: the dataset's archives, read and written; :mod:`.generator`: the built-in problems;
+* :mod:`.problem_set`: a problem set (an archive, a folder, or a folder of them) as a task of its own, with all
+  of its hypotheses, and its own observations for the ``dataset`` protocol (``grail-bench run --task PATH``);
 * :mod:`.env`: the gymnasium env; :mod:`.demos`: the demonstrators; :mod:`.likelihood`: their exact
   likelihood (Bayes ceiling); :mod:`.policy`: their action distributions on every state.
 

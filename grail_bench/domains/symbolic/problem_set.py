@@ -26,8 +26,8 @@ import numpy as np
 from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Trajectory
-from grail_bench.domains.symbolic.dataset import (ARCHIVE_SUFFIXES, FILES, parse_files, problem_name,
-                                                  read_files)
+from grail_bench.domains.symbolic.dataset import (ARCHIVE_SUFFIXES, FILES, load_problem, parse_files,
+                                                  problem_name, read_files)
 from grail_bench.task.model import GRTask
 from grail_bench.task.observation import DATASET, project
 
@@ -162,10 +162,10 @@ def dataset_observations(task: Any) -> list[tuple[int, Trajectory]]:
     if not problems:
         raise UserError(f"the {DATASET} protocol scores a problem set's own obs.dat; {task.id} has none: run a "
                         "problem set as its own task (grail-bench run --task PATH)")
-    model = load(task.env_params["problem"]).model
+    model = load(task.env_params["problem"]).model  # the grounding every goal env of the task shares
     out = []
     for path in problems:
-        problem = load(path)
+        problem = load_problem(path)  # read only: the shared grounding names its operators
         try:
             acts = np.asarray([model.operator_index(a) for a in problem.observations], dtype=np.int64)
         except UserError as err:
