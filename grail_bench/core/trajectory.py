@@ -68,6 +68,9 @@ def flatten(trajectories: Sequence[Trajectory]) -> tuple[np.ndarray, np.ndarray]
     return obs, acts
 
 
+#: The reset seed :func:`rollout` starts from (and :func:`replay` replays from).
+RESET_SEED = 0
+
 Goal = tuple[float, ...]
 Demos = Mapping[Goal, Sequence["Trajectory"]]
 Policy = Callable[[np.ndarray, int], Any]  # (observation, step) -> action
@@ -99,7 +102,7 @@ def until_success(traj: Trajectory) -> Trajectory:
     return Trajectory(obs=traj.obs[: t + 1], acts=traj.acts[:t], infos=traj.infos[:t], terminal=True)
 
 
-def rollout(env: gym.Env, policy: Policy, *, seed: int = 0, require_success: bool = False) -> Trajectory:
+def rollout(env: gym.Env, policy: Policy, *, seed: int = RESET_SEED, require_success: bool = False) -> Trajectory:
     """Play ``policy`` in ``env`` from ``reset(seed=seed)`` until the episode ends.
 
     Args:
@@ -129,6 +132,50 @@ def rollout(env: gym.Env, policy: Policy, *, seed: int = 0, require_success: boo
         raise RuntimeError(f"the demonstration did not reach goal {getattr(env.unwrapped, 'goal', '?')}")
     return Trajectory(obs=np.stack(observations), acts=np.stack(acts), infos=np.array(infos, dtype=object),
                       terminal=True)
+
+
+@dataclasses.dataclass(frozen=True)
+class Emitted:
+    """What an env emitted along a trajectory, one entry per action (``env.step``'s other outputs).
+
+    Attributes:
+        rewards: ``(T,)`` float rewards.
+        terminations: ``(T,)`` whether the episode ended by itself at that step.
+        truncations: ``(T,)`` whether it was cut there (the time limit).
+    """
+
+    rewards: np.ndarray
+    terminations: np.ndarray
+    truncations: np.ndarray
+
+
+def replay(env: gym.Env, traj: Trajectory, *, seed: int = RESET_SEED) -> Emitted:
+    """Step ``env`` from ``reset(seed=seed)`` through ``traj``'s actions and return what it emitted.
+
+    The demonstrators record trajectories with :func:`rollout` from the same reset seed, so replaying one in
+    its goal's env gives back its observations exactly; a mismatch is refused rather than guessed around.
+
+    Raises:
+        ValueError: When the env's observations are not the trajectory's, or its episode ends before the
+            trajectory's last action.
+    """
+    obs, _ = env.reset(seed=seed)
+    rewards, terminations, truncations = [], [], []
+    for t, action in enumerate(traj.acts):
+        if not np.array_equal(np.asarray(obs), np.asarray(traj.obs[t])):
+            raise ValueError(f"replaying the trajectory gives another observation at step {t}: the env is not "
+                             "the one it was recorded in, or not deterministic")
+        if t and (terminations[-1] or truncations[-1]):
+            raise ValueError(f"the env's episode ended after {t} of the trajectory's {len(traj.acts)} actions")
+        obs, reward, terminated, truncated, _ = env.step(action)
+        rewards.append(float(reward))
+        terminations.append(bool(terminated))
+        truncations.append(bool(truncated))
+    if not np.array_equal(np.asarray(obs), np.asarray(traj.obs[-1])):
+        raise ValueError("replaying the trajectory gives another last observation: the env is not the one it was "
+                         "recorded in, or not deterministic")
+    return Emitted(np.asarray(rewards, dtype=np.float64), np.asarray(terminations, dtype=bool),
+                   np.asarray(truncations, dtype=bool))
 
 
 def demos_digest(demos: Sequence[Trajectory]) -> str:
