@@ -1,12 +1,29 @@
-"""Trajectories: the types every module shares, where a demonstration reaches its goal, and one rollout helper.
+"""Trajectories: the types every module shares, where a demonstration reaches its goal, and the rollout helpers.
 
-Demonstrations are :class:`Trajectory` objects: ``T`` actions, ``T + 1``
-observations and one ``info`` dict per action whose ``"is_success"`` says
-whether the goal has been reached. Domains run a fixed horizon, so a
-demonstration goes on after its goal (the agent stays there);
-:func:`goal_horizon` says where the behaviour ends. The fields are those of
+Demonstrations and observations are :class:`Trajectory` objects: ``T``
+actions, ``T + 1`` observations (``acts[t]`` was taken in ``obs[t]``) and,
+for demonstrations, one info dict per action whose ``"is_success"`` says
+whether the goal has been reached by then. The fields are those of
 ``imitation``'s ``Trajectory``, so one of those (or any object with the same
 fields) is accepted wherever a trajectory is read.
+
+**Training demonstrations are padded to a fixed horizon.** Most domains run
+every episode to the env's horizon (MiniGrid's ``max_steps``, PandaReach's
+and PointMaze's time limits): a demonstration goes on after the action that
+reached its goal, the agent staying there (MiniGrid's "stay" action; a
+continuous controller keeps acting at the goal), with ``is_success`` true
+from that action on. :func:`goal_horizon` says where the behaviour ends and
+:func:`until_success` cuts a demonstration there; whether to learn from the
+steps after it is each recognizer's choice (``bc`` cuts them). Domains whose
+env ends the episode at the goal (parking, symbolic planning) have no such
+steps.
+
+**Observed trajectories stop at the goal.** What a recognizer scores is the
+``k`` pairs an observation protocol picks from a test demonstration: from
+its path up to the goal under the default protocols (``subset``,
+``prefix``), from the whole padded episode only under the ``horizon-*``
+ones (which leak the goal). Their ``infos`` are None and ``terminal`` is
+False, so nothing about the goal leaks through them.
 """
 
 from __future__ import annotations
@@ -25,10 +42,16 @@ if TYPE_CHECKING:
 class Trajectory:
     """One episode: ``T + 1`` observations, ``T >= 1`` actions and (optionally) one info dict per action.
 
+    A training demonstration runs to the task's fixed horizon (see the module docstring); an observed
+    trajectory holds the pairs a protocol picked, without infos.
+
     Attributes:
         obs: Observations, ``(T + 1, *observation_shape)``: the state before every action and the last state.
-        acts: Actions, ``(T, *action_shape)``.
-        infos: ``T`` info dicts (``"is_success"``: the goal has been reached), or None.
+            On the ``actions`` observation channel the states are NaN.
+        acts: Actions, ``(T, *action_shape)``; ``acts[t]`` was taken in ``obs[t]``. On the ``states``
+            channel they are NaN.
+        infos: ``T`` info dicts as the env returned them (``"is_success"``: the goal has been reached by
+            this action), or None (observed trajectories never carry them).
         terminal: Whether the episode ended by itself (rather than being cut).
     """
 
