@@ -215,6 +215,7 @@ def test_an_export_into_minaris_folder_loads_by_its_id(tmp_path, monkeypatch):
     assert dataset.total_episodes == 2 * task.n_demos
     assert load_demos(task, dataset_id(task, 0), 0).n_train == task.n_train  # a biased task reads its own export
     assert grail_bench.make_task(task.id, demos=str(tmp_path / "minari")).n_demos == task.n_demos
+    one_error_line(cli("export", "-t", task.id), f"{path} exists already")  # the command's default folder too
 
 
 def test_an_export_written_before_rewards_and_marks_still_reads(exported, tmp_path):

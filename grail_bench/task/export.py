@@ -99,7 +99,8 @@ def export(task: GRTask, seeds: int | Sequence[int], out: str | Path | None = No
     minari = minari_module()
     seeds = list(dict.fromkeys(seed_list(seeds)))
     spec = _spec_of(task)
-    out = minari_root() if out is None else Path(out).expanduser().absolute()  # Minari resolves a relative $MINARI_DATASETS_PATH wrongly
+    # absolute: Minari resolves a relative $MINARI_DATASETS_PATH wrongly
+    out = minari_root() if out is None else Path(out).expanduser().absolute()
     idents = [dataset_id(task, seed) for seed in seeds]
     for ident in idents:
         if (out / ident).exists():
@@ -153,13 +154,17 @@ def _write(minari: Any, task: GRTask, seed: int, ident: str, spec: Any, final: P
     _check_space(_estimate([traj for _, _, traj in labelled]), final)
     emitted = _emitted(task, labelled)
 
+    buffers = [_buffer(traj, steps, i) for i, ((_, _, traj), steps) in enumerate(zip(labelled, emitted))]
+
     def fill(root: Path) -> None:
         with _datasets_path(root), warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="`author", category=UserWarning)
             dataset = minari.create_dataset_from_buffers(
-                ident, [_buffer(traj, steps, i) for i, ((_, _, traj), steps) in enumerate(zip(labelled, emitted))], env=spec, eval_env=spec,
+                ident, buffers, env=spec, eval_env=spec,
                 algorithm_name=f"grail-bench {task.regime} demonstrator", code_permalink="", author="grail-bench",
-                description=f"Demonstrations of {task.id} (seed {seed}) by grail-bench: {task.description}",
+                description=f"Demonstrations of {task.id} (seed {seed}) by grail-bench: {task.description} "
+                            "Per episode, its goal and split are in the episode metadata; steps after the goal "
+                            "(to the fixed horizon) are marked by infos['after_goal'].",
                 requirements=[f"grail-bench=={version('grail-bench')}"], data_format="hdf5")
         storage = dataset.storage
         storage.update_episode_metadata([
