@@ -267,6 +267,7 @@ class Info:
         paper_name: The method's published name (``name`` when it declares none).
         default_scorer: What it scores with unless told otherwise.
         reference: Whether it is a reference rather than a method (shown beside methods, never ranked).
+        channels: The observation channels its ``score`` can use.
     """
 
     name: str
@@ -316,7 +317,19 @@ def info(obj: Any, name: str) -> Info:
 class Capabilities:
     """A recognizer as the harness sees it: its declared capabilities, read once, and calls that use them.
 
-    Build it with :func:`capabilities`. ``kwargs`` are the keyword arguments it was built with.
+    Build it with :func:`capabilities`; each optional member is documented in :class:`OptionalCapabilities`.
+
+    Attributes:
+        recognizer: The recognizer object.
+        info: What its class says of itself (names, default scorer, reference, channels).
+        config: Its settings as the plain dict that keys stored results (:func:`settings_key`).
+        kwargs: The keyword arguments it was built with.
+        takes_scorer: Its ``score`` takes a registered scorer as a second argument.
+        takes_cache_key: Its ``fit`` takes ``cache_key``.
+        has_prefix_scores: It has ``score_prefixes``.
+        has_diagnostics: It has ``diagnose``.
+        has_set_goals: It has ``set_goals``.
+        has_check_task: It has ``check_task``.
     """
 
     recognizer: Any
@@ -332,6 +345,7 @@ class Capabilities:
 
     @property
     def name(self) -> str:
+        """The name it is registered under."""
         return self.info.name
 
     @property
@@ -341,6 +355,7 @@ class Capabilities:
 
     @property
     def default_scorer(self) -> str:
+        """What ``score`` computes unless told otherwise (``"default"``: its own scoring)."""
         return self.info.default_scorer
 
     def exposes(self, action_space: Any) -> frozenset[str]:
