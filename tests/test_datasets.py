@@ -150,9 +150,17 @@ def symbolic_export(tmp_path_factory):
     return task, export(task, [0], tmp_path_factory.mktemp("symbolic"))[0]
 
 
-def test_an_exports_rewards_and_flags_are_those_of_a_direct_rollout(exported, symbolic_export):
+@pytest.fixture(scope="module")
+def continuous_export(tmp_path_factory):
+    """A task with continuous states and actions and a dense reward (pybullet), exported."""
+    task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", expert="scripted", n_demos=2, n_train=1)
+    return task, export(task, [0], tmp_path_factory.mktemp("panda"))[0]
+
+
+def test_an_exports_rewards_and_flags_are_those_of_a_direct_rollout(exported, symbolic_export, continuous_export):
     _, paths = exported
-    for task, path in ((TASK, paths[0]), symbolic_export):
+    assert continuous_export[1].name == "PandaReach-Gaussian-0_1-seed0-v0"  # a name Minari takes
+    for task, path in ((TASK, paths[0]), symbolic_export, continuous_export):
         episodes = episodes_with_metadata(path)
         assert len(episodes) == len(task.goals) * task.n_demos
         for meta, episode in episodes:
@@ -164,6 +172,7 @@ def test_an_exports_rewards_and_flags_are_those_of_a_direct_rollout(exported, sy
             assert np.array_equal(terminations, episode.terminations)
             assert np.array_equal(truncations, episode.truncations)
             assert episode.rewards.any()  # the goal's reward, not the zeros an export once wrote
+        assert task.with_overrides(demos=str(path)).n_demos == task.n_demos  # and the task reads it back
     _, finished = episodes_with_metadata(symbolic_export[1])[0]
     assert finished.terminations[-1] and not finished.truncations.any()  # the env ends at the goal
     _, padded = episodes_with_metadata(paths[0])[0]

@@ -44,6 +44,7 @@ import gc
 import json
 import multiprocessing
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -70,8 +71,12 @@ _NAMESPACE_METADATA = "namespace_metadata.json"
 
 
 def dataset_id(task: GRTask, seed: int) -> str:
-    """``grail-bench/MiniGrid-Biased-seed0-v0``: the exported dataset of a task and seed."""
-    name = task.id.removeprefix("GRAIL/").rsplit("-v", 1)[0]
+    """``grail-bench/MiniGrid-Biased-seed0-v0``: the exported dataset of a task and seed.
+
+    Characters Minari's dataset names do not take (``.``, ``/``) become ``_``:
+    ``grail-bench/PandaReach-Gaussian-0_1-seed0-v0``.
+    """
+    name = re.sub(r"[^-\w]", "_", task.id.removeprefix("GRAIL/").rsplit("-v", 1)[0])
     return f"{NAMESPACE}/{name}-seed{seed}-v0"
 
 
