@@ -123,6 +123,127 @@ def test_a_run_from_the_datasets_gives_the_generators_f1(exported, monkeypatch):
     assert from_data[0].config_hash != generated[0].config_hash  # the dataset's content keys its results
 
 
+def direct_rollout(env, seed: int, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Observations, rewards, terminations and truncations of ``actions`` played in ``env`` from ``reset(seed)``."""
+    obs, _ = env.reset(seed=seed)
+    observations, rewards, terminations, truncations = [obs], [], [], []
+    for action in actions:
+        obs, reward, terminated, truncated, _ = env.step(action)
+        observations.append(obs)
+        rewards.append(reward)
+        terminations.append(terminated)
+        truncations.append(truncated)
+    return np.stack(observations), np.array(rewards), np.array(terminations), np.array(truncations)
+
+
+def episodes_with_metadata(path: Path) -> list[tuple[dict, object]]:
+    import minari
+
+    dataset = minari.MinariDataset(path / "data")
+    return list(zip(dataset.storage.get_episode_metadata(dataset.episode_indices), dataset, strict=True))
+
+
+@pytest.fixture(scope="module")
+def symbolic_export(tmp_path_factory):
+    """A task whose episodes end at the goal (the env terminates there), exported."""
+    task = grail_bench.make_task("GRAIL/Symbolic-Blocks-Optimal-v0", n_demos=3, n_train=2)
+    return task, export(task, [0], tmp_path_factory.mktemp("symbolic"))[0]
+
+
+@pytest.fixture(scope="module")
+def continuous_export(tmp_path_factory):
+    """A task with continuous states and actions and a dense reward (pybullet), exported."""
+    task = grail_bench.make_task("GRAIL/PandaReach-Gaussian-0.1-v0", expert="scripted", n_demos=2, n_train=1)
+    return task, export(task, [0], tmp_path_factory.mktemp("panda"))[0]
+
+
+def test_an_exports_rewards_and_flags_are_those_of_a_direct_rollout(exported, symbolic_export, continuous_export):
+    _, paths = exported
+    assert continuous_export[1].name == "PandaReach-Gaussian-0_1-seed0-v0"  # a name Minari takes
+    for task, path in ((TASK, paths[0]), symbolic_export, continuous_export):
+        episodes = episodes_with_metadata(path)
+        assert len(episodes) == len(task.goals) * task.n_demos
+        for meta, episode in episodes:
+            env = task.make_env(tuple(meta["goal"]))
+            obs, rewards, terminations, truncations = direct_rollout(env, meta["seed"], episode.actions)
+            env.close()
+            assert np.array_equal(obs, episode.observations)
+            assert np.array_equal(rewards, episode.rewards) and rewards.dtype == episode.rewards.dtype
+            assert np.array_equal(terminations, episode.terminations)
+            assert np.array_equal(truncations, episode.truncations)
+            assert episode.rewards.any()  # the goal's reward, not the zeros an export once wrote
+        assert task.with_overrides(demos=str(path)).n_demos == task.n_demos  # and the task reads it back
+    _, finished = episodes_with_metadata(symbolic_export[1])[0]
+    assert finished.terminations[-1] and not finished.truncations.any()  # the env ends at the goal
+    _, padded = episodes_with_metadata(paths[0])[0]
+    assert padded.truncations[-1] and not padded.terminations.any()  # a fixed horizon: cut by the time limit
+
+
+def test_the_steps_after_the_goal_are_marked_in_the_infos(exported):
+    from grail_bench.domains.minigrid.grid import STAY
+
+    _, paths = exported
+    labels = set()
+    for meta, episode in episodes_with_metadata(paths[0]):
+        labels.add((meta["regime"], int(meta["demo_seed"]), meta["seed"]))
+        n = int(meta["goal_steps"])
+        success = episode.infos["is_success"][1:]  # one info per action after the reset's
+        assert success[n - 1] and not success[: n - 1].any()  # the n-th action reached the goal
+        after = episode.infos["after_goal"]
+        assert len(after) == len(episode.actions) + 1 and not after[0]
+        assert np.array_equal(after[1:], np.arange(len(episode.actions)) >= n)
+        assert (episode.actions[after[1:]] == STAY).all() and not episode.rewards[after[1:]].any()
+        assert (episode.observations[n:] == episode.observations[n]).all()  # the agent stays on the goal
+    assert labels == {("suboptimal", 0, 0)}
+    stays = sum(episode.infos["after_goal"].sum() for _, episode in episodes_with_metadata(paths[0]))
+    assert stays > 0  # the padding is exported, and marked
+
+
+def test_a_demonstration_that_does_not_replay_is_refused_in_one_line():
+    from grail_bench.core.trajectory import Trajectory
+
+    goal = TASK.goals[0]
+    [demo] = TASK.generate_demos(0, n_demos=1)[goal]
+    obs = demo.obs.copy()
+    obs[3, 2] = (obs[3, 2] + 1) % 4  # another heading than the env gives after these actions
+    moved = Trajectory(obs=obs, acts=demo.acts, infos=demo.infos)
+    with pytest.raises(grail_bench.UserError, match=r"goal \[7, 1\]: replaying the trajectory gives another "
+                                                    "observation at step 3") as info:
+        export_module._emitted(TASK, [(goal, "train", demo), (goal, "test", moved)])
+    assert "\n" not in str(info.value)
+
+
+def test_an_export_into_minaris_folder_loads_by_its_id(tmp_path, monkeypatch):
+    import minari
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    task = grail_bench.make_task("GRAIL/MiniGrid-Biased-v0")
+    [path] = export(task, 1)
+    assert path == tmp_path / "minari" / dataset_id(task, 0)
+    dataset = minari.load_dataset(dataset_id(task, 0))
+    assert dataset.total_episodes == 2 * task.n_demos
+    assert load_demos(task, dataset_id(task, 0), 0).n_train == task.n_train  # a biased task reads its own export
+    assert grail_bench.make_task(task.id, demos=str(tmp_path / "minari")).n_demos == task.n_demos
+    one_error_line(cli("export", "-t", task.id), f"{path} exists already")  # the command's default folder too
+
+
+def test_an_export_written_before_rewards_and_marks_still_reads(exported, tmp_path):
+    _, paths = exported
+    path = copy_of(paths[0], tmp_path / "d")
+    with h5py.File(path / "data" / "main_data.hdf5", "a") as f:  # what exports wrote before: no marks, zeros
+        for name, group in f.items():
+            if name.startswith("episode_"):
+                del group["infos"]["after_goal"]
+                group["rewards"][...] = 0.0
+                group["terminations"][...] = False
+                for key in ("regime", "demo_seed", "goal_steps", "seed"):
+                    group.attrs.pop(key, None)
+    old = load_demos(TASK, str(path), 0)
+    new = load_demos(TASK, str(paths[0]), 0)
+    for goal in TASK.goals:
+        assert old.demos[goal] == new.demos[goal]
+
+
 @pytest.mark.parametrize("task_id, params, changes, message", [
     ("GRAIL/MiniGrid-Optimal-v0", {}, {}, 'its task = "GRAIL/MiniGrid-Suboptimal-v1", not "GRAIL/MiniGrid-Optimal-v0"'),
     (TASK.id, {}, {}, "its params.turn_prob = 0.5, not 1.0"),

@@ -88,3 +88,30 @@ def test_results_pages_show_the_published_figures(site: Path):
             assert figure.is_file() and figure.stat().st_size > 1000, src
             published = ROOT / "leaderboard" / figure.relative_to((site / "results" / "figures").resolve())
             assert figure.read_bytes() == published.read_bytes()
+
+
+def test_the_recognizer_guide_is_generated_from_the_contracts_docstrings(site: Path):
+    import inspect
+
+    from grail_bench.core import trajectory
+    from grail_bench.recognizers import contract
+
+    text = _text(site / "guides" / "recognizer-plugin" / "index.html")
+    words = re.sub(r"\W+", "", text)  # markup splits the text around code
+    documented = [contract.Recognizer.fit, contract.Recognizer.score, trajectory.Trajectory, trajectory.goal_horizon]
+    documented += [getattr(contract.OptionalCapabilities, n) for n, f in vars(contract.OptionalCapabilities).items()
+                   if inspect.isfunction(f) and not n.startswith("_")]
+    firsts = [inspect.getdoc(obj).split("\n\n")[0] for obj in documented]
+    firsts.append(inspect.getdoc(trajectory).split("**Training demonstrations")[1].split("\n\n")[0])  # the padding
+    for first in firsts:
+        plain = re.sub(r":\w+:`(?:~(?:\w+\.)*)?([\w.]+)`", r"\1", first)  # as the roles hook shows them
+        assert re.sub(r"\W+", "", plain) in words, plain[:80]
+    raw = (site / "guides" / "recognizer-plugin" / "index.html").read_text(encoding="utf-8")
+    for name in contract.OptionalCapabilities.__annotations__:  # every optional attribute has its entry
+        assert f'id="grail_bench.recognizers.contract.OptionalCapabilities.{name}"' in raw, name
+    assert not re.search(r":(class|func|meth|attr|mod):", text)  # Sphinx roles read as code
+
+
+def test_sphinx_roles_read_as_code_on_every_generated_page(site: Path):
+    for page in ("reference/api", "guides/recognizer-plugin"):
+        assert not re.search(r":(class|func|meth|attr|mod):<code>", (site / page / "index.html").read_text("utf-8"))

@@ -545,7 +545,8 @@ def export(
     task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
     seeds: int = typer.Option(1, "--seeds", "-s", help="One dataset per seed 0..N-1."),
     params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, as for `run`."),
-    out: Path = typer.Option(..., "--out", help="Folder the datasets are written into (as Minari lays them out)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder the datasets are written into (as Minari lays "
+                                       "them out; default: Minari's, $MINARI_DATASETS_PATH or ~/.minari/datasets)."),
 ) -> None:
     """Write a task's demonstrations as Minari datasets, one per seed (goals and splits in episode metadata)."""
     from grail_bench.core.seeding import seed_list

@@ -1,43 +1,20 @@
 """The recognizer contract: two required methods, and capabilities a recognizer may declare.
 
-Required, and all a plugin needs::
+Required, and all a plugin needs (:class:`Recognizer`)::
 
     class Mine:
         def fit(self, demos, env_factory=None, *, seed=0): ...   # demos: {goal: [Trajectory, ...]}
         def score(self, observed): ...                           # -> {goal: float}, higher = more likely
 
-Optional, each an attribute or method with a documented default
-(:class:`RecognizerBase` provides them all):
+Optional: every member of :class:`OptionalCapabilities`, each an attribute or a method with a documented
+default that applies when a recognizer does not declare it (:class:`RecognizerBase` gives the attributes
+their defaults), and two extensions of the required methods (``score(observed, scorer)`` and
+``fit(..., cache_key=...)``, see :class:`OptionalCapabilities`).
 
-=====================  ============================================================  =============================
-capability             what it is                                                    default
-=====================  ============================================================  =============================
-``name``               the name it is registered under                               the registered name
-``paper_name``         the method's published name, shown by the leaderboard         ``name``
-``reference``          True for a reference (what a method could reach, such as      ``False``
-                       perfect imitation): shown beside methods, never ranked
-``config``             settings (a frozen dataclass, or a mapping); they key         the constructor's keywords
-                       stored results and cached models
-``default_scorer``     what ``score`` computes unless told otherwise                 ``"default"`` (its own)
-``exposes(space)``     policy outputs registered scorers may use                     nothing (own scoring only)
-``score(obs, scorer)`` a second argument: the registered scorer to use              only its own scoring
-``fit(..., cache_key)`` the domain env's key, to cache models across fits            not passed
-``score_prefixes``     ``(observed, scorer=None) -> {goal: (T,) array}``, every      each prefix scored alone
-                       prefix from one pass (online mode)
-``diagnose``           ``(train, held_out, env_factory) -> FitDiagnostics``,         no diagnostics
-                       evidence about each goal's fitted model
-``set_goals``          ``(goals) -> None``: score these candidate goals from now     only the goals it was fitted
-                       on, fitted or not (goal-conditioned models; zero-shot mode)   on
-``check_task``         ``(task) -> None``: raise a one-line ``UserError`` when it    every task accepted
-                       cannot run ``task`` as configured (e.g. a setting needs a
-                       domain capability the task's domain lacks); called where a
-                       run is planned, before any training
-``channels``           the observation channels ``score`` can use: a set of          ``{"pairs"}``
-                       ``"pairs"``, ``"states"`` (actions NaN) and ``"actions"``
-                       (states NaN; :mod:`grail_bench.task.observation`), a class
-                       attribute (read before anything is built); a run with
-                       another channel is refused before any training
-=====================  ============================================================  =============================
+The demonstrations and observations are :class:`~grail_bench.core.trajectory.Trajectory` objects: training
+demonstrations run to the task's fixed horizon (after the goal the agent stays there), observed ones are the
+pairs an observation protocol picks, from the path up to the goal unless the protocol says otherwise (see
+:mod:`grail_bench.core.trajectory`).
 
 The harness never reads a recognizer directly: :func:`capabilities` reads
 every optional member once, in this module, and returns a typed
@@ -99,13 +76,21 @@ class FitReport:
 
 @runtime_checkable
 class Recognizer(Protocol):
-    """A goal recognizer: the two required methods (see the module docstring for the optional ones)."""
+    """A goal recognizer: the two required methods, all a plugin needs (no base class).
+
+    The optional members are those of :class:`OptionalCapabilities`. A recognizer is built with keyword
+    arguments only (its hyperparameters, from ``--set name.field=value``), fitted once per task, seed and
+    training split, then asked to score many observations.
+    """
 
     def fit(self, demos: Demos, env_factory: EnvFactory | None = None, *, seed: int = 0) -> FitReport | None:
         """Prepare to recognise the goals of ``demos``.
 
         Args:
-            demos: The training demonstrations of every candidate goal.
+            demos: The training demonstrations of every candidate goal, ``{goal: [Trajectory, ...]}``, the
+                same number per goal. Each runs to the task's fixed horizon: after the action that reached
+                the goal (its info's ``is_success``) the agent stays there until the horizon, so cut them
+                with :func:`~grail_bench.core.trajectory.until_success` to learn the behaviour up to the goal.
             env_factory: ``env_factory(goal)`` builds the domain env pursuing
                 ``goal`` (for methods that learn from interaction).
             seed: Seed for everything random in fitting.
@@ -121,16 +106,99 @@ class Recognizer(Protocol):
 
         Args:
             observed: ``k`` observed actions and the ``k + 1`` states around
-                them; ``observed.acts[t]`` was taken in ``observed.obs[t]``.
-                It never carries the true goal.
+                them; ``observed.acts[t]`` was taken in ``observed.obs[t]``
+                (for a random subset, ``obs[k]`` follows the last pair). The
+                pairs come from the path up to the goal (from the whole
+                fixed-horizon episode under the ``horizon-*`` protocols); its
+                ``infos`` are None, so it never carries the true goal. On the
+                ``states`` channel its actions are NaN, on ``actions`` its
+                states (see :attr:`OptionalCapabilities.channels`).
+
+        Returns:
+            One finite float per goal fitted (or given to ``set_goals``), keyed by the goals as given.
         """
         ...
 
 
-class RecognizerBase:
-    """An optional base class giving every optional capability its default.
+class OptionalCapabilities(Protocol):
+    """Every optional member a recognizer may declare, with the default that applies when it does not.
 
-    Subclasses implement :meth:`fit` and :meth:`score` and override what they offer.
+    Declare an attribute on the class (or the instance) or define a method to offer a capability; nothing
+    needs to inherit from this class (it documents the members, and types them). The harness reads them once,
+    through :func:`capabilities`, and calls only what a recognizer declares.
+
+    Two capabilities extend the required methods rather than add members:
+
+    * ``score(observed, scorer)``: a second positional argument, the name of the registered scorer to judge
+      with (one that needs no policy output beyond what :meth:`exposes` gives; checked before any work).
+      Default: the recognizer's own scoring only.
+    * ``fit(demos, env_factory, *, seed, cache_key)``: the keyword ``cache_key``, a string naming the
+      domain and its env parameters (not the regime), so models learnt from interaction alone can be cached
+      across fits and regimes. Default: not passed.
+    """
+
+    name: str
+    """The name it is registered under, for messages (the harness uses the registered name). Default:
+    ``""``."""
+
+    paper_name: str
+    """The method's published name, shown by the leaderboard beside the values a paper reports. Default:
+    the registered name."""
+
+    reference: bool
+    """``True`` for a reference rather than a method (what a method could reach, such as perfect imitation):
+    shown beside the methods, never ranked. Default: ``False``."""
+
+    config: Any
+    """Its settings, a frozen dataclass or a mapping; they key stored results and cached models (see
+    :func:`settings_key`). Default: the keyword arguments it was built with."""
+
+    default_scorer: str
+    """What :meth:`Recognizer.score` computes unless told otherwise: a registered scorer's name, or
+    ``"default"`` (its own scoring). Default: ``"default"``."""
+
+    channels: frozenset[str]
+    """The observation channels ``score`` can use, a set of ``"pairs"`` (states and actions), ``"states"``
+    (actions NaN) and ``"actions"`` (states NaN; see :mod:`grail_bench.task.observation`). A class attribute:
+    it is read before anything is built, and a run on another channel is refused before any training.
+    Default: ``{"pairs"}``."""
+
+    def exposes(self, action_space: Any) -> frozenset[str]:
+        """The policy outputs registered scorers may use on ``action_space``: names among ``"probs"``,
+        ``"mean"``, ``"std"``, ``"q"`` and ``"occupancy"`` (see :class:`~grail_bench.recognizers.scoring.PolicyOutput`).
+        Default: none (its own scoring only)."""
+        ...
+
+    def score_prefixes(self, observed: Trajectory, scorer: str | None = None) -> Mapping[Goal, np.ndarray]:
+        """The scores of every prefix of ``observed`` from one pass (online mode): per goal a ``(T,)`` array
+        whose entry ``k - 1`` is what ``score`` gives the first ``k`` pairs. Default: each prefix scored
+        alone by ``score``."""
+        ...
+
+    def diagnose(self, train: Demos, held_out: Demos, env_factory: EnvFactory) -> FitDiagnostics | None:
+        """Evidence about each goal's fitted model, after :meth:`Recognizer.fit`, on the training and held-out
+        demonstrations (``grail-bench run --diagnostics``). Default: no diagnostics."""
+        ...
+
+    def set_goals(self, goals: Sequence[Goal]) -> None:
+        """Score ``goals`` from now on, demonstrated in the fit or not (goal-conditioned models; needed by
+        ``--mode zero-shot``). Default: only the goals it was fitted on."""
+        ...
+
+    def check_task(self, task: Any) -> None:
+        """Refuse a task it cannot run as configured by raising a one-line
+        :class:`~grail_bench.core.errors.UserError` (e.g. a setting needs a capability the task's domain
+        lacks); ``task`` is a :class:`~grail_bench.task.model.GRTask`. Called where a run is planned, before
+        any training. Default: every task accepted."""
+        ...
+
+
+class RecognizerBase:
+    """An optional base class giving ``name``, ``paper_name``, ``reference``, ``default_scorer`` and ``exposes``
+    (of :class:`OptionalCapabilities`) their defaults.
+
+    Subclasses implement :meth:`fit` and :meth:`score` and override or add what they offer (the optional
+    methods it leaves out are read as not offered).
     """
 
     name: str = ""
@@ -199,6 +267,7 @@ class Info:
         paper_name: The method's published name (``name`` when it declares none).
         default_scorer: What it scores with unless told otherwise.
         reference: Whether it is a reference rather than a method (shown beside methods, never ranked).
+        channels: The observation channels its ``score`` can use.
     """
 
     name: str
@@ -248,7 +317,19 @@ def info(obj: Any, name: str) -> Info:
 class Capabilities:
     """A recognizer as the harness sees it: its declared capabilities, read once, and calls that use them.
 
-    Build it with :func:`capabilities`. ``kwargs`` are the keyword arguments it was built with.
+    Build it with :func:`capabilities`; each optional member is documented in :class:`OptionalCapabilities`.
+
+    Attributes:
+        recognizer: The recognizer object.
+        info: What its class says of itself (names, default scorer, reference, channels).
+        config: Its settings as the plain dict that keys stored results (:func:`settings_key`).
+        kwargs: The keyword arguments it was built with.
+        takes_scorer: Its ``score`` takes a registered scorer as a second argument.
+        takes_cache_key: Its ``fit`` takes ``cache_key``.
+        has_prefix_scores: It has ``score_prefixes``.
+        has_diagnostics: It has ``diagnose``.
+        has_set_goals: It has ``set_goals``.
+        has_check_task: It has ``check_task``.
     """
 
     recognizer: Any
@@ -264,6 +345,7 @@ class Capabilities:
 
     @property
     def name(self) -> str:
+        """The name it is registered under."""
         return self.info.name
 
     @property
@@ -273,6 +355,7 @@ class Capabilities:
 
     @property
     def default_scorer(self) -> str:
+        """What ``score`` computes unless told otherwise (``"default"``: its own scoring)."""
         return self.info.default_scorer
 
     def exposes(self, action_space: Any) -> frozenset[str]:

@@ -14,6 +14,11 @@ writes: the one exported with the run's seed is read), or a dataset ID under
   episode, the same number of training episodes per goal. Datasets recorded
   elsewhere (no ``grail_bench`` metadata) are checked by these two alone.
 
+A task reads each episode's observations, actions and ``is_success`` infos;
+rewards, terminations, truncations and the other infos are not read, so
+exports written before they held the env's rewards and ``after_goal`` read
+as they did.
+
 Minari's HDF5 storage holds arrays, JSON and attributes only: loading unpickles
 nothing. Minari is imported only when a dataset is read or written
 (``pip install 'grail-bench[minari]'``, which ``make test`` installs).

@@ -129,7 +129,12 @@ class Domain(Protocol):
         ...
 
     def generate_demos(self, task: TaskView, goal: Goal, n: int, rng: np.random.Generator) -> list[Trajectory]:
-        """``n`` demonstrations of ``goal`` under the task's regime, drawn from ``rng``."""
+        """``n`` demonstrations of ``goal`` under the task's regime, drawn from ``rng``.
+
+        Each is played in ``task.make_env(goal)`` from ``reset(seed=RESET_SEED)``, as
+        :func:`grail_bench.core.trajectory.rollout` plays it: ``grail-bench export`` replays it there to record
+        the env's rewards, terminations and truncations, and refuses a demonstration that does not replay.
+        """
         ...
 
     def demonstrator(self, task: TaskView, goal: Goal) -> Any:

@@ -1,14 +1,31 @@
 """A task's demonstrations exported as Minari datasets (``grail-bench export``).
 
 One dataset per task and seed, ID ``grail-bench/<task name>-seed<s>-v0``
-(Minari's ``namespace/name-vN``), with every goal's demonstrations as episodes.
-Each episode's metadata records its ``goal`` and ``split`` (``train`` or
-``test``); the dataset's metadata records, under ``grail_bench``, the task ID,
-regime, parameters, env parameters, goals, default protocol, rounding and
-levels, the seed and the grail-bench version (what
-:mod:`grail_bench.task.datasets` checks a dataset against when a task reads it).
-Its ``env_spec`` and ``eval_env_spec`` are the task's gymnasium spec, so
-``dataset.recover_environment()`` rebuilds the GRAIL env.
+(Minari's ``namespace/name-vN``), with every goal's demonstrations as episodes,
+written by default into Minari's own folder (``$MINARI_DATASETS_PATH``, else
+``~/.minari/datasets``), so ``minari.load_dataset(ID)`` finds it.
+
+* Each episode holds what the env emitted: its observations, and the rewards,
+  terminations and truncations of its goal's env, replayed along the
+  demonstration from the reset seed it was recorded from (exact: a
+  demonstration whose observations do not come back is refused).
+* Domains run a fixed horizon, so a demonstration goes on after its goal (the
+  agent stays there). Those steps are exported, and marked: per step, the
+  infos hold ``is_success`` and ``after_goal`` (``T + 1`` entries, the first
+  the reset's). They are kept because they are part of what the task's
+  recognizers learn from and of what the ``horizon`` protocols observe, so a
+  task reading the export (``run --demos``) gets the generator's
+  demonstrations, and its results, exactly.
+* Each episode's metadata records its ``goal``, ``split`` (``train`` or
+  ``test``), ``regime``, ``demo_seed`` (the seed the demonstrations were
+  generated with), ``goal_steps`` (actions up to and including the one that
+  reached the goal) and Minari's ``seed`` (the env's reset seed).
+* The dataset's metadata records, under ``grail_bench``, the task ID, regime,
+  parameters, env parameters, goals, default protocol, rounding and levels, the
+  seed and the grail-bench version (what :mod:`grail_bench.task.datasets`
+  checks a dataset against when a task reads it). Its ``env_spec`` and
+  ``eval_env_spec`` are the task's gymnasium spec, so
+  ``dataset.recover_environment()`` rebuilds the GRAIL env.
 
 An export is all or nothing: the output folder is checked before any
 demonstration is generated; each dataset is written into a temporary folder
@@ -27,6 +44,7 @@ import gc
 import json
 import multiprocessing
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -43,6 +61,7 @@ from grail_bench.core.atomic import WriteError, replace_folder, temporary_folder
 from grail_bench.core.errors import UserError
 from grail_bench.core.paths import check_writable
 from grail_bench.core.seeding import seed_list
+from grail_bench.core.trajectory import RESET_SEED, Emitted, Goal, goal_horizon, replay
 from grail_bench.task.datasets import METADATA, minari_module
 from grail_bench.task.model import GRTask
 from grail_bench.task.registration import make_task
@@ -52,18 +71,31 @@ _NAMESPACE_METADATA = "namespace_metadata.json"
 
 
 def dataset_id(task: GRTask, seed: int) -> str:
-    """``grail-bench/MiniGrid-Biased-seed0-v0``: the exported dataset of a task and seed."""
-    name = task.id.removeprefix("GRAIL/").rsplit("-v", 1)[0]
+    """``grail-bench/MiniGrid-Biased-seed0-v0``: the exported dataset of a task and seed.
+
+    Characters Minari's dataset names do not take (``.``, ``/``) become ``_``:
+    ``grail-bench/PandaReach-Gaussian-0_1-seed0-v0``.
+    """
+    name = re.sub(r"[^-\w]", "_", task.id.removeprefix("GRAIL/").rsplit("-v", 1)[0])
     return f"{NAMESPACE}/{name}-seed{seed}-v0"
 
 
-def export(task: GRTask, seeds: int | Sequence[int], out: str | Path) -> list[Path]:
+def minari_root() -> Path:
+    """Where ``minari.load_dataset`` looks for datasets: ``$MINARI_DATASETS_PATH``, else ``~/.minari/datasets``
+    (absolute; not created)."""
+    configured = os.environ.get("MINARI_DATASETS_PATH")
+    root = Path(configured) if configured else Path("~/.minari/datasets")
+    return root.expanduser().absolute()
+
+
+def export(task: GRTask, seeds: int | Sequence[int], out: str | Path | None = None) -> list[Path]:
     """Write one Minari dataset per seed of ``task``'s demonstrations into ``out``; returns their folders.
 
     Args:
         task: The task (with its overrides).
         seeds: A count (seeds ``0..n-1``) or the seeds.
-        out: The folder the datasets go into (created; relative to the working directory if relative).
+        out: The folder the datasets go into (created; relative to the working directory if relative). By
+            default Minari's own (:func:`minari_root`), so ``minari.load_dataset(ID)`` finds them.
 
     Raises:
         UserError: Before any work, for seeds that are not seeds, an ``out`` that cannot be written, or a
@@ -72,7 +104,8 @@ def export(task: GRTask, seeds: int | Sequence[int], out: str | Path) -> list[Pa
     minari = minari_module()
     seeds = list(dict.fromkeys(seed_list(seeds)))
     spec = _spec_of(task)
-    out = Path(out).expanduser().absolute()  # Minari resolves a relative $MINARI_DATASETS_PATH wrongly
+    # absolute: Minari resolves a relative $MINARI_DATASETS_PATH wrongly
+    out = minari_root() if out is None else Path(out).expanduser().absolute()
     idents = [dataset_id(task, seed) for seed in seeds]
     for ident in idents:
         if (out / ident).exists():
@@ -102,7 +135,7 @@ def export(task: GRTask, seeds: int | Sequence[int], out: str | Path) -> list[Pa
 def _estimate(trajectories: Sequence[Any]) -> int:
     """Bytes a dataset of ``trajectories`` takes on disk, generously: its arrays, the per-step rewards and flags,
     and HDF5's per-episode overhead, plus a margin."""
-    data = sum(np.asarray(t.obs).nbytes + np.asarray(t.acts).nbytes + 11 * len(t.acts) for t in trajectories)
+    data = sum(np.asarray(t.obs).nbytes + np.asarray(t.acts).nbytes + 12 * len(t.acts) for t in trajectories)
     return int(1.5 * data) + 16 * 1024 * len(trajectories) + 256 * 1024
 
 
@@ -124,18 +157,24 @@ def _write(minari: Any, task: GRTask, seed: int, ident: str, spec: Any, final: P
     labelled = [(goal, split, traj) for goal in task.goals
                 for split, part in (("train", train), ("test", test)) for traj in part[goal]]
     _check_space(_estimate([traj for _, _, traj in labelled]), final)
+    emitted = _emitted(task, labelled)
+
+    buffers = [_buffer(traj, steps, i) for i, ((_, _, traj), steps) in enumerate(zip(labelled, emitted))]
 
     def fill(root: Path) -> None:
         with _datasets_path(root), warnings.catch_warnings():
             warnings.filterwarnings("ignore", message="`author", category=UserWarning)
             dataset = minari.create_dataset_from_buffers(
-                ident, [_buffer(traj, i) for i, (_, _, traj) in enumerate(labelled)], env=spec, eval_env=spec,
+                ident, buffers, env=spec, eval_env=spec,
                 algorithm_name=f"grail-bench {task.regime} demonstrator", code_permalink="", author="grail-bench",
-                description=f"Demonstrations of {task.id} (seed {seed}) by grail-bench: {task.description}",
+                description=f"Demonstrations of {task.id} (seed {seed}) by grail-bench: {task.description} "
+                            "Per episode, its goal and split are in the episode metadata; steps after the goal "
+                            "(to the fixed horizon) are marked by infos['after_goal'].",
                 requirements=[f"grail-bench=={version('grail-bench')}"], data_format="hdf5")
         storage = dataset.storage
-        storage.update_episode_metadata([{"goal": list(map(float, goal)), "split": split}
-                                         for goal, split, _ in labelled])
+        storage.update_episode_metadata([
+            {"goal": list(map(float, goal)), "split": split, "regime": task.regime, "demo_seed": int(seed),
+             "goal_steps": goal_horizon(traj)} for goal, split, traj in labelled])
         storage.update_metadata({METADATA: json.dumps({
             "task": task.id, "regime": task.regime, "params": dict(task.params), "env": dict(task.env_params),
             "goals": [list(map(float, g)) for g in task.goals], "protocol": task.protocol,
@@ -236,14 +275,41 @@ def _datasets_path(root: Path) -> Iterator[None]:
             os.environ["MINARI_DATASETS_PATH"] = before
 
 
-def _buffer(traj: Any, index: int) -> Any:
+def _buffer(traj: Any, emitted: Emitted, index: int) -> Any:
+    """One episode as Minari stores it: the env's own rewards and flags, and per-step infos (``T + 1``, the
+    first the reset's) saying whether the goal is reached and whether the step comes after the goal."""
     from minari.data_collector import EpisodeBuffer
 
     acts = np.asarray(traj.acts)
-    success = [False] + [bool(i.get("is_success")) for i in (traj.infos if traj.infos is not None else [{}] * len(acts))]
-    return EpisodeBuffer(id=index, observations=list(np.asarray(traj.obs)), actions=list(acts),
-                         rewards=[0.0] * len(acts), terminations=[False] * len(acts),
-                         truncations=[False] * (len(acts) - 1) + [True], infos={"is_success": success})
+    infos = traj.infos if traj.infos is not None else [{}] * len(acts)
+    success = [False] + [bool(i.get("is_success")) for i in infos]
+    after_goal = [False] + [t >= goal_horizon(traj) for t in range(len(acts))]
+    return EpisodeBuffer(id=index, seed=RESET_SEED, observations=list(np.asarray(traj.obs)), actions=list(acts),
+                         rewards=list(emitted.rewards), terminations=list(emitted.terminations),
+                         truncations=list(emitted.truncations),
+                         infos={"is_success": np.asarray(success), "after_goal": np.asarray(after_goal)})
+
+
+def _emitted(task: GRTask, labelled: Sequence[tuple[Goal, str, Any]]) -> list[Emitted]:
+    """What each goal's env emitted along its demonstrations (replayed from the reset seed they were recorded
+    from: exact, and one env pass per demonstration).
+
+    Raises:
+        UserError: When a demonstration does not replay (a domain whose env is not deterministic).
+    """
+    out: dict[int, Emitted] = {}
+    for goal in dict.fromkeys(goal for goal, _, _ in labelled):  # one env at a time (pybullet, MuJoCo)
+        env = task.make_env(goal)
+        try:
+            for i, traj in ((i, traj) for i, (own, _, traj) in enumerate(labelled) if own == goal):
+                try:
+                    out[i] = replay(env, traj, seed=RESET_SEED)
+                except ValueError as exc:
+                    raise UserError(f"{task.id}: cannot export the demonstrations of goal {list(goal)}: "
+                                    f"{exc}") from None
+        finally:
+            env.close()
+    return [out[i] for i in range(len(labelled))]
 
 
 def _spec_of(task: GRTask) -> Any:
