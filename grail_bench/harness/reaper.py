@@ -37,8 +37,10 @@ def children(pid: int) -> set[int]:
 
 
 def _parents() -> dict[int, int]:
-    """Every live process's parent, read from ``/proc``."""
-    out = {}
+    """Every live process's parent, read from ``/proc`` (none where there is no ``/proc``)."""
+    out: dict[int, int] = {}
+    if not _PROC.is_dir():
+        return out
     for entry in _PROC.iterdir():
         if entry.name.isdigit():
             stat = _stat(int(entry.name))
