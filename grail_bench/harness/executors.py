@@ -15,7 +15,9 @@ oversubscribing them.
   included) kills its workers instead of waiting for their units, whose rows
   it would no longer store.
 * ``ray``: Ray tasks of one CPU each, on the cluster at ``address`` or on a
-  local instance started for the sweep (``pip install grail-bench[ray]``).
+  local instance started for the sweep (``pip install grail-bench[ray]``). A
+  local instance dies with the driver, even one killed with ``kill -9``
+  (:class:`~grail_bench.harness.reaper.Reaper`); a cluster at ``address`` is left running.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import threading
 from typing import Any, Callable, Iterator, Protocol, Sequence
 
 from grail_bench.core.errors import UserError
+from grail_bench.harness.reaper import Reaper, children
 
 EXECUTORS = ("serial", "local", "ray")
 _THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
@@ -180,12 +183,16 @@ class RayExecutor:
             _check_reachable(address)
         self._ray = ray
         self._started = not ray.is_initialized()
+        self._reaper: Reaper | None = None
         if self._started:
             env = {"env_vars": {var: "1" for var in _THREAD_VARS}}
             try:
                 if address is None:
+                    before = children(os.getpid())
                     ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
                              runtime_env=env, logging_level="ERROR")
+                    # The local instance's processes are this driver's new children: they die with it.
+                    self._reaper = Reaper.start(children(os.getpid()) - before)
                 else:
                     ray.init(address=address, log_to_driver=False, runtime_env=env, logging_level="ERROR")
             except (ConnectionError, RuntimeError, ValueError) as exc:
@@ -213,6 +220,9 @@ class RayExecutor:
     def close(self, abandon: bool = False) -> None:
         if self._started:
             self._ray.shutdown()
+        if self._reaper is not None:
+            self._reaper.release()
+            self._reaper = None
 
 
 def _check_reachable(address: str, timeout: float = 5.0) -> None:
