@@ -4,14 +4,16 @@
 * :mod:`.domain`: the :class:`Domain` protocol a task needs and the domain registry.
 * :mod:`.observation`: observation protocols, :class:`ObservationSpec` and :func:`observe`.
 * :mod:`.overrides`: :class:`TaskOverrides`, a task's parameters set over its card.
-* :mod:`.cards`: the TOML task cards; :mod:`.registration`: gymnasium IDs and :func:`make_task`.
+* :mod:`.cards`: the TOML task cards; :mod:`.sources`: cards from outside the package (paths,
+  ``GRAIL_BENCH_CARDS``, entry points); :mod:`.registration`: gymnasium IDs, :func:`make_task` and
+  :func:`load_cards`.
 * :mod:`.demos`: where demonstrations come from (the generator, :mod:`.demo_cache`, or a Minari dataset read
   by :mod:`.datasets`); :mod:`.export`: demonstrations written as Minari datasets.
 * :mod:`.versions`: each task's fingerprint, what each ID's version means, and how rows stored under an old
   version are read.
 
 The modules form layers, each importing only those below it (``lint-imports`` checks the contract in
-``pyproject.toml``): export, versions; registration, demos; cards, datasets, demo_cache; model; domain, observation,
+``pyproject.toml``): export, versions; registration, demos; sources; cards, datasets, demo_cache; model; domain, observation,
 overrides. The model reaches demonstrations through the source :mod:`.demos` installs, which importing this
 package does. Everything here is light (no torch): it runs on ``import gymnasium``.
 """
@@ -19,7 +21,9 @@ package does. Everything here is light (no torch): it runs on ``import gymnasium
 import grail_bench.task.demos  # noqa: F401 - installs the model's demonstration source
 from grail_bench.task.model import GRTask, TaskFieldError
 from grail_bench.task.registration import (
+    add_tasks,
     find_task,
+    load_cards,
     make_registered_env,
     make_task,
     register_envs,
@@ -27,4 +31,5 @@ from grail_bench.task.registration import (
     variant,
 )
 
-__all__ = ["GRTask", "TaskFieldError", "find_task", "make_registered_env", "make_task", "register_envs", "task_ids", "variant"]
+__all__ = ["GRTask", "TaskFieldError", "add_tasks", "find_task", "load_cards", "make_registered_env", "make_task",
+           "register_envs", "task_ids", "variant"]

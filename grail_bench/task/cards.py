@@ -1,4 +1,4 @@
-"""Task cards: the declarative TOML files that define every GRAIL/ task.
+"""Task cards: the declarative TOML files that define every task, the shipped ``GRAIL/`` ones and a user's own.
 
 A card file describes one domain and lists its tasks::
 
@@ -63,7 +63,8 @@ from grail_bench.task.model import GRTask, TaskFieldError
 
 logger = logging.getLogger(__name__)
 
-ID_PATTERN = re.compile(r"^GRAIL/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
+#: A task ID: a namespace (``GRAIL`` for the shipped cards, any other for a user's), a name and a version.
+ID_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_.\-]*/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
 FILE_KEYS = {"domain", "description", "defaults", "task"}
 TASK_KEYS = {
     "id", "regime", "goals", "params", "env", "n_demos", "n_train",
@@ -118,7 +119,8 @@ def _tasks(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: s
     merged = {**DEFAULT_FIELDS, **defaults, **raw}
     task_id = merged.get("id")
     if not isinstance(task_id, str) or not ID_PATTERN.match(task_id):
-        raise _fail(source, f"{where}.id", f"expected an ID like 'GRAIL/Name-v0', got {task_id!r}")
+        raise _fail(source, f"{where}.id", f"expected an ID like 'MyLab/Name-v0' (a namespace, a name, a "
+                                             f"version), got {task_id!r}")
     goal_sets = merged.pop("goal_sets", None)
     base = _task(merged, domain, source, where, folder)
     if goal_sets is None:
@@ -184,6 +186,22 @@ def parse_card(text: str, source: str, folder: Path | None = None) -> list[GRTas
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise CardError(f"{source}: invalid TOML: {exc}") from None
+    return card_tasks(data, source, folder)
+
+
+def card_tasks(data: dict[str, Any], source: str, folder: Path | None = None) -> list[GRTask]:
+    """The validated tasks of one parsed card (a TOML file's table, or the same built by code).
+
+    Args:
+        data: The card: ``domain``, optional ``description`` and ``defaults``, and ``task``, a list of tables.
+        source: Names the card in error messages and becomes each task's :attr:`~GRTask.source`.
+        folder: What relative ``demos`` folders are resolved against (None: the working directory).
+
+    Raises:
+        CardError: ``source: field: why`` for the first wrong field, or a task ID defined twice.
+    """
+    if not isinstance(data, dict):
+        raise CardError(f"{source}: expected a card table, got {type(data).__name__}")
     unknown = set(data) - FILE_KEYS
     if unknown:
         raise _fail(source, sorted(unknown)[0], f"unknown field (known: {', '.join(sorted(FILE_KEYS))})")
@@ -246,9 +264,26 @@ def load_cards(paths: Iterable[Path] | None = None) -> list[GRTask]:
     return unique(t for p in map(Path, paths) for t in parse_card(read_card(p), str(p), p.parent))
 
 
+_skipped_external: dict[str, str] = {}
+
+
 def skipped_cards() -> dict[str, str]:
-    """The shipped cards that were skipped because they are broken: file name -> why (one line)."""
-    return dict(_shipped_cards()[1])
+    """The cards that were skipped because they are broken: file name (a shipped card) or path -> why (one
+    line)."""
+    return {**dict(_shipped_cards()[1]), **_skipped_external}
+
+
+def skip(source: str, why: str) -> None:
+    """Record a card from outside the package as skipped, with one warning line (once per source and reason)."""
+    why = why.removeprefix(f"{source}: ")
+    if _skipped_external.get(source) != why:
+        logger.warning("grail-bench: skipped the task card %s: %s", source, why)
+    _skipped_external[source] = why
+
+
+def unskip(source: str) -> None:
+    """Forget that ``source`` was skipped (it loaded since)."""
+    _skipped_external.pop(source, None)
 
 
 @lru_cache(maxsize=1)

@@ -206,8 +206,8 @@ class GRTask:
             spec.check(self.regime, self.params, self.env_params, self.goals)
         except TaskFieldError:
             raise
-        except UserError as exc:
-            raise TaskFieldError("params", str(exc)) from None
+        except UserError as exc:  # the domain's own checks: of the goals, or else of the parameters
+            raise TaskFieldError("goals" if str(exc).startswith("goal") else "params", str(exc)) from None
 
     def __hash__(self) -> int:
         return hash((self.id, self.regime, self.goals, repr(sorted(self.params.items()))))
@@ -248,6 +248,10 @@ class GRTask:
                 params[name] = value
             elif name in spec.env_defaults:
                 env_params[name] = value
+            elif name == "goals":
+                raise UserError(f"{self.id} cannot take goals as a parameter: a goal set defines a task, and its "
+                                "results need their own ID; write a card with your ID and goals and give it with "
+                                "--cards (docs/guides/tasks-and-demos.md, 'Your own task card')")
             else:
                 hint = " (it applies to gym.make, not to a task)" if name in ENV_ONLY else ""
                 known = sorted({*spec.regimes[self.regime], *spec.env_defaults, "n_demos", "n_train", "demos"})
