@@ -218,6 +218,15 @@ def test_an_exported_dataset_of_another_namespace_has_one_namespace(tmp_path):
     assert dataset_id(task, 0) == "grail-bench/MyLab-Grid-Optimal-seed0-v0"
 
 
+@pytest.mark.parametrize("command", [["ceiling", "-o", "0.3", "--samples", "200"], ["inspect", "-r", "demonstrator"]])
+def test_commands_that_take_a_task_take_cards(tmp_path, command):
+    folder = card_folder(tmp_path / "cards")
+    result = CliRunner().invoke(app, [command[0], "--cards", str(folder), "-t", TASK, *command[1:]],
+                                env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    assert TASK in result.output
+
+
 def test_local_workers_know_the_cards_given_to_the_driver(tmp_path):
     from grail_bench.harness.executors import LocalExecutor
 
@@ -242,6 +251,8 @@ def test_a_run_on_an_own_goal_set_is_labelled_with_its_own_id(tmp_path):
     assert out.returncode == 0, out.stderr
     rows = json.loads(records.read_text())
     assert {r["task"] for r in rows} == {TASK} and all(0 <= r["f1_mean"] <= 1 for r in rows)
+    board = CliRunner().invoke(app, ["leaderboard", "--store", str(store)], env={"COLUMNS": "200"})
+    assert board.exit_code == 0 and f"the cards of {TASK} are not loaded" in board.output  # said, not silent
     from grail_bench.harness.store import ResultsStore
 
     load_cards(folder)
