@@ -186,6 +186,10 @@ def test_bounds_apply_to_cards_from_outside(tmp_path):
     card.write_text(CARD + "n_demos = 100000\n", encoding="utf-8")
     with pytest.raises(CardError, match=r"big\.toml: task\[0\]\.n_demos: 100000 is out of range"):
         load_cards(card, strict=True)
+    many = ", ".join(f"[{i}, 1]" for i in range(1001))
+    card.write_text(CARD.replace("[[7, 1], [7, 7], [7, 3]]", f"[{many}]"), encoding="utf-8")
+    with pytest.raises(CardError, match=r"task\[0\]\.goals: 1001 goals is out of range"):
+        load_cards(card, strict=True)
     card.write_text(CARD + "env = { max_steps = 100000000 }\n", encoding="utf-8")
     with pytest.raises(CardError, match=r"task\[0\]\.env\.max_steps: .*out of range"):
         load_cards(card, strict=True)
