@@ -15,10 +15,11 @@ from typer.testing import CliRunner
 import grail_bench
 from grail_bench.cli.app import app
 from grail_bench.core.errors import UserError
-from grail_bench.task import cards, registration
+from grail_bench.task import cards, external
 from grail_bench.task.cards import CardError, card_tasks, skipped_cards
 from grail_bench.task.export import dataset_id
-from grail_bench.task.registration import add_tasks, load_cards, make_task, shipped_tasks
+from grail_bench.task.external import add_tasks, load_cards
+from grail_bench.task.registration import make_task, shipped_tasks
 from grail_bench.task.versions import fingerprint
 
 ROOT = Path(grail_bench.__file__).resolve().parents[1]
@@ -40,11 +41,10 @@ def clean_registry():
     """Every test starts and ends with no card from outside the package registered."""
     before = set(gym.registry)
     yield
-    for task_id in list(registration._external):
-        registration._drop(task_id)
-    registration._given.clear()
-    registration._ambient.cache_clear()
-    registration._found.cache_clear()
+    for task_id in list(external.registered()):
+        external._drop(task_id)
+    external._given.clear()
+    external._ambient.cache_clear()
     cards._skipped_external.clear()
     for env_id in set(gym.registry) - before:
         del gym.registry[env_id]

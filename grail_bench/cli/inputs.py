@@ -239,7 +239,7 @@ def use_cards(paths: Optional[Sequence[Path]]) -> None:
     Raises:
         UserError: For a path that is no card file or folder.
     """
-    from grail_bench.task.registration import load_cards
+    from grail_bench.task.external import load_cards
     from grail_bench.task.sources import path_cards
 
     for path in paths or ():

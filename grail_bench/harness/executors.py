@@ -93,14 +93,14 @@ def _worker_init(parent: int, cards: tuple[str, ...] = ()) -> None:
     die_with_parent(parent)
     one_thread()
     if cards:
-        from grail_bench.task.registration import load_cards
+        from grail_bench.task.external import load_cards
 
         load_cards(*cards)
 
 
 def _cards_env() -> dict[str, str]:
     """``GRAIL_BENCH_CARDS`` for workers elsewhere: this process's, and the cards it was given (``--cards``)."""
-    from grail_bench.task.registration import given_paths
+    from grail_bench.task.external import given_paths
     from grail_bench.task.sources import ENV_VAR, env_paths
 
     paths = list(dict.fromkeys([*env_paths(), *given_paths()]))
@@ -142,7 +142,7 @@ class LocalExecutor:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            from grail_bench.task.registration import given_paths
+            from grail_bench.task.external import given_paths
 
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
                                              initializer=_worker_init, initargs=(os.getpid(), tuple(given_paths())))

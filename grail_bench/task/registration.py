@@ -10,12 +10,9 @@ no plugins on ``import gymnasium``, so a bare ``gym.make("GRAIL/...")`` with no
 import of ``grail_bench`` finds no ``GRAIL`` namespace. Registration is
 idempotent and imports nothing heavier than the task cards.
 
-Cards from outside the package (:mod:`grail_bench.task.sources`) register the same way, under any namespace but
-``GRAIL/`` (grail-bench's own): those ``GRAIL_BENCH_CARDS`` lists and those installed packages ship (entry-point
-group ``grail_bench.cards``) on ``import grail_bench``, and those given to :func:`load_cards` (``--cards``) when
-it is called. A broken one is skipped with one warning line naming the file and the field
-(:func:`~grail_bench.task.cards.skipped_cards`); the other tasks register. An ID that is a shipped task's,
-another card's or another gymnasium env's is refused in the same way: nothing is shadowed.
+Cards from outside the package register the same way, under namespaces of their own
+(:mod:`grail_bench.task.external`): those ``GRAIL_BENCH_CARDS`` lists and installed packages ship on ``import
+grail_bench``, those given to :func:`~grail_bench.task.external.load_cards` (``--cards``) when it is called.
 """
 
 from __future__ import annotations
@@ -23,28 +20,20 @@ from __future__ import annotations
 import difflib
 import functools
 import json
-import os
-import sys
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any
 
 from grail_bench.core.errors import UserError
-from grail_bench.task import cards
-from grail_bench.task.cards import CardError, skipped_cards
+from grail_bench.task import cards, external
+from grail_bench.task.cards import skipped_cards
 from grail_bench.task.domain import stored_params
+from grail_bench.task.external import ENTRY_POINT, RESERVED, add_tasks, given_paths, load_cards
 from grail_bench.task.model import ENV_ONLY, GRTask
-from grail_bench.task.sources import ENV_VAR, Card, entry_point_cards, env_paths, path_cards
 
 if TYPE_CHECKING:
     import gymnasium as gym
 
-ENTRY_POINT = "grail_bench.task.registration:make_registered_env"
-#: The namespace of the shipped tasks; a card from outside the package uses its own.
-RESERVED = "GRAIL/"
-
-_external: dict[str, GRTask] = {}  # tasks of cards from outside the package (or built by code), by ID
-_owner: dict[str, str] = {}  # their source, by ID
-_given: dict[str, None] = {}  # the paths given to load_cards in this process (absolute), in order
+__all__ = ["ENTRY_POINT", "add_tasks", "find_task", "given_paths", "known_tasks", "load_cards", "make_registered_env",
+           "make_task", "register_envs", "shipped_tasks", "task_ids", "variant"]
 
 
 def shipped_tasks() -> dict[str, GRTask]:
@@ -54,7 +43,7 @@ def shipped_tasks() -> dict[str, GRTask]:
 
 def known_tasks() -> dict[str, GRTask]:
     """Every registered task, by ID: the shipped ones, then those of cards from outside the package."""
-    return {**shipped_tasks(), **_external}
+    return {**shipped_tasks(), **external.registered()}
 
 
 def register_envs() -> list[GRTask]:
@@ -70,125 +59,14 @@ def register_envs() -> list[GRTask]:
     for task in cards.load_cards():
         if task.id not in registry:
             register(id=task.id, entry_point=ENTRY_POINT, kwargs={"task_id": task.id})
-    _ambient(os.environ.get(ENV_VAR, ""), tuple(sys.path))
+    external.load_ambient()
     return list(known_tasks().values())
-
-
-@functools.lru_cache(maxsize=8)
-def _ambient(env_value: str, path: tuple[str, ...]) -> None:
-    """Load the cards ``GRAIL_BENCH_CARDS`` lists and those installed packages ship (once per value and path)."""
-    found: list[Card | CardError] = list(entry_point_cards())
-    for given in env_paths({ENV_VAR: env_value}):
-        found += _cards_at(given)
-    _load(found, strict=False)
-
-
-def add_tasks(tasks: Iterable[GRTask], source: str) -> list[GRTask]:
-    """Register tasks from outside the package's cards (a card's, or built by code) with gymnasium, all or none.
-
-    Loading the same source again replaces its tasks (an edited card); its IDs no longer defined are dropped.
-
-    Args:
-        tasks: Validated tasks with distinct IDs, none in the ``GRAIL/`` namespace.
-        source: What defines them (a card's path): messages name it, and it owns the IDs.
-
-    Returns:
-        The tasks.
-
-    Raises:
-        CardError: ``source: ...`` in one line, for an ID defined twice, in the ``GRAIL/`` namespace, defined
-            by another source, or another gymnasium env's.
-    """
-    from gymnasium.envs.registration import register, registry
-
-    tasks = cards.unique(tasks)
-    for task in tasks:
-        if task.id.startswith(RESERVED) or task.id in shipped_tasks():
-            raise CardError(f"{source}: task id {task.id!r}: the {RESERVED} namespace is grail-bench's own tasks'; "
-                            f"give yours its own, e.g. 'MyLab/{task.id.split('/', 1)[-1]}'")
-        owner = _owner.get(task.id)
-        if owner is not None and owner != source:
-            raise CardError(f"{source}: task id {task.id!r} is already defined by {owner}")
-        spec = registry.get(task.id)
-        if owner is None and spec is not None and spec.entry_point != ENTRY_POINT:
-            raise CardError(f"{source}: task id {task.id!r} is already a gymnasium env ({spec.entry_point})")
-    ids = {t.id for t in tasks}
-    for task_id in [i for i, o in _owner.items() if o == source and i not in ids]:
-        _drop(task_id)
-    for task in tasks:
-        _external[task.id], _owner[task.id] = task, source
-        if task.id not in registry:
-            register(id=task.id, entry_point=ENTRY_POINT, kwargs={"task_id": task.id})
-    _found.cache_clear()
-    return tasks
-
-
-def _drop(task_id: str) -> None:
-    from gymnasium.envs.registration import registry
-
-    _external.pop(task_id, None)
-    _owner.pop(task_id, None)
-    registry.pop(task_id, None)
-
-
-def load_cards(*paths: str | os.PathLike[str], strict: bool = False) -> list[GRTask]:
-    """Register the tasks of task cards from anywhere (what ``--cards PATH`` does): after it,
-    ``gym.make(ID)``, :func:`make_task` and every command find them.
-
-    Args:
-        *paths: Card files (``.toml``) or folders of them (their ``*.toml`` files, in name order).
-        strict: Raise for a broken card instead of skipping it.
-
-    Returns:
-        The tasks of the cards that loaded, in order.
-
-    Raises:
-        CardError: With ``strict``, ``file: field: why`` for the first broken card (otherwise it is skipped
-            with one warning line and listed by :func:`~grail_bench.task.cards.skipped_cards`).
-    """
-    found: list[Card | CardError] = []
-    for path in paths:
-        found += _cards_at(path)
-        _given[str(Path(path).expanduser().absolute())] = None
-    return _load(found, strict)
-
-
-def given_paths() -> list[str]:
-    """The card paths given to :func:`load_cards` in this process (so workers it starts load them too)."""
-    return list(_given)
 
 
 def task_ids() -> list[str]:
     """IDs of all registered tasks (the shipped ones and those of cards found so far), sorted."""
     register_envs()
     return sorted(known_tasks())
-
-
-def _cards_at(path: str | os.PathLike[str]) -> list[Card | CardError]:
-    try:
-        return list(path_cards(path))
-    except CardError as exc:
-        return [exc]
-
-
-def _load(found: Iterable[Card | CardError], strict: bool) -> list[GRTask]:
-    """Register each card's tasks; a broken card raises (``strict``) or is skipped with one line."""
-    out: list[GRTask] = []
-    for card in found:
-        source = card.source if isinstance(card, Card) else str(card).split(": ", 1)[0]
-        try:
-            if isinstance(card, CardError):
-                raise card
-            out += add_tasks(card.tasks(), source)
-        except Exception as exc:  # noqa: BLE001 - a card is user input: whatever it breaks, skip it and say why
-            error = exc if isinstance(exc, CardError) else CardError(
-                f"{source}: {exc}" if isinstance(exc, UserError) else f"{source}: {type(exc).__name__}: {exc}")
-            if strict:
-                raise error from None
-            cards.skip(source, str(error))
-            continue
-        cards.unskip(source)
-    return out
 
 
 def make_registered_env(task_id: str, **kwargs: Any) -> gym.Env:
@@ -250,11 +128,12 @@ def find_task(task_id: str, params: dict[str, Any] | None = None) -> GRTask | No
         key = json.dumps(params, sort_keys=True, default=str) if params is not None else None
     except (TypeError, ValueError):
         return _find_task(task_id, params)
-    return _found(task_id, key)
+    return _found(task_id, key, external.generation())
 
 
 @functools.lru_cache(maxsize=4096)
-def _found(task_id: str, params_json: str | None) -> GRTask | None:
+def _found(task_id: str, params_json: str | None, generation: int) -> GRTask | None:
+    """The task, cached until the tasks of cards from outside the package change (``generation``)."""
     return _find_task(task_id, json.loads(params_json) if params_json is not None else None)
 
 
