@@ -18,7 +18,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.task import cards, external
 from grail_bench.task.cards import CardError, card_tasks, skipped_cards
 from grail_bench.task.export import dataset_id
-from grail_bench.task.external import add_tasks, load_cards
+from grail_bench.task.external import add_tasks, load_cards, register_card
 from grail_bench.task.registration import make_task, shipped_tasks
 from grail_bench.task.versions import fingerprint
 
@@ -207,9 +207,17 @@ def _own_goal_set(domain: str) -> tuple[dict, list]:
 @pytest.mark.parametrize("domain", sorted({t.domain for t in shipped_tasks().values()}))
 def test_a_card_sets_its_own_goal_set_in_every_domain(domain):
     card, goals = _own_goal_set(domain)
-    (task,) = add_tasks(card_tasks(card, f"{domain}.toml"), f"{domain}.toml")  # what a dataset loader can call
+    (task,) = register_card(card, f"{domain}.toml")  # what a loader of a dataset of problems can call
     assert [list(g) for g in make_task(task.id).goals] == goals
     assert len(fingerprint(task)) == 12  # not in tasks/versions.toml: fingerprinted all the same
+
+
+def test_tasks_built_by_code_register_and_clash_like_cards(tmp_path):
+    (task,) = card_tasks({"domain": "minigrid", "task": [{"id": TASK, "regime": "optimal", "goals": [[7, 1], [7, 7]]}]},
+                         "built")
+    assert add_tasks([task], "my loader") == [task] and make_task(TASK).goals == ((7, 1), (7, 7))
+    with pytest.raises(CardError, match=rf"other loader: task id '{TASK}' is already defined by my loader"):
+        add_tasks([task], "other loader")
 
 
 def test_goals_are_no_parameter_but_a_card(tmp_path):
@@ -241,6 +249,23 @@ def test_local_workers_know_the_cards_given_to_the_driver(tmp_path):
     finally:
         executor.close()
     assert found[TASK].goals == ((7, 1), (7, 7), (7, 3))
+
+
+def test_ray_workers_get_the_cards_in_their_environment(tmp_path, monkeypatch):
+    from grail_bench.harness.executors import _cards_env
+
+    monkeypatch.setenv("GRAIL_BENCH_CARDS", str(tmp_path / "elsewhere"))
+    load_cards(card_folder(tmp_path / "cards"))
+    assert _cards_env() == {"GRAIL_BENCH_CARDS": os.pathsep.join([str(tmp_path / "elsewhere"),
+                                                                  str(tmp_path / "cards")])}
+
+
+def test_a_missing_path_in_the_environment_variable_is_one_line(tmp_path):
+    out = python("import grail_bench; print(len(grail_bench.task_ids()) > 50)",
+                 GRAIL_BENCH_CARDS=str(tmp_path / "nope"))
+    assert out.returncode == 0 and out.stdout.strip() == "True", out.stderr
+    assert out.stderr == f"grail-bench: skipped the task card {tmp_path / 'nope'}: no such task card or folder of " \
+                         "cards\n"
 
 
 @pytest.mark.slow

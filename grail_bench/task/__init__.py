@@ -20,7 +20,7 @@ package does. Everything here is light (no torch): it runs on ``import gymnasium
 
 import grail_bench.task.demos  # noqa: F401 - installs the model's demonstration source
 from grail_bench.task.model import GRTask, TaskFieldError
-from grail_bench.task.external import add_tasks, load_cards
+from grail_bench.task.external import add_tasks, load_cards, register_card
 from grail_bench.task.registration import (
     find_task,
     make_registered_env,
@@ -31,4 +31,4 @@ from grail_bench.task.registration import (
 )
 
 __all__ = ["GRTask", "TaskFieldError", "add_tasks", "find_task", "load_cards", "make_registered_env", "make_task",
-           "register_envs", "task_ids", "variant"]
+           "register_card", "register_envs", "task_ids", "variant"]

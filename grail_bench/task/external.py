@@ -7,8 +7,8 @@ tasks'). A broken card is skipped with one warning line naming the file and the 
 (:func:`~grail_bench.task.cards.skipped_cards`); the other tasks register. An ID that is a shipped task's,
 another card's or another gymnasium env's is refused in the same way: nothing is shadowed.
 
-Code that builds tasks itself (from a dataset of problems, say) registers them with :func:`add_tasks`, after
-:func:`~grail_bench.task.cards.card_tasks` checked a card table it built, or directly.
+Code that builds tasks itself (from a dataset of problems, say) registers a card table it built with
+:func:`register_card`, or tasks it built with :func:`add_tasks`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import functools
 import os
 import sys
 from pathlib import Path
-from typing import Iterable
+from typing import Any, Iterable
 
 from grail_bench.core.errors import UserError
 from grail_bench.task import cards
@@ -104,6 +104,21 @@ def add_tasks(tasks: Iterable[GRTask], source: str) -> list[GRTask]:
     global _generation
     _generation += 1
     return tasks
+
+
+def register_card(card: dict[str, Any], source: str, folder: Path | None = None) -> list[GRTask]:
+    """Check a parsed card (a TOML file's table, or one built by code) and register its tasks.
+
+    Args:
+        card: ``domain``, optional ``description`` and ``defaults``, and ``task``, a list of task tables
+            (:mod:`grail_bench.task.cards`).
+        source: What defines it (a file or folder): messages name it, and it owns the IDs.
+        folder: What relative ``demos`` folders are resolved against (None: the working directory).
+
+    Raises:
+        CardError: ``source: field: why``, for a wrong field or an ID :func:`add_tasks` refuses.
+    """
+    return add_tasks(cards.card_tasks(card, source, folder), source)
 
 
 def _drop(task_id: str) -> None:
