@@ -16,7 +16,7 @@ import grail_bench
 from grail_bench.cli.app import app
 from grail_bench.core.errors import UserError
 from grail_bench.task import cards, external
-from grail_bench.task.cards import CardError, card_tasks, skipped_cards
+from grail_bench.task.cards import CardError, card_tasks, parse_card, skipped_cards
 from grail_bench.task.export import dataset_id
 from grail_bench.task.external import add_tasks, load_cards, register_card
 from grail_bench.task.registration import make_task, shipped_tasks
@@ -218,6 +218,32 @@ def test_tasks_built_by_code_register_and_clash_like_cards(tmp_path):
     assert add_tasks([task], "my loader") == [task] and make_task(TASK).goals == ((7, 1), (7, 7))
     with pytest.raises(CardError, match=rf"other loader: task id '{TASK}' is already defined by my loader"):
         add_tasks([task], "other loader")
+
+
+SYMBOLIC = """\
+domain = "symbolic"
+
+[[task]]
+id = "MyLab/Blocks-Two-v0"
+regime = "optimal"
+goals = [[3], [1]]
+env = { problem = "blocks.tar.bz2" }
+"""
+
+
+def test_a_symbolic_card_reads_its_problem_from_beside_it(tmp_path, monkeypatch):
+    from grail_bench.domains.symbolic.dataset import write_problem
+    from grail_bench.domains.symbolic.generator import builtin_problem
+
+    for folder in ("a", "b"):
+        write_problem(builtin_problem("blocks"), tmp_path / folder / "blocks.tar.bz2")
+        (tmp_path / folder / "card.toml").write_text(SYMBOLIC, encoding="utf-8")
+    monkeypatch.chdir(tmp_path)  # not the card's folder
+    (task,) = load_cards(tmp_path / "a" / "card.toml", strict=True)
+    assert task.env_params["problem"] == str(tmp_path / "a" / "blocks.tar.bz2") and task.goals == ((3,), (1,))
+    assert gym.make("MyLab/Blocks-Two-v0").unwrapped.goal_index == 3
+    (moved,) = parse_card(SYMBOLIC, "card.toml", tmp_path / "b")
+    assert fingerprint(moved) == fingerprint(task)  # the same card in another folder is the same task
 
 
 def test_goals_are_no_parameter_but_a_card(tmp_path):

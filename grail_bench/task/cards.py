@@ -18,7 +18,8 @@ parameters), ``env`` (env parameters), ``n_demos``, ``n_train``,
 ``observability``, ``protocol``, ``rounding``, ``description``, and ``demos``:
 a Minari dataset to take the demonstrations from instead of the generator (a
 folder, relative to the card's folder, or a dataset ID; read when the task is
-made, see :mod:`grail_bench.task.demos`).
+made, see :mod:`grail_bench.task.demos`). An env parameter that names a file (a symbolic ``problem``) is read
+from beside the card too, when the file is there.
 
 ``goal_sets`` names smaller goal sets of the same task: a table ``{ name = [goal, ...], ... }``, each set
 drawn from the block's ``goals`` in any order, that adds one task per entry, equal to the block's but for its
@@ -58,7 +59,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from grail_bench.core.errors import UserError
-from grail_bench.task.domain import available_domains
+from grail_bench.task.domain import available_domains, get_domain
 from grail_bench.task.model import GRTask, TaskFieldError
 
 logger = logging.getLogger(__name__)
@@ -100,6 +101,19 @@ def _demos_source(value: Any, folder: Path | None) -> Any:
     if beside.exists() or not DATASET_ID.match(value):
         return str(beside.absolute())
     return value
+
+
+def _files_beside(env: Any, domain: str, folder: Path | None) -> Any:
+    """A card's env parameters, those naming a file (the domain's ``path_params``) read from beside the card
+    when the file is there (an absolute path then; other values as they are)."""
+    if folder is None or not isinstance(env, dict):
+        return env
+    try:
+        names = set(getattr(get_domain(domain), "path_params", ()))
+    except UserError:
+        return env  # the task's own check names the domain
+    return {k: str((folder / v).absolute()) if k in names and isinstance(v, str) and v and
+            not Path(v).expanduser().is_absolute() and (folder / v).exists() else v for k, v in env.items()}
 
 
 def goal_set_id(task_id: str, name: str) -> str:
@@ -158,7 +172,8 @@ def _task(merged: dict[str, Any], domain: str, source: str, where: str, folder: 
     try:
         return GRTask(
             id=task_id, domain=domain, regime=merged.get("regime"), goals=merged.get("goals"),
-            params=merged.get("params", {}), env_params=merged.get("env", {}), n_demos=merged["n_demos"],
+            params=merged.get("params", {}), env_params=_files_beside(merged.get("env", {}), domain, folder),
+            n_demos=merged["n_demos"],
             n_train=merged["n_train"], observability=merged["observability"], protocol=merged["protocol"],
             rounding=merged["rounding"], description=merged.get("description", ""), source=source,
             demos=_demos_source(merged.get("demos", ""), folder),
