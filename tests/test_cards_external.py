@@ -17,7 +17,6 @@ from grail_bench.cli.app import app
 from grail_bench.core.errors import UserError
 from grail_bench.task import cards, external
 from grail_bench.task.cards import CardError, card_tasks, parse_card, skipped_cards
-from grail_bench.task.export import dataset_id
 from grail_bench.task.external import add_tasks, load_cards, register_card
 from grail_bench.task.registration import make_task, shipped_tasks
 from grail_bench.task.versions import fingerprint
@@ -249,11 +248,6 @@ def test_a_symbolic_card_reads_its_problem_from_beside_it(tmp_path, monkeypatch)
 def test_goals_are_no_parameter_but_a_card(tmp_path):
     with pytest.raises(UserError, match=r"cannot take goals as a parameter: a goal set defines a task.*--cards"):
         make_task("GRAIL/MiniGrid-Optimal-v0", goals=[[7, 1], [7, 3]])
-
-
-def test_an_exported_dataset_of_another_namespace_has_one_namespace(tmp_path):
-    (task,) = load_cards(card_folder(tmp_path) / "grid.toml")
-    assert dataset_id(task, 0) == "grail-bench/MyLab-Grid-Optimal-seed0-v0"
 
 
 @pytest.mark.parametrize("command", [["ceiling", "-o", "0.3", "--samples", "200"], ["inspect", "-r", "demonstrator"]])

@@ -52,9 +52,8 @@ _NAMESPACE_METADATA = "namespace_metadata.json"
 
 
 def dataset_id(task: GRTask, seed: int) -> str:
-    """``grail-bench/MiniGrid-Biased-seed0-v0``: the exported dataset of a task and seed (a task of another
-    namespace keeps it in the name: ``MyLab/Grid-v0`` -> ``grail-bench/MyLab-Grid-seed0-v0``)."""
-    name = task.id.removeprefix("GRAIL/").rsplit("-v", 1)[0].replace("/", "-")
+    """``grail-bench/MiniGrid-Biased-seed0-v0``: the exported dataset of a task and seed."""
+    name = task.id.removeprefix("GRAIL/").rsplit("-v", 1)[0]
     return f"{NAMESPACE}/{name}-seed{seed}-v0"
 
 
