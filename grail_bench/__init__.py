@@ -1,6 +1,8 @@
 """grail-bench: a gymnasium-registered benchmark suite for goal recognition.
 
-Importing the package registers every ``GRAIL/`` task (idempotently). Members
+Importing the package registers every ``GRAIL/`` task (idempotently), and the tasks of the cards
+``GRAIL_BENCH_CARDS`` lists and installed packages ship; :func:`load_cards` registers those of any card file or
+folder. Members
 that need torch (the evaluation harness, the recognizers) are imported on
 first use, so ``import grail_bench`` stays light.
 
@@ -22,13 +24,13 @@ import importlib
 from typing import Any
 
 from grail_bench.core.errors import UserError
-from grail_bench.task import GRTask, make_task, register_envs, task_ids
+from grail_bench.task import GRTask, load_cards, make_task, register_envs, task_ids
 
 __version__ = "0.1.0"
 __all__ = [
     "Capabilities", "Domain", "FitDiagnostics", "FitReport", "GRTask", "GoalModel", "ObservationSpec", "PolicyOutput",
     "Recognizer", "RecognizerBase", "ResultsStore", "Scorer", "UserError", "__version__", "bayes_ceiling",
-    "evaluate", "make_recognizer", "make_task", "observe", "register_envs", "task_ids",
+    "evaluate", "load_cards", "make_recognizer", "make_task", "observe", "register_envs", "task_ids",
 ]
 
 _LAZY = {

@@ -153,7 +153,7 @@ def test_unknown_task_on_the_command_line_is_one_line(tmp_path):
 
 
 def test_non_grail_id_is_not_a_task():
-    with pytest.raises(ValueError, match="not a GRAIL/ task"):
+    with pytest.raises(ValueError, match="is a gymnasium env but not a grail-bench task"):
         grail_bench.make_task("CartPole-v1")
     with pytest.raises(grail_bench.UserError, match="a task ID is a string"):
         grail_bench.make_task(3)

@@ -11,6 +11,7 @@ import typer
 from typer.core import TyperGroup
 
 from grail_bench.cli.inputs import (
+    CARDS_HELP,
     check_store,
     console,
     err_console,
@@ -22,6 +23,7 @@ from grail_bench.cli.inputs import (
     outputs,
     refuse_repeated_options,
     say,
+    use_cards,
     write_text,
 )
 from grail_bench.cli.inputs import executor as make_executor
@@ -85,15 +87,27 @@ def _all_tasks(filters=None) -> list:  # noqa: ANN001 - a report.filters.Filters
 def tasks(
     task: Optional[List[str]] = typer.Option(None, "--task", "-t", help=TASK_FILTER_HELP),
     domain: Optional[List[str]] = typer.Option(None, "--domain", "-d", help=DOMAIN_FILTER_HELP),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
-    """List every registered GRAIL/ task (full IDs, as --task takes them) with its domain, regime, goals and demo
+    """List every registered task, GRAIL/ and your cards' (full IDs, as --task takes them) with its domain, regime, goals and demo
     counts."""
     from grail_bench.report.filters import Filters
     from grail_bench.report.tables import tasks_table
 
     with errors():
+        use_cards(cards)
         console.print(tasks_table(_all_tasks(Filters.of(task, domain))))
     _say_skipped_cards()
+
+
+def _say_cardless(rows: list) -> None:
+    """One line when rows belong to tasks of cards not loaded here (their configurations show as archived)."""
+    from grail_bench.task import find_task
+
+    missing = sorted({r.task for r in rows if not r.task.startswith("GRAIL/") and find_task(r.task) is None})
+    if missing:
+        say(f"the cards of {', '.join(missing)} are not loaded: their rows show as archived; give the cards with "
+            "--cards PATH or GRAIL_BENCH_CARDS")
 
 
 def _say_skipped_cards() -> None:
@@ -110,6 +124,7 @@ def list_(
     task: Optional[List[str]] = typer.Option(None, "--task", "-t", help=TASK_FILTER_HELP),
     domain: Optional[List[str]] = typer.Option(None, "--domain", "-d", help=DOMAIN_FILTER_HELP),
     method: Optional[List[str]] = typer.Option(None, "--method", help=METHOD_FILTER_HELP),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """List tasks, recognizers and scorers (imports no recognizer code)."""
     from grail_bench.recognizers.registry import available_recognizers
@@ -121,6 +136,7 @@ def list_(
         raise fail(f"cannot list {what!r}; choose tasks, recognizers, scorers or all")
     filters = Filters.of(task, domain, method)
     with errors():
+        use_cards(cards)
         if what in ("all", "tasks"):
             console.print(tasks_table(_all_tasks(Filters.of(task, domain))))
             _say_skipped_cards()
@@ -136,8 +152,9 @@ def list_(
 @app.command()
 def run(
     task: Optional[List[str]] = typer.Option(
-        None, "--task", "-t", help=f"A GRAIL/ task ID, or a symbolic problem set (an archive or folder in the PDDL "
-                                   f"dataset's layout, or a folder of them); repeat for several. Default: {DEFAULT_TASK}"),
+        None, "--task", "-t", help=f"A task ID (GRAIL/... or one of --cards'), or a symbolic problem set (an archive "
+                                   f"or folder in the PDDL dataset's layout, or a folder of them); repeat for "
+                                   f"several. Default: {DEFAULT_TASK}"),
     recognizer: Optional[List[str]] = typer.Option(None, "--recognizer", "-r",
                                                    help="Recognizer name; repeat for several (default: bc, graql)."),
     seeds: int = typer.Option(3, "--seeds", "-s", help="Seeds 0..N-1 (the paper uses 10)."),
@@ -172,6 +189,7 @@ def run(
     open_set: bool = typer.Option(False, "--open-set", help="Hold one goal out per seed (each in turn) and "
                                   "measure answering 'none of these' (tasks with 3 or more goals)."),
     mode_: Optional[str] = typer.Option(None, "--mode", "-m", help=MODE_HELP),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """Benchmark recognizers on one task or several; finished seeds in the store are reused."""
     from grail_bench.harness.api import collect, request
@@ -189,6 +207,7 @@ def run(
         err_console.print("warning: --sampling is deprecated; use --protocol", highlight=False)
     names = list(dict.fromkeys(recognizer or DEFAULT_RECOGNIZERS))
     with errors():
+        use_cards(cards)
         outputs(files=[json_path])
         check_store(store_path)
         config = parse_settings(settings or [], names)
@@ -297,6 +316,7 @@ def leaderboard_(
     profiles: Optional[Path] = typer.Option(
         None, "--profiles", help="Also write performance profiles, optimality gaps and calibration (PROFILES.md, "
         "performance_profiles.png, CALIBRATION.md, reliability.png) into this folder."),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """The results store ranked: per domain the methods' IQM of F1 with 95 % intervals first, then the paper's
     headline claims (when the store holds their tasks); --boards adds the paper-style F1 tables."""
@@ -320,6 +340,7 @@ def leaderboard_(
                    "and --ablation")
     samples = None if no_ceiling else ceiling_samples
     with errors():
+        use_cards(cards)
         if samples is not None:
             SAMPLES.check("samples", samples)
         outputs(files=[markdown_path, plot], folders=[html, profiles])
@@ -340,6 +361,7 @@ def leaderboard_(
             hint = "" if mode.name == "offline" else f" --mode {mode.name}"
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} yet; run "
                        f"`grail-bench run{hint}` first")
+        _say_cardless(selected[mode.name])
         if ablation:
             rows = ablation_rows(MODES["offline"].aggregate(selected["offline"]))
             if not rows:
@@ -428,7 +450,7 @@ def _select(store, mode, filters, scorer: Optional[List[str]],  # noqa: ANN001
     where = {"protocol": protocol} if protocol else {}
     exact = filters.tasks and not any(set(p) & set("*?[") for p in filters.tasks)
     if exact:  # plain IDs: narrowed where the rows are read
-        where["task"] = [p if p.startswith("GRAIL/") else f"GRAIL/{p}" for p in filters.tasks]
+        where["task"] = [p if "/" in p else f"GRAIL/{p}" for p in filters.tasks]
     return [r for r in store.select(mode, **where) if filters.row(r)
             and (not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer)]
 
@@ -455,6 +477,7 @@ def reproduce(
     run: bool = typer.Option(True, help="Run the units the store lacks (--no-run: write the tables and figures "
                                         "from the rows it holds, and count the units missing)."),
     progress: bool = typer.Option(True, help="Show a progress bar."),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """Run a profile's grid (resuming from the store), then write the paper's tables and figures."""
     from datetime import datetime, timezone
@@ -468,6 +491,7 @@ def reproduce(
 
     started, commit = datetime.now(timezone.utc), git_commit()
     with errors():
+        use_cards(cards)
         outputs(folders=[out])
         check_store(store_path or out / "results.sqlite")
         if seeds is not None:
@@ -500,13 +524,14 @@ def reproduce(
 
 @app.command()
 def inspect(
-    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A task ID (GRAIL/... or one of --cards')."),
     recognizer: str = typer.Option("bc", "--recognizer", "-r", help="The recognizer to inspect."),
     seed: int = typer.Option(0, "--seed", "-s", min=0, help="The seed whose fit to inspect."),
     settings: Optional[List[str]] = typer.Option(None, "--set", help="Recognizer hyperparameter, e.g. bc.n_epochs=50."),
     params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, as for `run`."),
     protocol: Optional[str] = typer.Option(None, "--protocol", "-p", help="Observation protocol (default: the task's)."),
     out: Optional[Path] = typer.Option(None, "--out", help="Also write diagnostics.json and the heatmaps (PNG) here."),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """Train (or reload from the model cache) one fit and show whether it imitates: per goal, the greedy rollout,
     agreement with the demonstrations and the imitation and confusion matrices. Nothing is stored."""
@@ -516,6 +541,7 @@ def inspect(
     from grail_bench.report.tables import diagnostics_table, goal_label
 
     with errors():
+        use_cards(cards)
         outputs(folders=[out])
         config = parse_settings(settings or [], [recognizer])[recognizer]
         with console.status(f"fitting {recognizer} on {task}, seed {seed} (or reading it from the model cache)"):
@@ -542,11 +568,12 @@ def inspect(
 
 @app.command()
 def export(
-    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID."),
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A task ID (GRAIL/... or one of --cards')."),
     seeds: int = typer.Option(1, "--seeds", "-s", help="One dataset per seed 0..N-1."),
     params: Optional[List[str]] = typer.Option(None, "--param", help="Task parameter, as for `run`."),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder the datasets are written into (as Minari lays "
                                        "them out; default: Minari's, $MINARI_DATASETS_PATH or ~/.minari/datasets)."),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """Write a task's demonstrations as Minari datasets, one per seed (goals and splits in episode metadata)."""
     from grail_bench.core.seeding import seed_list
@@ -554,6 +581,7 @@ def export(
     from grail_bench.task.export import export as export_datasets
 
     with errors():
+        use_cards(cards)
         gr_task = make_task(task, **parse_params(params or []))  # checked before the folder is made
         outputs(folders=[out])
         with console.status(f"exporting {gr_task.id}"):
@@ -581,7 +609,7 @@ def protocols() -> None:
 
 @app.command()
 def ceiling(
-    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A GRAIL/ task ID (MiniGrid)."),
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A task ID (GRAIL/... or one of --cards')."),
     protocol: Optional[str] = typer.Option(None, "--protocol", "-p", help="Observation protocol (default: the task's)."),
     observability: Optional[str] = typer.Option(None, "--observability", "-o",
                                                 help="Comma-separated fractions (default: the task's)."),
@@ -596,6 +624,7 @@ def ceiling(
                                          "(the demonstrators' own), as GRAIL, GRAQL and DRACO score."),
     noise: float = typer.Option(0.0, "--noise", help=NOISE_HELP),
     channel: str = typer.Option("pairs", "--channel", help="What is observed: pairs, states or actions."),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """The Bayes ceiling: the best accuracy any recognizer can reach under a protocol and level."""
     from grail_bench.harness.ceiling import bayes_ceiling
@@ -604,6 +633,7 @@ def ceiling(
     from grail_bench.task.observation import ObservationSpec
 
     with errors():
+        use_cards(cards)
         outputs(files=[json_path])
         gr_task = make_task(task, **parse_params(params or []))
         spec = ObservationSpec.resolve(protocol or gr_task.protocol, rounding or gr_task.rounding,
@@ -631,6 +661,7 @@ def study(
     seeds: Optional[int] = typer.Option(None, "--seeds", "-s", min=1, help="Seeds 0..N-1 (off-route; default 10)."),
     samples: Optional[int] = typer.Option(
         None, "--samples", min=2, help="Monte Carlo samples of each ceiling (causes, readings; default 2000)."),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """Run a study behind leaderboard/README.md and print its Markdown table (`--list` names them)."""
     from grail_bench.report.studies import STUDIES, get_study, study_options
@@ -642,6 +673,7 @@ def study(
         return
     flags = {"store": "--store", "tasks": "--task", "params": "--param", "seeds": "--seeds", "samples": "--samples"}
     with errors():
+        use_cards(cards)
         given = {"store": store_path, "tasks": tuple(task) if task else None,
                  "params": parse_params(params) if params else None, "seeds": seeds, "samples": samples}
         takes = study_options(name)  # argument -> whether required

@@ -229,6 +229,24 @@ def check_store(path: Optional[Path]) -> Path:
     return check_store_writable(path or default_store_path())
 
 
+CARDS_HELP = ("Task cards of your own: a card file (.toml) or a folder of them; repeatable (also: "
+              "GRAIL_BENCH_CARDS, a path list). Their tasks take any namespace but GRAIL/.")
+
+
+def use_cards(paths: Optional[Sequence[Path]]) -> None:
+    """Register the tasks of the ``--cards`` given (a broken card is skipped with one line; the others load).
+
+    Raises:
+        UserError: For a path that is no card file or folder.
+    """
+    from grail_bench.task.external import load_cards
+    from grail_bench.task.sources import path_cards
+
+    for path in paths or ():
+        path_cards(path)  # a mistyped path is an error, not a skipped card
+    load_cards(*(paths or ()))
+
+
 def one_line_warnings() -> None:
     """Show grail-bench's own warnings (e.g. a cached model being retrained) as one line on stderr."""
     import warnings

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Optional
+from typing import List, Optional
 
 import typer
 
-from grail_bench.cli.inputs import console, err_console, errors, fail, open_store, outputs, say
+from grail_bench.cli.inputs import CARDS_HELP, console, err_console, errors, fail, open_store, outputs, say, use_cards
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Results as data: the published format (JSON Lines under a JSON Schema), to export, import, "
@@ -62,6 +62,7 @@ def validate(
     need_outputs: bool = typer.Option(True, "--outputs/--no-outputs",
                                       help="Require per-instance outputs of every offline row and recompute its "
                                            "metrics (--no-outputs: for rows published before outputs were kept)."),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """Check a submission: the schema, that its tasks exist, that seeds and levels are complete, and that its
     metrics are those its per-instance outputs give."""
@@ -69,6 +70,7 @@ def validate(
     from grail_bench.harness.submissions import validate as validate_submission
 
     with errors():
+        use_cards(cards)
         published, problems = validate_submission(path, need_outputs)
     if problems:
         for problem in problems[:MAX_LISTED]:
@@ -101,12 +103,14 @@ def verify(
     path: Path = typer.Argument(..., help="A submission folder (or one row file in one)."),
     sample: int = typer.Option(3, "--sample", "-n", min=1, max=1000, help="Offline units to run again here."),
     seed: int = typer.Option(0, "--seed", help="Seed of the draw of units."),
+    cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """Run a sample of a submission's units again from its recognizer's entry point (installed here) and report
     how many rows agree exactly."""
     from grail_bench.harness.submissions import verify as verify_submission
 
     with errors():
+        use_cards(cards)
         with console.status(f"running {sample} unit(s) again"):
             results = verify_submission(path, sample, seed)
     for r in results:

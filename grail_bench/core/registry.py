@@ -49,6 +49,11 @@ def _entry_points(group: str, path: tuple[str, ...]) -> tuple[Any, ...]:
     return tuple(entry_points(group=group))
 
 
+def installed_entry_points(group: str) -> tuple[Any, ...]:
+    """The installed entry points of ``group`` (scanned once per ``sys.path``)."""
+    return _entry_points(group, tuple(sys.path))
+
+
 def load_target(target: str) -> Any:
     """Import ``"package.module:attribute"`` and return the attribute."""
     module_name, _, attr = target.partition(":")

@@ -90,10 +90,24 @@ def _watch_parent(parent: int) -> None:
             os._exit(1)  # the driver that would store this unit's rows is gone
 
 
-def _worker_init(parent: int) -> None:
-    """Initializer of every local worker: dies with the driver, runs numeric libraries on one thread."""
+def _worker_init(parent: int, cards: tuple[str, ...] = ()) -> None:
+    """Initializer of every local worker: dies with the driver, runs numeric libraries on one thread, and knows
+    the tasks of the cards the driver was given (``--cards``)."""
     die_with_parent(parent)
     one_thread()
+    if cards:
+        from grail_bench.task.external import load_cards
+
+        load_cards(*cards)
+
+
+def _cards_env() -> dict[str, str]:
+    """``GRAIL_BENCH_CARDS`` for workers elsewhere: this process's, and the cards it was given (``--cards``)."""
+    from grail_bench.task.external import given_paths
+    from grail_bench.task.sources import ENV_VAR, env_paths
+
+    paths = list(dict.fromkeys([*env_paths(), *given_paths()]))
+    return {ENV_VAR: os.pathsep.join(paths)} if paths else {}
 
 
 class SerialExecutor:
@@ -131,8 +145,10 @@ class LocalExecutor:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
+            from grail_bench.task.external import given_paths
+
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                             initializer=_worker_init, initargs=(os.getpid(),))
+                                             initializer=_worker_init, initargs=(os.getpid(), tuple(given_paths())))
         return self._pool
 
     def map_unordered(self, fn: Callable[[Any], Any], items: Sequence[Any]) -> Iterator[tuple[Any, Any]]:
@@ -185,7 +201,7 @@ class RayExecutor:
         self._started = not ray.is_initialized()
         self._reaper: Reaper | None = None
         if self._started:
-            env = {"env_vars": {var: "1" for var in _THREAD_VARS}}
+            env = {"env_vars": {**{var: "1" for var in _THREAD_VARS}, **_cards_env()}}
             try:
                 if address is None:
                     before = children(os.getpid())

@@ -147,8 +147,8 @@ def short_name(task_id: str) -> str:
 
 
 def domain_of(task_id: str) -> str:
-    """``GRAIL/PandaReach-Gaussian-0.1-v0`` -> ``PandaReach``."""
-    return task_id.removeprefix("GRAIL/").split("-", 1)[0]
+    """``GRAIL/PandaReach-Gaussian-0.1-v0`` -> ``PandaReach`` (any namespace: ``MyLab/Grid-v0`` -> ``Grid``)."""
+    return task_id.split("/", 1)[-1].split("-", 1)[0]
 
 
 def cell_of_record(r: OfflineRecord) -> Cell:

@@ -110,7 +110,7 @@ def tasks_table(tasks: Sequence[Any]) -> Fitted:
     """Every task (its full ID, as ``--task`` takes it) with its domain, regime, goals, demonstration counts,
     levels and protocol; at narrower widths the goals under the task's ID, at the narrowest each value on its own
     line."""
-    title = f"{TASK_PREFIX} tasks"
+    title = f"{TASK_PREFIX} tasks" if all(t.id.startswith(TASK_PREFIX) for t in tasks) else "tasks"
     header = ["task", "domain", "regime", "goals", "demos/goal (train/test)", "observability", "protocol"]
     rows = [[task.id, task.domain, task.regime, " ".join(goal_label(g) for g in task.goals),
              f"{task.n_demos} ({task.n_train}/{task.n_demos - task.n_train})",

@@ -1,4 +1,4 @@
-"""Task cards: the declarative TOML files that define every GRAIL/ task.
+"""Task cards: the declarative TOML files that define every task, the shipped ``GRAIL/`` ones and a user's own.
 
 A card file describes one domain and lists its tasks::
 
@@ -18,7 +18,8 @@ parameters), ``env`` (env parameters), ``n_demos``, ``n_train``,
 ``observability``, ``protocol``, ``rounding``, ``description``, and ``demos``:
 a Minari dataset to take the demonstrations from instead of the generator (a
 folder, relative to the card's folder, or a dataset ID; read when the task is
-made, see :mod:`grail_bench.task.demos`).
+made, see :mod:`grail_bench.task.demos`). An env parameter that names a file (a symbolic ``problem``) is read
+from beside the card too, when the file is there.
 
 ``goal_sets`` names smaller goal sets of the same task: a table ``{ name = [goal, ...], ... }``, each set
 drawn from the block's ``goals`` in any order, that adds one task per entry, equal to the block's but for its
@@ -58,12 +59,13 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from grail_bench.core.errors import UserError
-from grail_bench.task.domain import available_domains
+from grail_bench.task.domain import available_domains, get_domain
 from grail_bench.task.model import GRTask, TaskFieldError
 
 logger = logging.getLogger(__name__)
 
-ID_PATTERN = re.compile(r"^GRAIL/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
+#: A task ID: a namespace (``GRAIL`` for the shipped cards, any other for a user's), a name and a version.
+ID_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_.\-]*/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
 FILE_KEYS = {"domain", "description", "defaults", "task"}
 TASK_KEYS = {
     "id", "regime", "goals", "params", "env", "n_demos", "n_train",
@@ -101,6 +103,19 @@ def _demos_source(value: Any, folder: Path | None) -> Any:
     return value
 
 
+def _files_beside(env: Any, domain: str, folder: Path | None) -> Any:
+    """A card's env parameters, those naming a file (the domain's ``path_params``) read from beside the card
+    when the file is there (an absolute path then; other values as they are)."""
+    if folder is None or not isinstance(env, dict):
+        return env
+    try:
+        names = set(getattr(get_domain(domain), "path_params", ()))
+    except UserError:
+        return env  # the task's own check names the domain
+    return {k: str((folder / v).absolute()) if k in names and isinstance(v, str) and v and
+            not Path(v).expanduser().is_absolute() and (folder / v).exists() else v for k, v in env.items()}
+
+
 def goal_set_id(task_id: str, name: str) -> str:
     """The ID of goal set ``name`` of the task ``task_id`` (a valid ID): ``-name`` inserted before its version."""
     head, version = task_id.rsplit("-", 1)
@@ -118,7 +133,8 @@ def _tasks(raw: dict[str, Any], domain: str, defaults: dict[str, Any], source: s
     merged = {**DEFAULT_FIELDS, **defaults, **raw}
     task_id = merged.get("id")
     if not isinstance(task_id, str) or not ID_PATTERN.match(task_id):
-        raise _fail(source, f"{where}.id", f"expected an ID like 'GRAIL/Name-v0', got {task_id!r}")
+        raise _fail(source, f"{where}.id", f"expected an ID like 'MyLab/Name-v0' (a namespace, a name, a "
+                                             f"version), got {task_id!r}")
     goal_sets = merged.pop("goal_sets", None)
     base = _task(merged, domain, source, where, folder)
     if goal_sets is None:
@@ -156,7 +172,8 @@ def _task(merged: dict[str, Any], domain: str, source: str, where: str, folder: 
     try:
         return GRTask(
             id=task_id, domain=domain, regime=merged.get("regime"), goals=merged.get("goals"),
-            params=merged.get("params", {}), env_params=merged.get("env", {}), n_demos=merged["n_demos"],
+            params=merged.get("params", {}), env_params=_files_beside(merged.get("env", {}), domain, folder),
+            n_demos=merged["n_demos"],
             n_train=merged["n_train"], observability=merged["observability"], protocol=merged["protocol"],
             rounding=merged["rounding"], description=merged.get("description", ""), source=source,
             demos=_demos_source(merged.get("demos", ""), folder),
@@ -184,6 +201,22 @@ def parse_card(text: str, source: str, folder: Path | None = None) -> list[GRTas
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise CardError(f"{source}: invalid TOML: {exc}") from None
+    return card_tasks(data, source, folder)
+
+
+def card_tasks(data: dict[str, Any], source: str, folder: Path | None = None) -> list[GRTask]:
+    """The validated tasks of one parsed card (a TOML file's table, or the same built by code).
+
+    Args:
+        data: The card: ``domain``, optional ``description`` and ``defaults``, and ``task``, a list of tables.
+        source: Names the card in error messages and becomes each task's :attr:`~GRTask.source`.
+        folder: What relative ``demos`` folders are resolved against (None: the working directory).
+
+    Raises:
+        CardError: ``source: field: why`` for the first wrong field, or a task ID defined twice.
+    """
+    if not isinstance(data, dict):
+        raise CardError(f"{source}: expected a card table, got {type(data).__name__}")
     unknown = set(data) - FILE_KEYS
     if unknown:
         raise _fail(source, sorted(unknown)[0], f"unknown field (known: {', '.join(sorted(FILE_KEYS))})")
@@ -246,9 +279,26 @@ def load_cards(paths: Iterable[Path] | None = None) -> list[GRTask]:
     return unique(t for p in map(Path, paths) for t in parse_card(read_card(p), str(p), p.parent))
 
 
+_skipped_external: dict[str, str] = {}
+
+
 def skipped_cards() -> dict[str, str]:
-    """The shipped cards that were skipped because they are broken: file name -> why (one line)."""
-    return dict(_shipped_cards()[1])
+    """The cards that were skipped because they are broken: file name (a shipped card) or path -> why (one
+    line)."""
+    return {**dict(_shipped_cards()[1]), **_skipped_external}
+
+
+def skip(source: str, why: str) -> None:
+    """Record a card from outside the package as skipped, with one warning line (once per source and reason)."""
+    why = why.removeprefix(f"{source}: ")
+    if _skipped_external.get(source) != why:
+        logger.warning("grail-bench: skipped the task card %s: %s", source, why)
+    _skipped_external[source] = why
+
+
+def unskip(source: str) -> None:
+    """Forget that ``source`` was skipped (it loaded since)."""
+    _skipped_external.pop(source, None)
 
 
 @lru_cache(maxsize=1)

@@ -67,6 +67,10 @@ class Domain(Protocol):
     its simulator comes from beyond the suite's own, whose versions key those
     cached demonstrations too.
 
+    A domain may also declare ``path_params``: the env parameters that name a file (a symbolic problem's
+    archive). A card's relative value that exists beside the card is read from there, as its ``demos`` folder
+    is, and a task's fingerprint keeps only the file's name (the same on every machine).
+
     A domain may also declare ``bounds``: per regime or env parameter that sizes work (a grid's side, a step
     count), the :class:`~grail_bench.core.bounds.Range` its values must lie in. A task refuses a value outside
     it when it is built (from a card, ``--param``, ``make_task`` or ``gym.make``), before any work, naming the

@@ -22,8 +22,10 @@ if TYPE_CHECKING:
     import numpy as np
 
 ENV_ONLY = ("render_mode", "goal")  # gym.make arguments that shape one env, not the task
-#: The task's own sizes (published tasks use at most 200 demonstrations per goal).
+#: The task's own sizes (published tasks use at most 200 demonstrations per goal and 24 goals).
 FIELD_BOUNDS: Mapping[str, Range] = {"n_demos": Range(2, 10_000), "n_train": Range(1, 9_999)}
+#: How many candidate goals a task may have (every goal is fitted and scored: a size of work).
+GOAL_COUNT = Range(2, 1_000)
 
 
 class TaskFieldError(UserError):
@@ -161,6 +163,8 @@ class GRTask:
         goals = self.goals
         if not isinstance(goals, (list, tuple)) or len(goals) < 2:
             raise TaskFieldError("goals", "expected a list of at least two goals")
+        if not GOAL_COUNT.contains(len(goals)):
+            raise TaskFieldError("goals", f"{len(goals)} goals is out of range (allowed {GOAL_COUNT})")
         for g in goals:
             if not isinstance(g, (list, tuple)) or len(g) != spec.goal_dim or not all(_number(c) for c in g):
                 raise TaskFieldError("goals", f"each goal must be a list of {spec.goal_dim} numbers, got {g!r}")
@@ -206,8 +210,8 @@ class GRTask:
             spec.check(self.regime, self.params, self.env_params, self.goals)
         except TaskFieldError:
             raise
-        except UserError as exc:
-            raise TaskFieldError("params", str(exc)) from None
+        except UserError as exc:  # the domain's own checks: of the goals, or else of the parameters
+            raise TaskFieldError("goals" if str(exc).startswith("goal") else "params", str(exc)) from None
 
     def __hash__(self) -> int:
         return hash((self.id, self.regime, self.goals, repr(sorted(self.params.items()))))
@@ -252,6 +256,10 @@ class GRTask:
                     raise UserError(f"{self.id} keeps its card's {name} ({env_params[name]!r}), not {value!r}: "
                                     f"{why}")
                 env_params[name] = value
+            elif name == "goals":
+                raise UserError(f"{self.id} cannot take goals as a parameter: a goal set defines a task, and its "
+                                "results need their own ID; write a card with your ID and goals and give it with "
+                                "--cards (docs/guides/tasks-and-demos.md, 'Your own task card')")
             else:
                 hint = " (it applies to gym.make, not to a task)" if name in ENV_ONLY else ""
                 known = sorted({*spec.regimes[self.regime], *spec.env_defaults, "n_demos", "n_train", "demos"})

@@ -5,7 +5,9 @@ A task's **fingerprint** (:func:`fingerprint`) is a short sha256 of the canonica
 what defines it: its card entry (domain, regime, goals, observability levels, protocol, rounding, demonstration
 counts and dataset), every regime and env parameter (defaults merged in) and the version of its domain's
 demonstration generator (a domain's ``generator_version``, 1 when it declares none; a domain bumps it when its
-demonstrations change for the same parameters). The ID and the description are names, not definitions.
+demonstrations change for the same parameters). A file's absolute path (a dataset's, a symbolic problem's) counts
+by its name, so that a task fingerprints the same on every machine. The ID and the description are names, not
+definitions.
 
 ``tasks/versions.toml`` (shipped beside the cards) records, per shipped ID, the fingerprint that ID means
 (``[fingerprints]``); a test fails when a card's task no longer has its recorded fingerprint, so that a change
@@ -42,11 +44,18 @@ def definition(task: GRTask) -> dict[str, Any]:
     """What defines ``task`` (the fingerprint's input): every field but its ID, description and card file."""
     return {
         "domain": task.domain, "regime": task.regime, "goals": [list(g) for g in task.goals],
-        "params": dict(task.params), "env": dict(task.env_params), "n_demos": task.n_demos,
+        "params": dict(task.params), "env": _env(task), "n_demos": task.n_demos,
         "n_train": task.n_train, "observability": list(task.observability), "protocol": task.protocol,
         "rounding": task.rounding, "demos": Path(task.demos).name if task.demos else "",
         "generator": int(getattr(task.spec, "generator_version", 1)),
     }
+
+
+def _env(task: GRTask) -> dict[str, Any]:
+    """The task's env parameters, a file's absolute path (a domain's ``path_params``) by its name only."""
+    names = set(getattr(task.spec, "path_params", ()))
+    return {k: Path(v).name if k in names and isinstance(v, str) and Path(v).is_absolute() else v
+            for k, v in task.env_params.items()}
 
 
 def fingerprint(task: GRTask) -> str:

@@ -77,6 +77,7 @@ class Symbolic:
     name = "symbolic"
     goal_dim = 1
     env_defaults: Mapping[str, Any] = {"problem": "blocks", "max_steps": 50}
+    path_params = ("problem",)  # a card's relative problem archive beside the card is read from there
     regimes: Mapping[str, Mapping[str, Any]] = {
         # An optimal plan drawn uniformly among all optimal plans.
         "optimal": {},
