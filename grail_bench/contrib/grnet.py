@@ -74,7 +74,7 @@ class GRNetConfig:
     """
 
     hidden: Annotated[int, Range(1, 4096)] = 32
-    epochs: Annotated[int, Range(1, 100_000)] = 10
+    epochs: Annotated[int, Range(1, 100_000)] = 5
     draws: Annotated[int, Range(1, 100_000)] = 20
     batch_size: Annotated[int, Range(1, 1_000_000)] = 32
     learning_rate: float = 1e-2
