@@ -42,7 +42,7 @@ from grail_bench.core.cache import cached
 from grail_bench.core.errors import UserError
 from grail_bench.core.spaces import preprocess
 from grail_bench.core.torchutil import single_thread
-from grail_bench.core.trajectory import Demos, EnvFactory, Goal, demos_digest
+from grail_bench.core.trajectory import Demos, EnvFactory, Goal, demos_digest, until_success
 from grail_bench.recognizers.contract import (
     FitReport,
     NotFittedError,
@@ -241,7 +241,7 @@ class GRNetRecognizer(RecognizerBase):
             env.close()
         trajs = [list(demos[g]) for g in ordered]
         first = trajs[0][0]
-        states = np.concatenate([np.asarray(t.obs[:-1]) for ts in trajs for t in ts])
+        states = np.concatenate([np.asarray(until_success(t).obs[:-1]) for ts in trajs for t in ts])  # to the goal
         self.encoder = ChannelEncoder(StepEncoder(self.observation_space, self.action_space, True, states),
                                       np.asarray(first.obs[0]), np.asarray(first.acts[0]))
 
