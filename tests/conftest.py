@@ -79,6 +79,7 @@ FAST = {
     "gc-draco": {"ppo_steps": 1024},
     "graml": {"n_pairs": 300, "n_epochs": 3},
     "gc-graml": {"n_pairs": 300, "n_epochs": 3, "gc_batches": 300, "n_rollouts": 3},
+    "grnet": {"epochs": 2, "draws": 5},
 }
 
 
