@@ -11,7 +11,13 @@ from the canonical one: ``GAIL-GRAIL · total_timesteps 20 000``, ``BC-GRAIL · 
 A configuration today's code would not store as it was stored (planned again from its task and settings, its
 hash differs: a setting or task parameter added, removed or refused since, such as a default that changed)
 was run by an earlier version: it is **archived**, still linked to its runs, out of boards and summaries.
-Hashes stay in the records for provenance.
+Hashes stay in the records for provenance. A plugin recognizer's configuration records its identity
+(distribution, version and, unless installed from a built wheel, a hash of its source): runs of an earlier
+version or source of a plugin are archived too.
+
+Runs on demonstrations from a dataset (``run --demos``) are a configuration of their own, labelled by the
+dataset's name (``toy · demos my-dataset``): canonical or a named variant as the recognizer's settings say, never
+archived for the dataset (today's code is checked against the run with the dataset as the run recorded it).
 """
 
 from __future__ import annotations
@@ -45,6 +51,8 @@ class Configuration:
         recognizer: The registered recognizer name.
         submitted_by: The lab whose submission the runs came from (merged from published results, not run
             here; labels end ``submitted by LAB``), else None.
+        dataset: The name of the dataset the runs took their demonstrations from (``run --demos``; labels end
+            ``demos NAME``), else None.
     """
 
     kind: Kind
@@ -54,15 +62,19 @@ class Configuration:
     config_hash: str = ""
     recognizer: str = ""
     submitted_by: str | None = None
+    dataset: str | None = None
 
     @property
     def label(self) -> str:
-        """``BC-GRAIL``, ``GAIL-GRAIL · total_timesteps 20 000 · loglik`` or ``AIRL-GRAIL · archived 7318c1``."""
+        """``BC-GRAIL``, ``GAIL-GRAIL · total_timesteps 20 000 · loglik``, ``BC-GRAIL · demos my-dataset`` or
+        ``AIRL-GRAIL · archived 7318c1``."""
         parts = [self.method, *(f"{k} {value_text(v)}" for k, v in self.changes if v is not None)]
         if self.scorer:
             parts.append(self.scorer)
         if self.kind == "archived":
             parts = [self.method, f"archived {self.config_hash[:6]}", *([self.scorer] if self.scorer else [])]
+        if self.dataset is not None:
+            parts.append(f"demos {self.dataset}")
         if self.submitted_by is not None:
             parts.append(f"submitted by {self.submitted_by}")
         return SEPARATOR.join(parts)
@@ -126,11 +138,11 @@ def _settings(recognizer: str, stored: str | None) -> str | None:
 
 
 @lru_cache(maxsize=None)
-def _current_hash(task_id: str, params: str, recognizer: str, settings: str) -> str | None:
+def _current_hash(task_id: str, params: str, recognizer: str, settings: str, demos: str = "{}") -> str | None:
     task = find_task(task_id, json.loads(params))
     if task is None:
         return None
-    return config_hash(fitted_config(task, recognizer, json.loads(settings)))
+    return config_hash(fitted_config(task, recognizer, json.loads(settings), demos=json.loads(demos)))
 
 
 def _canonical_json(value: Any) -> str:
@@ -163,15 +175,19 @@ def configuration(record: Any) -> Configuration:
     source = getattr(record, "source", None)
     submitted_by = str(source.get("lab", "?")) if source else None
     stored = _canonical_json(record.recognizer_config)
+    demos = dict(getattr(record, "dataset", None) or {})
+    dataset = (demos.get("dataset") or f"dataset {demos['demos'][:6]}") if demos.get("demos") else None
     rebuilt, default = _settings(record.recognizer, stored), _settings(record.recognizer, None)
     current = rebuilt is not None and _current_hash(record.task, _canonical_json(record.task_params),
-                                                    record.recognizer, rebuilt) == record.config_hash
+                                                    record.recognizer, rebuilt,
+                                                    _canonical_json(demos)) == record.config_hash
     if own is None:  # a plugin no longer installed: nothing to compare with, its runs shown as they are
         return Configuration("variant", method, tuple(sorted(record.recognizer_config.items())), scorer,
-                             record.config_hash, record.recognizer, submitted_by)
+                             record.config_hash, record.recognizer, submitted_by, dataset)
     changes = _changes(record.recognizer_config, default)
     kind: Kind = "archived" if not current else "canonical" if not changes and scorer is None else "variant"
-    return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer, submitted_by)
+    return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer, submitted_by,
+                         dataset)
 
 
 def _changes(stored: dict[str, Any], default_json: str | None) -> tuple[tuple[str, Any], ...]:
