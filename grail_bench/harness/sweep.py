@@ -218,8 +218,9 @@ def plan_request(request: Request, store: ResultsStore, rerun: bool = False) -> 
 
 
 def changed(request: Request, planned: Sequence[Planned], store: ResultsStore) -> list[str]:
-    """The plugin recognizers of a request whose identity (version or source) differs from that of stored rows
-    of the same configuration otherwise: those rows stay, archived, and the units run again under the new one."""
+    """The plugin recognizers of a request whose identity (version or source) differs from that of the stored
+    rows of the same configuration otherwise, and that has no rows yet: those rows stay, archived, and the units
+    run again under the new one."""
     mode = get_mode(request.mode)
     out = []
     for p in planned:
@@ -228,7 +229,9 @@ def changed(request: Request, planned: Sequence[Planned], store: ResultsStore) -
         rest = without_identity(p.config)
         stored = {(r.config_hash, r.config) for r in store.select(mode, task=request.task_id, recognizer=p.name,
                                                                    protocol=request.label)}
-        if any(h != p.config_hash and without_identity(c) == rest for h, c in stored):
+        if p.config_hash in {h for h, _ in stored}:
+            continue  # this identity has rows already: said when they were first run
+        if any(without_identity(c) == rest for _, c in stored):
             out.append(p.name)
     return out
 
