@@ -6,8 +6,11 @@ balance across workers. Units are planned in this process (names, scorers,
 hyperparameter types, configuration hashes and output paths are checked
 before anything runs), shipped to the executor, and their rows come back here,
 where the driver alone writes them to the store as each unit finishes. A unit
-whose rows are all stored is not run again, so an interrupted sweep resumes
-where it stopped; rows are keyed, so nothing is stored twice.
+whose rows are all stored is not run again (unless the sweep reruns: its new
+rows then replace the stored ones), so an interrupted sweep resumes where it
+stopped; rows are keyed, so nothing is stored twice. A plugin recognizer's
+identity (:mod:`grail_bench.recognizers.identity`) is part of its
+configuration's hash: a changed plugin gets new units, and the sweep says so.
 
 A request's mode (:data:`grail_bench.harness.modes.MODES`) says what a unit
 measures and which rows it stores.

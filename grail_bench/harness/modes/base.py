@@ -68,12 +68,14 @@ class Record:
 
         Flat: each :class:`~grail_bench.stats.metrics.Summary` field is written in its place as fields of its
         own (:meth:`~grail_bench.stats.metrics.Summary.flat`): ``f1`` as ``f1_mean``, ``f1_std``, ``f1_ci95_low``,
-        ``f1_ci95_high``, ``f1_iqm`` and ``f1_values``.
+        ``f1_ci95_high``, ``f1_iqm`` and ``f1_values``. ``dataset`` is written only for runs on a dataset.
         """
         plain = asdict(self)
         out: dict[str, Any] = {}
         for f in fields(self):
             value = getattr(self, f.name)
+            if f.name == "dataset" and not value:
+                continue
             out |= value.flat(f.name) if isinstance(value, metrics.Summary) else {f.name: plain[f.name]}
         return out
 
