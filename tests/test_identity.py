@@ -100,7 +100,7 @@ def test_a_changed_plugin_runs_again_says_so_once_and_its_old_rows_are_archived(
     assert board.returncode == 0, board.stderr
     text = md.read_text()
     assert f"toy · archived {old[0][0][:6]}" in text  # the old configuration, archived
-    assert "## Archive" in text
+    assert "## Archive" in text and "an earlier source" in text  # what differs, where no setting does
 
     dist = site / "toy_plugin_site-0.1.dist-info"  # a new version, the same source
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: toy-plugin-site\nVersion: 0.2\n")

@@ -137,6 +137,16 @@ def dataset(config_json: str) -> dict[str, str]:
     return {k: task[k] for k in ("demos", "dataset") if isinstance(task.get(k), str)}
 
 
+def stored_identity(config_json: str) -> dict[str, Any]:
+    """The plugin identity a stored configuration records (``{}``: grail-bench's own, or stored before
+    identities were recorded)."""
+    try:
+        found = json.loads(config_json).get("identity")
+    except (ValueError, AttributeError):
+        return {}
+    return dict(found) if isinstance(found, dict) else {}
+
+
 def without_identity(config_json: str) -> dict[str, Any]:
     """A stored configuration without the recognizer's identity: what stays the same when only the plugin
     changed (``{}`` for malformed JSON)."""

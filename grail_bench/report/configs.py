@@ -28,6 +28,7 @@ from functools import lru_cache
 from typing import Any, Iterable, Literal
 
 from grail_bench.harness.planning import config_hash, fitted_config
+from grail_bench.recognizers.identity import identity
 from grail_bench.recognizers.registry import UnknownRecognizerError, build, recognizer_info
 from grail_bench.task import find_task
 
@@ -53,6 +54,8 @@ class Configuration:
             here; labels end ``submitted by LAB``), else None.
         dataset: The name of the dataset the runs took their demonstrations from (``run --demos``; labels end
             ``demos NAME``), else None.
+        note: What else differs from today's, where no setting does: an archived plugin's earlier version or
+            source (``version 0.1, now 0.2``).
     """
 
     kind: Kind
@@ -63,6 +66,7 @@ class Configuration:
     recognizer: str = ""
     submitted_by: str | None = None
     dataset: str | None = None
+    note: str = ""
 
     @property
     def label(self) -> str:
@@ -94,7 +98,7 @@ class Configuration:
         """The settings that differ from today's default, ``n_epochs 25, off_support stay`` (a setting the run
         did not store reads ``n_epochs unset``); ``none`` when only the task or the hashed fields differ."""
         parts = [f"{k} {value_text(v) if v is not None else 'unset'}" for k, v in self.changes]
-        return ", ".join(parts) or "none"
+        return ", ".join(parts or ([self.note] if self.note else [])) or "none"
 
 
 def value_text(value: Any) -> str:
@@ -186,8 +190,27 @@ def configuration(record: Any) -> Configuration:
                              record.config_hash, record.recognizer, submitted_by, dataset)
     changes = _changes(record.recognizer_config, default)
     kind: Kind = "archived" if not current else "canonical" if not changes and scorer is None else "variant"
+    note = _identity_note(record.recognizer, _canonical_json(getattr(record, "identity", None) or {}))
     return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer, submitted_by,
-                         dataset)
+                         dataset, note if kind == "archived" else "")
+
+
+@lru_cache(maxsize=None)
+def _identity_note(recognizer: str, stored: str) -> str:
+    """How a plugin's identity as its runs recorded it (``stored``, JSON) differs from today's: its version, or
+    its source; empty for grail-bench's own recognizers and where nothing differs."""
+    try:
+        today = identity(recognizer)
+    except Exception:  # noqa: BLE001 - a plugin gone: nothing to compare with
+        return ""
+    before = json.loads(stored)
+    if today is None or before == today:
+        return ""
+    if not before:
+        return "run before plugin identities were recorded"
+    if before.get("version") != today.get("version"):
+        return f"version {before.get('version')}, now {today.get('version')}"
+    return "an earlier source" if before.get("source") != today.get("source") else "another distribution"
 
 
 def _changes(stored: dict[str, Any], default_json: str | None) -> tuple[tuple[str, Any], ...]:
