@@ -6,7 +6,8 @@ source. Its source counts as not built when the distribution's ``direct_url.json
 local folder (``pip install -e PATH`` or ``pip install PATH``), when the distribution lists no files (no
 ``RECORD``) or not the plugin's module among them, and when no distribution provides it at all (a module on
 ``PYTHONPATH``, or one registered in the process). The hash covers the ``.py`` files of the plugin's top-level
-package (or its module file alone): editing any of them gives the plugin a new identity.
+package (or its module file alone; a class registered from a notebook, its own source): editing any of them
+gives the plugin a new identity.
 
 grail-bench's own recognizers have no identity here: grail-bench's code and version identify them, as the rows'
 ``versions`` record, so their configurations (and the keys of published rows) are the same as before.
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import inspect
 import json
 import sys
 from importlib.metadata import PackageNotFoundError, distribution, packages_distributions
@@ -47,8 +49,18 @@ def identity(name: str) -> dict[str, Any] | None:
                            "version": dist.version if dist else None}
     file = _module_file(module)
     if dist is None or not _built(dist, file):
-        out["source"] = source_hash(module)
+        out["source"] = source_hash(module) or (None if isinstance(target, str) else _object_hash(target))
     return out
+
+
+def _object_hash(target: Any) -> str | None:
+    """SHA-256 (:data:`LENGTH` hex digits) of an object's source where it has no module file (a class defined in
+    a notebook or an interactive session); None when its source cannot be read."""
+    try:
+        text = inspect.getsource(target)
+    except (OSError, TypeError):
+        return None
+    return hashlib.sha256(text.encode()).hexdigest()[:LENGTH]
 
 
 def _distribution_of(module: str) -> Any | None:
