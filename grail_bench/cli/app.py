@@ -190,8 +190,10 @@ def run(
                                   "measure answering 'none of these' (tasks with 3 or more goals)."),
     mode_: Optional[str] = typer.Option(None, "--mode", "-m", help=MODE_HELP),
     cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
+    rerun: bool = typer.Option(False, "--rerun", help="Recompute the selected units even where the store has "
+                               "them, replacing their rows (each unit's in one transaction, once it finished)."),
 ) -> None:
-    """Benchmark recognizers on one task or several; finished seeds in the store are reused."""
+    """Benchmark recognizers on one task or several; finished seeds in the store are reused (not with --rerun)."""
     from grail_bench.harness.api import collect, request
     from grail_bench.harness.modes import MODES
     from grail_bench.harness.planning import RecognizerSpec
@@ -223,7 +225,8 @@ def run(
         # The executor first: one refused (a bad --workers or --address) leaves no store behind.
         with make_executor(executor, workers, address) as chosen, open_store(store_path) as store:
             what = getattr(tasks[0], "id", tasks[0]) if len(tasks) == 1 else f"{len(tasks)} tasks"
-            summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{what} ({mode})")
+            summary = run_sweep(reqs, store, chosen, progress=progress, description=f"{what} ({mode})",
+                                rerun=rerun, notice=say)
             records = [r for req, planned in summary.planned for r in collect(req, store, planned)]
             where = store.path
             _show(records, MODES[mode], chosen, store.path)
@@ -501,7 +504,8 @@ def reproduce(
         with make_executor(executor, workers, address) as chosen, \
                 open_store(store_path or out / "results.sqlite") as store:
             if run:
-                summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}")
+                summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}",
+                                    notice=say)
             else:
                 summary = plan_sweep(requests, store)[1]
             meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary, commit,

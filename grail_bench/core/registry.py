@@ -195,6 +195,22 @@ class Registry(Generic[T]):
             raise self._unknown(f"unknown {self.kind} {name!r}; available: {', '.join(self.names()) or 'none'}")
         return canonical, entries[canonical]
 
+    def distribution(self, name: str) -> Any | None:
+        """The installed distribution whose entry point provides ``name``
+        (:class:`importlib.metadata.Distribution`), or None: a built-in entry, one registered in this process, or
+        an entry point whose distribution is not known.
+
+        Raises:
+            UserError: As :meth:`target` does.
+        """
+        canonical, target = self.target(name)
+        if canonical in self._local or canonical in self._builtin or not isinstance(target, str):
+            return None
+        for ep in _entry_points(self.group, tuple(sys.path)) if self.group else ():
+            if ep.name == canonical and ep.value == target:
+                return getattr(ep, "dist", None)
+        return None
+
     def get(self, name: str) -> T:
         """The entry registered as ``name`` (or an alias of it), imported and checked on first use.
 

@@ -99,6 +99,7 @@ def evaluate(
     mode: str = "offline",
     noise: float = 0.0,
     channel: str = "pairs",
+    rerun: bool = False,
 ) -> list[Record]:
     """Benchmark recognizers on one task.
 
@@ -129,6 +130,7 @@ def evaluate(
             (:mod:`grail_bench.task.observation`); it keys the rows (``subset+noise0.2``).
         channel: What a recognizer observes: ``pairs``, ``states`` or ``actions`` (``subset+states``); a
             recognizer that does not declare the channel is refused before any training.
+        rerun: Run every seed even where ``store`` has its rows, replacing them (each unit's in one transaction).
 
     Returns:
         The across-seed records of the mode (``record.to_dict()`` is the
@@ -146,7 +148,8 @@ def evaluate(
     if executor is not None and not callable(getattr(executor, "map_unordered", None)):
         raise UserError(f"executor is an Executor (grail_bench.harness.executors.make_executor), got {executor!r}")
     store = store if store is not None else ResultsStore(":memory:")
-    summary = run_sweep([req], store, executor, progress=progress, description=f"{req.task_id} ({mode})")
+    summary = run_sweep([req], store, executor, progress=progress, description=f"{req.task_id} ({mode})",
+                        rerun=rerun)
     return collect(req, store, summary.planned[0][1])
 
 

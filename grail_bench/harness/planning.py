@@ -11,12 +11,14 @@ import hashlib
 import json
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from grail_bench.core.trajectory import Demos, Goal
 from grail_bench.recognizers.contract import Capabilities, FitDiagnostics, FitReport, RecognizerError
+from grail_bench.recognizers.identity import identity
 from grail_bench.recognizers.registry import build, recognizer_info
 from grail_bench.recognizers.scoring import available_scorers, check_scorer, get_scorer
 from grail_bench.task import GRTask
@@ -94,17 +96,71 @@ def config_hash(payload: dict[str, Any]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
-def fitted_config(task: GRTask, name: str, settings: Mapping[str, Any]) -> dict[str, Any]:
-    """What a configuration's hash covers: the recognizer, its settings (as built) and the task's parameters."""
-    config = {"recognizer": name, "config": dict(settings),
-              "task": {"params": dict(task.params), "env": dict(task.env_params),
-                       "n_demos": task.n_demos, "n_train": task.n_train}}
-    if task.demos:  # demonstrations from a dataset: its content keys the results
-        config["task"]["demos"] = source_digest(task.demos)
+def fitted_config(task: GRTask, name: str, settings: Mapping[str, Any],
+                  demos: Mapping[str, str] | None = None) -> dict[str, Any]:
+    """What a configuration's hash covers: the recognizer, its settings (as built), the task's parameters, the
+    dataset its demonstrations came from, and a plugin recognizer's identity
+    (:func:`grail_bench.recognizers.identity.identity`: distribution, version and, unless installed from a
+    built wheel, a hash of its source; none for grail-bench's own recognizers, whose configurations are as
+    before).
+
+    Args:
+        demos: The dataset as a stored configuration records it (:func:`dataset`), for a task given without it
+            (reading stored rows); by default the task's own (``task.demos``: its content's digest and name).
+    """
+    config: dict[str, Any] = {"recognizer": name, "config": dict(settings),
+                              "task": {"params": dict(task.params), "env": dict(task.env_params),
+                                       "n_demos": task.n_demos, "n_train": task.n_train}}
+    if task.demos:  # demonstrations from a dataset: its content keys the results, its name labels them
+        config["task"] |= {"demos": source_digest(task.demos), "dataset": dataset_name(task.demos)}
+    elif demos:
+        config["task"] |= dict(demos)
     digest = getattr(task.spec, "content_digest", None)
     content = digest(task) if digest is not None else None
     if content:  # files the task is made of (a symbolic problem set): their content keys the results
         config["task"]["content"] = content
+    plugin = identity(name)
+    if plugin is not None:
+        config["identity"] = plugin
+    return config
+
+
+def dataset_name(source: str) -> str:
+    """A dataset's name as boards label its runs: a folder's name, or the Minari ID as given."""
+    path = Path(source).expanduser()
+    return path.resolve().name if path.is_dir() else source
+
+
+def dataset(config_json: str) -> dict[str, str]:
+    """The dataset a stored configuration's demonstrations came from (``demos``: its digest; ``dataset``: its
+    name, absent for rows stored before names were recorded); ``{}`` for the generator's."""
+    try:
+        task = json.loads(config_json).get("task", {})
+    except (ValueError, AttributeError):
+        return {}
+    return {k: task[k] for k in ("demos", "dataset") if isinstance(task.get(k), str)}
+
+
+def stored_identity(config_json: str) -> dict[str, Any]:
+    """The plugin identity a stored configuration records (``{}``: grail-bench's own, or stored before
+    identities were recorded)."""
+    try:
+        found = json.loads(config_json).get("identity")
+    except (ValueError, AttributeError):
+        return {}
+    return dict(found) if isinstance(found, dict) else {}
+
+
+def without_identity(config_json: str) -> dict[str, Any]:
+    """A stored configuration without the recognizer's identity: what stays the same when only the plugin
+    changed (``{}`` for malformed JSON)."""
+    try:
+        config = json.loads(config_json)
+    except ValueError:
+        return {}
+    if not isinstance(config, dict):
+        return {}
+    config.pop("identity", None)
     return config
 
 

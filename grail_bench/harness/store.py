@@ -14,7 +14,8 @@ fitted), one :class:`ZeroShotRow` per the same key; and ``outputs`` (schema
 :class:`~grail_bench.harness.outputs.OutputRow` per offline row run since. Rows
 are written in one transaction per fitted seed, in WAL mode with a busy timeout, so an
 interrupted run keeps what it finished and concurrent writers lose nothing; a
-row already stored is kept (the first write wins), unless it is stale.
+row already stored is kept (the first write wins), unless it is stale or the run recomputes it on purpose
+(``run --rerun``: its new rows replace the stored ones of their keys in one transaction).
 
 Stale rows. Rows of every mode record how ties between goals of equal best
 score were broken (``ties``: ``"uniform"``, the expectation under uniform
@@ -299,12 +300,16 @@ class ResultsStore:
     def __exit__(self, *exc: Any) -> None:
         self.close()
 
-    def add(self, rows: Iterable[Row]) -> int:
+    def add(self, rows: Iterable[Row], replace: bool = False) -> int:
         """Insert rows (of any kind, each into its table) in one transaction, ignoring ones already stored,
         except that a row replaces a :func:`stale` one of the same key.
 
+        Args:
+            replace: Each row replaces the stored one of its key, stale or not (a rerun's rows: the stored ones
+                are deleted and the new ones inserted in the same transaction, so an error keeps the old).
+
         Returns:
-            How many rows were new or replaced a stale one.
+            How many rows were new or replaced one.
         """
         if self.read_only:
             raise StoreError(f"results store {self.path} was opened read-only")
@@ -329,7 +334,7 @@ class ResultsStore:
                 before = self._conn.total_changes
                 tables = _tables()
                 for kind, values in by_kind.items():
-                    self._conn.executemany(_insert(kind, *tables[kind]), values)
+                    self._conn.executemany(_insert(kind, *tables[kind], replace=replace), values)
                 return self._conn.total_changes - before
         except sqlite3.Error as exc:
             raise StoreError(_sqlite_message("write to", self.path, exc)) from None
@@ -517,10 +522,13 @@ def _square(matrix: Any) -> bool:
                     and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row) for row in matrix))
 
 
-def _insert(kind: type, table: str, key: tuple[str, ...]) -> str:
-    """The statement storing one row of ``kind``: ignored if its key is stored, unless the stored row is stale."""
+def _insert(kind: type, table: str, key: tuple[str, ...], replace: bool = False) -> str:
+    """The statement storing one row of ``kind``: ignored if its key is stored, unless the stored row is stale
+    (``replace``: it replaces the stored row of its key)."""
     names = [_column(f.name) for f in fields(kind)]
     head = f"INTO {table} ({', '.join(names)}) VALUES ({', '.join('?' * len(names))})"
+    if replace:
+        return f"INSERT OR REPLACE {head}"
     if "ties" not in names:
         return f"INSERT OR IGNORE {head}"
     update = ", ".join(f"{n} = excluded.{n}" for n in names if n not in key)

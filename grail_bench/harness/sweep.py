@@ -6,8 +6,11 @@ balance across workers. Units are planned in this process (names, scorers,
 hyperparameter types, configuration hashes and output paths are checked
 before anything runs), shipped to the executor, and their rows come back here,
 where the driver alone writes them to the store as each unit finishes. A unit
-whose rows are all stored is not run again, so an interrupted sweep resumes
-where it stopped; rows are keyed, so nothing is stored twice.
+whose rows are all stored is not run again (unless the sweep reruns: its new
+rows then replace the stored ones), so an interrupted sweep resumes where it
+stopped; rows are keyed, so nothing is stored twice. A plugin recognizer's
+identity (:mod:`grail_bench.recognizers.identity`) is part of its
+configuration's hash: a changed plugin gets new units, and the sweep says so.
 
 A request's mode (:data:`grail_bench.harness.modes.MODES`) says what a unit
 measures and which rows it stores.
@@ -18,11 +21,12 @@ from __future__ import annotations
 import contextlib
 
 import json
+import sys
 import time
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from itertools import groupby, zip_longest
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from grail_bench.core.progress import progress as show_progress
 from grail_bench.core.provenance import package_versions, stamp
@@ -33,7 +37,7 @@ from grail_bench.harness.executors import Executor, SerialExecutor
 from grail_bench.harness.modes import Row, SeedRun, get_mode
 from grail_bench.harness.modes.base import Outputs
 from grail_bench.harness.outputs import OutputRow, output_row
-from grail_bench.harness.planning import Planned, RecognizerSpec, check_channel, plan
+from grail_bench.harness.planning import Planned, RecognizerSpec, check_channel, plan, without_identity
 from grail_bench.harness.store import ResultsStore
 from grail_bench.task import GRTask, make_task
 from grail_bench.task.observation import DATASET, ObservationSpec
@@ -125,6 +129,8 @@ class SweepSummary:
         reused: Models loaded from the model cache.
         naive: Models a sweep without the cache would train for the units run.
         seconds: Wall-clock time.
+        changed: The plugin recognizers whose version or source changed since their stored rows
+            (:func:`changed`).
     """
 
     units: int = 0
@@ -137,6 +143,7 @@ class SweepSummary:
     naive: int = 0
     seconds: float = 0.0
     planned: list[tuple[Request, list[Planned]]] = field(default_factory=list)
+    changed: list[str] = field(default_factory=list)
 
 
 class Interrupted(KeyboardInterrupt):
@@ -184,8 +191,8 @@ def run_unit(unit: Unit) -> UnitResult:
     return UnitResult(rows, trained=report.trained, reused=report.reused)
 
 
-def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], list[Unit], int]:
-    """Check a request and list its units not yet in ``store``.
+def plan_request(request: Request, store: ResultsStore, rerun: bool = False) -> tuple[list[Planned], list[Unit], int]:
+    """Check a request and list its units not yet in ``store`` (every unit with ``rerun``).
 
     Returns:
         ``(planned recognizers, units to run, units already stored)``.
@@ -207,11 +214,30 @@ def plan_request(request: Request, store: ResultsStore) -> tuple[list[Planned], 
     for p in planned:
         done = [store.completed(task.id, p.name, label, p.config_hash, request.label, mode) for label in p.labels]
         for seed in request.seeds:
-            if all((seed, lv) in d for lv in levels for d in done):
+            if not rerun and all((seed, lv) in d for lv in levels for d in done):
                 skipped += 1
                 continue
             units.append(Unit(task, p, seed, request.observation, mode.goals_fitted(task), mode.name))
     return planned, units, skipped
+
+
+def changed(request: Request, planned: Sequence[Planned], store: ResultsStore) -> list[str]:
+    """The plugin recognizers of a request whose identity (version or source) differs from that of the stored
+    rows of the same configuration otherwise, and that has no rows yet: those rows stay, archived, and the units
+    run again under the new one."""
+    mode = get_mode(request.mode)
+    out = []
+    for p in planned:
+        if "identity" not in json.loads(p.config):
+            continue  # grail-bench's own: identified by grail-bench's version, as before
+        rest = without_identity(p.config)
+        stored = {(r.config_hash, r.config) for r in store.select(mode, task=request.task_id, recognizer=p.name,
+                                                                   protocol=request.label)}
+        if p.config_hash in {h for h, _ in stored}:
+            continue  # this identity has rows already: said when they were first run
+        if any(without_identity(c) == rest for _, c in stored):
+            out.append(p.name)
+    return out
 
 
 def order_units(units: Sequence[Unit], workers: int = 1) -> list[Unit]:
@@ -239,6 +265,10 @@ def order_units(units: Sequence[Unit], workers: int = 1) -> list[Unit]:
     return [u for _, pairs in blocks for u in _take_turns([u for _, u in pairs], workers)]
 
 
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr)
+
+
 def _demos_group(task: GRTask) -> tuple:
     """What a task's demonstrations depend on besides the seed and goals: tasks alike in it (a regime's goal
     sets) share their common goals' demonstrations."""
@@ -256,14 +286,16 @@ def _take_turns(units: Sequence[Unit], workers: int) -> list[Unit]:
             if u is not None]
 
 
-def plan_sweep(requests: Sequence[Request], store: ResultsStore, workers: int = 1) -> tuple[list[Unit], SweepSummary]:
-    """Plan every request (all are checked before any unit runs): the units to run, in order for ``workers``
-    (:func:`order_units`), and the counts."""
+def plan_sweep(requests: Sequence[Request], store: ResultsStore, workers: int = 1,
+               rerun: bool = False) -> tuple[list[Unit], SweepSummary]:
+    """Plan every request (all are checked before any unit runs): the units to run (``rerun``: every unit, even
+    one stored), in order for ``workers`` (:func:`order_units`), and the counts."""
     summary = SweepSummary()
     units: list[Unit] = []
     for request in requests:
-        planned, todo, skipped = plan_request(request, store)
+        planned, todo, skipped = plan_request(request, store, rerun)
         summary.planned.append((request, planned))
+        summary.changed += [name for name in changed(request, planned, store) if name not in summary.changed]
         units += todo
         summary.skipped += skipped
     summary.units = len(units) + summary.skipped
@@ -271,14 +303,29 @@ def plan_sweep(requests: Sequence[Request], store: ResultsStore, workers: int = 
     return order_units(units, workers), summary
 
 
+def changed_line(name: str) -> str:
+    """What a run says, before it starts, of a plugin recognizer that changed since its stored rows."""
+    return f"{name} changed since its stored rows: they are kept as archived, these units run again"
+
+
 def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Executor | None = None,
-              progress: bool = False, description: str = "sweep") -> SweepSummary:
+              progress: bool = False, description: str = "sweep", rerun: bool = False,
+              notice: Callable[[str], None] | None = None) -> SweepSummary:
     """Plan every request, run the missing units on ``executor`` and store their rows; returns the counts and
     what was planned.
 
     Every request is checked before any unit runs. Rows are stored as each
     unit finishes, so a crash, a lost worker or Ctrl-C loses only the units in
     flight; each carries the sweep's provenance (command, commit, machine, date).
+
+    With ``rerun``, every unit runs, stored or not, and its new rows (results,
+    fit diagnostics and outputs) replace the stored ones of the same keys in one
+    transaction, written only once the unit has finished: an interrupted or
+    failed rerun keeps the rows it did not replace.
+
+    Args:
+        notice: Called, before any unit runs, with one line per plugin recognizer that changed since its stored
+            rows (:func:`changed_line`); by default the line goes to stderr.
 
     Raises:
         grail_bench.core.errors.UserError: For a bad request (nothing runs).
@@ -288,7 +335,9 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
     from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     executor = executor or SerialExecutor()
-    units, summary = plan_sweep(requests, store, executor.workers)
+    units, summary = plan_sweep(requests, store, executor.workers, rerun)
+    for name in summary.changed:
+        (notice or _stderr)(changed_line(name))
     origin = stamp()
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                TextColumn("eta"), TimeRemainingColumn())
@@ -301,9 +350,14 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
         with bar or contextlib.nullcontext():
             for _, result in executor.map_unordered(run_unit, units):
                 stored = [r if isinstance(r, OutputRow) else replace(r, provenance=origin) for r in result.rows]
-                summary.rows += store.add(r for r in stored if not isinstance(r, (FitRow, OutputRow)))
-                summary.fits += store.add(r for r in stored if isinstance(r, FitRow))
-                store.add(r for r in stored if isinstance(r, OutputRow))
+                if rerun:  # the unit's rows replace the stored ones at once
+                    store.add(stored, replace=True)
+                    summary.rows += sum(not isinstance(r, (FitRow, OutputRow)) for r in stored)
+                    summary.fits += sum(isinstance(r, FitRow) for r in stored)
+                else:
+                    summary.rows += store.add(r for r in stored if not isinstance(r, (FitRow, OutputRow)))
+                    summary.fits += store.add(r for r in stored if isinstance(r, FitRow))
+                    store.add(r for r in stored if isinstance(r, OutputRow))
                 summary.done += 1
                 summary.trained += result.trained
                 summary.reused += result.reused

@@ -5,7 +5,8 @@ each with where it says so, the strata it is about (tasks and observed shares, a
 range of F1 (or of F1 gain) it claims. :func:`headline_claims` measures every claim for every configuration it
 concerns: the canonical configuration of each method the claim names, and every named variant of them present
 in the records (another scorer, ``off_support stay``, ``occupancy``, ...); archived configurations never.
-Only runs under each task's default observation protocol and at its default parameters count, as in the paper.
+Only runs under each task's default observation protocol and at its default parameters count, as in the paper,
+on the demonstrations the task generates (not runs on a dataset's, ``run --demos``).
 
 **The measurement.** Within a stratum (task, observed share), a claim about F1 uses the per-seed F1 values; a
 claim about a gain "over GRAQL" (or DRACO) uses the paired per-seed differences, configuration minus the
@@ -215,7 +216,8 @@ def claim_tasks() -> set[str]:
 
 
 def _paper_cells(records: Sequence[OfflineRecord]) -> tuple[dict[str, Cells], dict[str, tuple[str, bool]]]:
-    """The non-archived configurations' records under the paper's protocol and task parameters, by label and
+    """The non-archived configurations' records under the paper's protocol, task parameters and generated
+    demonstrations, by label and
     (task, observed share); and each label's method and whether it is canonical (labelled by the method)."""
     cells: dict[str, Cells] = defaultdict(dict)
     methods: dict[str, tuple[str, bool]] = {}
@@ -225,7 +227,7 @@ def _paper_cells(records: Sequence[OfflineRecord]) -> tuple[dict[str, Cells], di
         if r.task not in tasks or r.protocol != _paper_protocol(r.task, params):
             continue
         config = configuration(r)
-        if config.kind == "archived":
+        if config.kind == "archived" or config.dataset is not None:  # the paper's demonstrations only
             continue
         cells[config.label].setdefault((r.task, round(float(r.observability), 6)), r)
         methods[config.label] = (config.method, config.canonical)

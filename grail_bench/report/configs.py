@@ -11,7 +11,13 @@ from the canonical one: ``GAIL-GRAIL · total_timesteps 20 000``, ``BC-GRAIL · 
 A configuration today's code would not store as it was stored (planned again from its task and settings, its
 hash differs: a setting or task parameter added, removed or refused since, such as a default that changed)
 was run by an earlier version: it is **archived**, still linked to its runs, out of boards and summaries.
-Hashes stay in the records for provenance.
+Hashes stay in the records for provenance. A plugin recognizer's configuration records its identity
+(distribution, version and, unless installed from a built wheel, a hash of its source): runs of an earlier
+version or source of a plugin are archived too.
+
+Runs on demonstrations from a dataset (``run --demos``) are a configuration of their own, labelled by the
+dataset's name (``toy · demos my-dataset``): canonical or a named variant as the recognizer's settings say, never
+archived for the dataset (today's code is checked against the run with the dataset as the run recorded it).
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from functools import lru_cache
 from typing import Any, Iterable, Literal
 
 from grail_bench.harness.planning import config_hash, fitted_config
+from grail_bench.recognizers.identity import identity
 from grail_bench.recognizers.registry import UnknownRecognizerError, build, recognizer_info
 from grail_bench.task import find_task
 
@@ -45,6 +52,10 @@ class Configuration:
         recognizer: The registered recognizer name.
         submitted_by: The lab whose submission the runs came from (merged from published results, not run
             here; labels end ``submitted by LAB``), else None.
+        dataset: The name of the dataset the runs took their demonstrations from (``run --demos``; labels end
+            ``demos NAME``), else None.
+        note: What else differs from today's, where no setting does: an archived plugin's earlier version or
+            source (``version 0.1, now 0.2``).
     """
 
     kind: Kind
@@ -54,15 +65,20 @@ class Configuration:
     config_hash: str = ""
     recognizer: str = ""
     submitted_by: str | None = None
+    dataset: str | None = None
+    note: str = ""
 
     @property
     def label(self) -> str:
-        """``BC-GRAIL``, ``GAIL-GRAIL · total_timesteps 20 000 · loglik`` or ``AIRL-GRAIL · archived 7318c1``."""
+        """``BC-GRAIL``, ``GAIL-GRAIL · total_timesteps 20 000 · loglik``, ``BC-GRAIL · demos my-dataset`` or
+        ``AIRL-GRAIL · archived 7318c1``."""
         parts = [self.method, *(f"{k} {value_text(v)}" for k, v in self.changes if v is not None)]
         if self.scorer:
             parts.append(self.scorer)
         if self.kind == "archived":
             parts = [self.method, f"archived {self.config_hash[:6]}", *([self.scorer] if self.scorer else [])]
+        if self.dataset is not None:
+            parts.append(f"demos {self.dataset}")
         if self.submitted_by is not None:
             parts.append(f"submitted by {self.submitted_by}")
         return SEPARATOR.join(parts)
@@ -82,7 +98,7 @@ class Configuration:
         """The settings that differ from today's default, ``n_epochs 25, off_support stay`` (a setting the run
         did not store reads ``n_epochs unset``); ``none`` when only the task or the hashed fields differ."""
         parts = [f"{k} {value_text(v) if v is not None else 'unset'}" for k, v in self.changes]
-        return ", ".join(parts) or "none"
+        return ", ".join(parts or ([self.note] if self.note else [])) or "none"
 
 
 def value_text(value: Any) -> str:
@@ -126,11 +142,11 @@ def _settings(recognizer: str, stored: str | None) -> str | None:
 
 
 @lru_cache(maxsize=None)
-def _current_hash(task_id: str, params: str, recognizer: str, settings: str) -> str | None:
+def _current_hash(task_id: str, params: str, recognizer: str, settings: str, demos: str = "{}") -> str | None:
     task = find_task(task_id, json.loads(params))
     if task is None:
         return None
-    return config_hash(fitted_config(task, recognizer, json.loads(settings)))
+    return config_hash(fitted_config(task, recognizer, json.loads(settings), demos=json.loads(demos)))
 
 
 def _canonical_json(value: Any) -> str:
@@ -163,15 +179,38 @@ def configuration(record: Any) -> Configuration:
     source = getattr(record, "source", None)
     submitted_by = str(source.get("lab", "?")) if source else None
     stored = _canonical_json(record.recognizer_config)
+    demos = dict(getattr(record, "dataset", None) or {})
+    dataset = (demos.get("dataset") or f"dataset {demos['demos'][:6]}") if demos.get("demos") else None
     rebuilt, default = _settings(record.recognizer, stored), _settings(record.recognizer, None)
     current = rebuilt is not None and _current_hash(record.task, _canonical_json(record.task_params),
-                                                    record.recognizer, rebuilt) == record.config_hash
+                                                    record.recognizer, rebuilt,
+                                                    _canonical_json(demos)) == record.config_hash
     if own is None:  # a plugin no longer installed: nothing to compare with, its runs shown as they are
         return Configuration("variant", method, tuple(sorted(record.recognizer_config.items())), scorer,
-                             record.config_hash, record.recognizer, submitted_by)
+                             record.config_hash, record.recognizer, submitted_by, dataset)
     changes = _changes(record.recognizer_config, default)
     kind: Kind = "archived" if not current else "canonical" if not changes and scorer is None else "variant"
-    return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer, submitted_by)
+    note = _identity_note(record.recognizer, _canonical_json(getattr(record, "identity", None) or {}))
+    return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer, submitted_by,
+                         dataset, note if kind == "archived" else "")
+
+
+@lru_cache(maxsize=None)
+def _identity_note(recognizer: str, stored: str) -> str:
+    """How a plugin's identity as its runs recorded it (``stored``, JSON) differs from today's: its version, or
+    its source; empty for grail-bench's own recognizers and where nothing differs."""
+    try:
+        today = identity(recognizer)
+    except Exception:  # noqa: BLE001 - a plugin gone: nothing to compare with
+        return ""
+    before = json.loads(stored)
+    if today is None or before == today:
+        return ""
+    if not before:
+        return "run before plugin identities were recorded"
+    if before.get("version") != today.get("version"):
+        return f"version {before.get('version')}, now {today.get('version')}"
+    return "an earlier source" if before.get("source") != today.get("source") else "another distribution"
 
 
 def _changes(stored: dict[str, Any], default_json: str | None) -> tuple[tuple[str, Any], ...]:

@@ -118,7 +118,8 @@ def add_ceilings(board: Leaderboard, samples: int = 2000, progress: bool = False
     """Compute the Bayes and pairs-only ceilings ``board`` shows (those cached are read) and attach them to its
     boards and its online curves (see :func:`build` for the arguments)."""
     records, configs = board.records, board.configs
-    shown = [r for r in records if configs[config_key(r)].kind != "archived"]  # archived runs show no ceiling
+    # Archived runs show no ceiling, nor do runs on a dataset's demonstrations (the task's ceiling assumes its own)
+    shown = [r for r in records if (c := configs[config_key(r)]).kind != "archived" and c.dataset is None]
     cells = ceiling_cells(shown)
     online = board.studies.get("online")
     curves = _online_curve_cells(online.records) if online is not None else {}

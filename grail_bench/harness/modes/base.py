@@ -17,7 +17,7 @@ import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import Demos
-from grail_bench.harness.planning import Fitted, Planned, recognizer_config, task_params
+from grail_bench.harness.planning import Fitted, Planned, dataset, recognizer_config, stored_identity, task_params
 from grail_bench.stats import metrics
 from grail_bench.task import GRTask
 from grail_bench.task.observation import DATASET, ObservationSpec
@@ -46,6 +46,10 @@ class Record:
         recognizer_config: The recognizer's configuration.
         source: The submission the rows came from (``lab``, ``recognizer``, ``version``, ``url``; see
             :mod:`grail_bench.harness.submissions`); None for rows run here.
+        dataset: The dataset the demonstrations came from (``run --demos``): ``demos``, its content's digest,
+            and ``dataset``, its name (:func:`grail_bench.harness.planning.dataset`); empty for the generator's.
+        identity: A plugin recognizer's identity as the runs recorded it (distribution, version, source hash;
+            :mod:`grail_bench.recognizers.identity`); empty for grail-bench's own.
     """
 
     task: str
@@ -59,18 +63,23 @@ class Record:
     task_params: dict[str, Any] = field(default_factory=dict)
     recognizer_config: dict[str, Any] = field(default_factory=dict)
     source: dict[str, Any] | None = None
+    dataset: dict[str, str] = field(default_factory=dict)
+    identity: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The record as JSON-able plain data (the ``--json`` format).
 
         Flat: each :class:`~grail_bench.stats.metrics.Summary` field is written in its place as fields of its
         own (:meth:`~grail_bench.stats.metrics.Summary.flat`): ``f1`` as ``f1_mean``, ``f1_std``, ``f1_ci95_low``,
-        ``f1_ci95_high``, ``f1_iqm`` and ``f1_values``.
+        ``f1_ci95_high``, ``f1_iqm`` and ``f1_values``. ``dataset`` and ``identity`` are written only where not
+        empty (runs on a dataset, a plugin's runs).
         """
         plain = asdict(self)
         out: dict[str, Any] = {}
         for f in fields(self):
             value = getattr(self, f.name)
+            if f.name in ("dataset", "identity") and not value:
+                continue
             out |= value.flat(f.name) if isinstance(value, metrics.Summary) else {f.name: plain[f.name]}
         return out
 
@@ -103,6 +112,7 @@ def record_fields(group: Sequence[Any], intervals: Sequence[str] = (), means: Se
         fit_seconds_per_goal=float(np.mean([r.fit_seconds_per_goal for r in group])),
         task_params=task_params(first.config), recognizer_config=recognizer_config(first.config),
         source=json.loads(first.source) if getattr(first, "source", None) else None,
+        dataset=dataset(first.config), identity=stored_identity(first.config),
     )
     if hasattr(first, "observability"):
         fields["observability"] = first.observability
