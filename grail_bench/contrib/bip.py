@@ -152,6 +152,10 @@ class BIPRecognizer(RecognizerBase):
         idx = state_index(states, self.observation_space)
         return self.log_policies[:, idx, np.asarray(acts, dtype=np.int64).reshape(-1)]
 
+    def log_likelihoods(self, observed: Any) -> np.ndarray:
+        """``(K,)``: each goal's log-likelihood of the observed steps (the goals in :attr:`goals`' order)."""
+        return self._step_log_likelihoods(observed).sum(axis=1)
+
     def score(self, observed: Any) -> Mapping[Goal, float]:
         """Every goal's log posterior given the observed steps (uniform prior).
 
@@ -159,7 +163,7 @@ class BIPRecognizer(RecognizerBase):
             NotFittedError: Before :meth:`fit`.
             UserError: For a malformed observation.
         """
-        total = self._step_log_likelihoods(observed).sum(axis=1)
+        total = self.log_likelihoods(observed)
         post = total - np.logaddexp.reduce(total)
         return {goal: float(p) for goal, p in zip(self.goals, post)}
 

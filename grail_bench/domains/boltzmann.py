@@ -87,8 +87,10 @@ def boltzmann_policy(q: np.ndarray, beta: float, at_goal: np.ndarray, pad: int |
     s, a = q.shape
     probs = np.full((s, a), 1.0 / a)
     live = np.isfinite(q).any(axis=1) & ~at_goal
-    z = beta * (q[live] - q[live].max(axis=1, keepdims=True))
-    e = np.where(np.isfinite(q[live]), np.exp(np.where(np.isfinite(z), z, 0.0)), 0.0)
+    rows = q[live]
+    finite = np.isfinite(rows)
+    gap = np.where(finite, rows - rows.max(axis=1, keepdims=True), 0.0)  # <= 0 where finite
+    e = np.where(finite, np.exp(beta * gap), 0.0)
     probs[live] = e / e.sum(axis=1, keepdims=True)
     if pad is not None:
         probs[at_goal] = 0.0
@@ -102,10 +104,10 @@ def pair_log_probs(q: np.ndarray, beta: float, states: np.ndarray, actions: np.n
     rows = q[states]
     finite = np.isfinite(rows)
     any_finite = finite.any(axis=1)
-    top = np.where(any_finite, np.where(finite, rows, -np.inf).max(axis=1), 0.0)
-    z = np.where(finite, beta * (rows - top[:, None]), -np.inf)
-    lse = np.log(np.where(finite, np.exp(np.where(finite, z, 0.0)), 0.0).sum(axis=1).clip(min=1e-300))
-    chosen = z[np.arange(len(states)), actions]
+    top = np.where(finite, rows, -np.inf).max(axis=1, initial=-np.inf)
+    z = beta * np.where(finite, rows - np.where(any_finite, top, 0.0)[:, None], 0.0)
+    lse = np.log(np.where(finite, np.exp(z), 0.0).sum(axis=1).clip(min=1e-300))
+    chosen = np.where(finite, z, -np.inf)[np.arange(len(states)), actions]
     uniform = -np.log(q.shape[1])
     return np.where(any_finite, chosen - lse, uniform)
 
