@@ -131,9 +131,10 @@ def test_bad_settings_are_refused(settings):
 def test_runs_end_to_end_from_the_command_line(tmp_path):
     env = {**os.environ, "COLUMNS": "200", "GRAIL_BENCH_STORE": str(tmp_path / "store.sqlite")}
     out = subprocess.run([sys.executable, "-m", "grail_bench", "run", "-r", "bip", "--task",
-                          "GRAIL/MiniGrid-Boltzmann-v0", "--seeds", "1", "--no-progress", "--json",
-                          str(tmp_path / "r.json")], capture_output=True, text=True, env=env, timeout=600)
+                          "GRAIL/MiniGrid-Boltzmann-v0", "--seeds", "1", "-o", "0.3", "--no-progress", "--json", str(tmp_path / "r.json")],
+                         capture_output=True, text=True, env=env, timeout=600)
     assert out.returncode == 0, out.stderr
     rows = json.loads(Path(tmp_path / "r.json").read_text())
     assert rows and all(r["recognizer"] == "bip" for r in rows)
     assert all(r["task"] == "GRAIL/MiniGrid-Boltzmann-v0" for r in rows)
+    assert {r["observability"] for r in rows} == {0.3}

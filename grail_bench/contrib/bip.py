@@ -35,7 +35,7 @@ from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.core.spaces import state_index
 from grail_bench.core.trajectory import Demos, EnvFactory, Goal, until_success
-from grail_bench.domains.boltzmann import BETA, action_values, boltzmann_policy, fit_beta, goal_states
+from grail_bench.domains.boltzmann import BETA, boltzmann_policy, env_values, fit_beta, goal_states
 from grail_bench.recognizers.contract import FitReport, NotFittedError, RecognizerBase, checked_settings, observed_arrays
 
 #: The domains whose envs state their dynamics as tables, so that the action values are exact.
@@ -109,18 +109,17 @@ class BIPRecognizer(RecognizerBase):
         for goal in goals:
             env = env_factory(goal)
             try:
-                base = env.unwrapped
-                if not callable(getattr(base, "tabular_dynamics", None)):
-                    raise UserError(f"bip: the env of goal {list(goal)} states no tables of its dynamics "
-                                    "(tabular_dynamics): its action values are not exact")
-                dyn = base.tabular_dynamics()
-                task = getattr(base, "task", None)
+                try:
+                    dyn, q = env_values(env)
+                except UserError as exc:
+                    raise UserError(f"bip: goal {list(goal)}: {exc}") from None
+                task = getattr(env.unwrapped, "task", None)
                 if task is not None and task.env_params.get("fixed_horizon"):
                     pad = getattr(task.spec, "noop_action", None)
                 self.observation_space, self.action_space = env.observation_space, env.action_space
             finally:
                 env.close()
-            values.append(action_values(dyn))
+            values.append(q)
             at_goal.append(goal_states(dyn))
         if self.config.beta is not None:
             beta = float(self.config.beta)

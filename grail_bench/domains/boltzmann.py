@@ -5,7 +5,10 @@ The values come from the env's own tables (:class:`~grail_bench.core.tabular.Tab
 costs 1 and the episode ends at the goal, so ``Q(s, a) = -1`` for a step that reaches it and
 ``-(1 + d(s'))`` otherwise, ``d`` the fewest steps from the successor ``s'`` to the goal (value iteration on the
 tables, exact in as many sweeps as the longest distance). An action after which the goal can never be reached
-(into lava, into a cut-off part of the world) has ``Q = -inf``: the demonstrator never takes it. The values are
+(into lava, into a cut-off part of the world) has ``Q = -inf``: the demonstrator never takes it. So has an action
+the env says is not one (``allowed_actions``: on the symbolic domain, an inapplicable operator, which leaves the
+state as it is and is no step of any plan); on MiniGrid every action is one (stay and bumping into a wall
+included). The values are
 those of the undiscounted problem without a horizon; the demonstrator acts on them until it reaches the goal or
 the horizon truncates its episode (it may not reach the goal: a low ``beta`` wanders).
 
@@ -23,7 +26,7 @@ enumerates paths. :func:`pair_log_probs` and :func:`fit_beta` are what an invers
 from __future__ import annotations
 
 from math import comb
-from typing import TYPE_CHECKING, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, Iterator, Sequence
 
 import numpy as np
 
@@ -57,21 +60,42 @@ def check_beta(beta: object, what: str = "beta") -> float:
     return float(beta)
 
 
-def action_values(dyn: TabularDynamics) -> np.ndarray:
+def action_values(dyn: TabularDynamics, allowed: np.ndarray | None = None) -> np.ndarray:
     """The exact optimal action values ``Q(s, a)`` of every state and action (see the module docstring).
+
+    Args:
+        dyn: The goal's env as tables.
+        allowed: ``(S, A)`` the actions the agent may take in each state (None: all).
 
     Returns:
         ``(S, A)`` floats: ``-1`` for a step onto the goal, ``-(1 + d(s'))`` else, ``-inf`` where the goal can no
-        longer be reached.
+        longer be reached (or the action is not allowed).
     """
     nxt, success = dyn.next_state, dyn.success
-    q = np.where(success, -1.0, -np.inf)
+    ok = np.ones(nxt.shape, dtype=bool) if allowed is None else np.asarray(allowed, dtype=bool)
+    q = np.where(success & ok, -1.0, -np.inf)
     while True:  # value iteration: unit costs, so it settles after the longest distance's number of sweeps
         dist = -q.max(axis=1)
-        new = np.where(success, -1.0, -(1.0 + dist[nxt]))
+        new = np.where(ok, np.where(success, -1.0, -(1.0 + dist[nxt])), -np.inf)
         if np.array_equal(new, q):
             return q
         q = new
+
+
+def env_values(env: Any) -> tuple[TabularDynamics, np.ndarray]:
+    """A goal env's tables and its exact action values, over the actions it allows (``allowed_actions``, when the
+    env says: the symbolic domain's applicable operators; else every action).
+
+    Raises:
+        UserError: For an env that states no tables of its dynamics (``tabular_dynamics``).
+    """
+    base = env.unwrapped
+    if not callable(getattr(base, "tabular_dynamics", None)):
+        raise UserError(f"{type(base).__name__} states no tables of its dynamics (tabular_dynamics): its action "
+                        "values are not exact")
+    dyn = base.tabular_dynamics()
+    allowed = base.allowed_actions() if callable(getattr(base, "allowed_actions", None)) else None
+    return dyn, action_values(dyn, allowed)
 
 
 def goal_states(dyn: TabularDynamics) -> np.ndarray:
@@ -151,16 +175,17 @@ class BoltzmannChain:
         beta: The rationality.
         pad: The no-op the agent takes on the goal after reaching it, until the horizon (None: episodes end at
             the goal, so horizon protocols observe the path to the goal as well).
+        q: The action values (default: :func:`action_values` of ``dyn``, every action allowed).
 
     Raises:
         UserError: When the demonstrator can reach more than :data:`MAX_STATES` states, or never the goal.
     """
 
-    def __init__(self, dyn: TabularDynamics, beta: float, pad: int | None) -> None:
+    def __init__(self, dyn: TabularDynamics, beta: float, pad: int | None, q: np.ndarray | None = None) -> None:
         from scipy import sparse
 
         self.dyn, self.beta, self.pad, self.horizon = dyn, float(beta), pad, int(dyn.horizon)
-        self.q = action_values(dyn)
+        self.q = action_values(dyn) if q is None else q
         if not np.isfinite(self.q[dyn.start]).any():
             raise UserError("the goal cannot be reached from the start")
         self.at_goal = goal_states(dyn)
@@ -307,9 +332,9 @@ def task_chain(task: GRTask, goal: Goal) -> tuple[BoltzmannChain, object]:
     ``noop_action`` with ``fixed_horizon``); elsewhere the episode ends at the goal.
     """
     env = task.make_env(goal)
-    base = env.unwrapped
     pad = getattr(task.spec, "noop_action", None) if task.env_params.get("fixed_horizon") else None
-    return BoltzmannChain(base.tabular_dynamics(), task_beta(task), pad), env
+    dyn, q = env_values(env)
+    return BoltzmannChain(dyn, task_beta(task), pad, q), env
 
 
 def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -> list[Trajectory]:
