@@ -1,4 +1,5 @@
-"""The paper's MiniGrid domain: a 9x9 room with one obstacle, three behaviour regimes; other rooms (size,
+"""The paper's MiniGrid domain: a 9x9 room with one obstacle, three behaviour regimes (and a Boltzmann-rational one,
+:mod:`grail_bench.domains.boltzmann`); other rooms (size,
 start, walls and lava) through the env parameters, e.g. gr_libs' crossing layouts (``tasks/minigrid_gr_libs.toml``).
 
 * :mod:`.grid`: actions, headings, pure-Python dynamics, regime parameters (no minigrid import).
@@ -18,7 +19,7 @@ from grail_bench.domains.minigrid.grid import check_params, split_obstacles
 
 #: The Boltzmann regime's default rationality (``docs/concepts/tasks.md``, "Boltzmann": where its Bayes ceiling
 #: lies between chance and the optimal regime's).
-BOLTZMANN_BETA = 1.0
+BOLTZMANN_BETA = 0.15
 
 if TYPE_CHECKING:
     import numpy as np
