@@ -51,7 +51,7 @@ if TYPE_CHECKING:
 
 SUPPORTS = ("everywhere", "demonstrated")
 #: The Boltzmann regime's default rationality (``docs/concepts/tasks.md``, "Boltzmann").
-BOLTZMANN_BETA = 1.0
+BOLTZMANN_BETA = 0.15
 
 
 def goal_count(problem: str) -> int:
