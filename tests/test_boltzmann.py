@@ -170,7 +170,8 @@ def test_a_bad_beta_is_refused_in_one_line(beta):
 
 def test_the_boltzmann_tasks_are_listed():
     ids = grail_bench.task_ids()
-    assert {"GRAIL/MiniGrid-Boltzmann-v0", "GRAIL/MiniGrid-Boltzmann-4Goals-v0",
-            "GRAIL/MiniGrid-Boltzmann-6Goals-v0"} <= set(ids)
+    assert {"GRAIL/MiniGrid-Boltzmann-v0", "GRAIL/MiniGrid-Boltzmann-4Goals-v0", "GRAIL/MiniGrid-Boltzmann-6Goals-v0",
+            "GRAIL/Symbolic-Blocks-Boltzmann-v0", "GRAIL/Symbolic-Grid-Boltzmann-v0",
+            "GRAIL/Symbolic-Logistics-Boltzmann-v0"} <= set(ids)
     task = grail_bench.make_task("GRAIL/MiniGrid-Boltzmann-v0")
     assert task.regime == "boltzmann" and task.params["beta"] == get_domain("minigrid").regimes["boltzmann"]["beta"]
