@@ -40,8 +40,6 @@ if TYPE_CHECKING:
     from grail_bench.core.trajectory import Goal, Trajectory
     from grail_bench.task.model import GRTask
 
-#: The regime's name, in every domain that has it.
-REGIME = "boltzmann"
 
 #: The rationality ``beta`` a task or a fit may take (beyond 50, a step's cost outweighs e^50: optimal).
 BETA = Range(0.0, 50.0)
