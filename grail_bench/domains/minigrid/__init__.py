@@ -1,4 +1,5 @@
-"""The paper's MiniGrid domain: a 9x9 room with one obstacle, three behaviour regimes; other rooms (size,
+"""The paper's MiniGrid domain: a 9x9 room with one obstacle, three behaviour regimes (and a Boltzmann-rational one,
+:mod:`grail_bench.domains.boltzmann`); other rooms (size,
 start, walls and lava) through the env parameters, e.g. gr_libs' crossing layouts (``tasks/minigrid_gr_libs.toml``).
 
 * :mod:`.grid`: actions, headings, pure-Python dynamics, regime parameters (no minigrid import).
@@ -15,6 +16,10 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.domains.minigrid.grid import check_params, split_obstacles
+
+#: The Boltzmann regime's default rationality (``docs/concepts/tasks.md``, "Boltzmann": where its Bayes ceiling
+#: lies between chance and the optimal regime's).
+BOLTZMANN_BETA = 0.15
 
 if TYPE_CHECKING:
     import numpy as np
@@ -45,6 +50,8 @@ class MiniGrid:
         "biased": {"routes": []},
         # turn_pattern: "left-right" or "around-and-back" (see .demos).
         "suboptimal": {"route_choice": "uniform", "turn_prob": 1.0, "turn_pattern": "left-right"},
+        # Actions drawn with probability proportional to exp(beta * Q) (see grail_bench.domains.boltzmann).
+        "boltzmann": {"beta": BOLTZMANN_BETA},
     }
     # Far above every published room (9 and 13 cells a side, at most 200 steps): a mistyped size is refused.
     bounds: Mapping[str, Range] = {"size": Range(high=64), "max_steps": Range(1, 10_000)}
@@ -74,20 +81,34 @@ class MiniGrid:
         return GRMiniGridEnv(goal, **env_params)
 
     def generate_demos(self, task: GRTask, goal: Goal, n: int, rng: np.random.Generator):
+        if task.regime == "boltzmann":
+            from grail_bench.domains.boltzmann import generate_demos as boltzmann_demos
+
+            return boltzmann_demos(task, goal, n, rng)
         from grail_bench.domains.minigrid.demos import generate_demos
 
         return generate_demos(task, goal, n, rng)
 
     def demonstrator(self, task: GRTask, goal: Goal):
+        if task.regime == "boltzmann":
+            from grail_bench.domains.boltzmann import BoltzmannDemonstrator
+
+            return BoltzmannDemonstrator(task, goal)
         from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
 
         return GoalDemonstrator(task, goal)
 
     def demonstrator_policy(self, task: GRTask, goal: Goal, support: str = "everywhere") -> np.ndarray:
         """The demonstrator's action probabilities of ``goal``, ``(S, 4)``, in every regime (see
-        :mod:`.policy` for what a row is per regime and support)."""
-        from grail_bench.domains.minigrid.policy import demonstrator_policy
+        :mod:`.policy` for what a row is per regime and support; the Boltzmann regime's is its own policy,
+        :func:`grail_bench.domains.boltzmann.demonstrator_policy`)."""
+        from grail_bench.domains.minigrid.policy import check_policy, demonstrator_policy
 
+        if task.regime == "boltzmann":
+            from grail_bench.domains.boltzmann import demonstrator_policy as boltzmann_policy
+
+            check_policy(task, support)
+            return boltzmann_policy(task, goal, support)
         return demonstrator_policy(task, goal, support)
 
     def check_demonstrator_policy(self, task: GRTask, support: str = "everywhere") -> None:

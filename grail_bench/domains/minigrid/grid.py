@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 from grail_bench.core.errors import UserError
+from grail_bench.domains.boltzmann import check_beta
 from grail_bench.domains.routes import check_routes
 
 LEFT, RIGHT, FORWARD, STAY = 0, 1, 2, 3
@@ -116,6 +117,8 @@ def check_params(regime: str, params: Mapping[str, Any], n_goals: int) -> None:
         raise UserError(f"route_choice must be one of {', '.join(ROUTE_CHOICES)}, got {params['route_choice']!r}")
     if regime == "biased":
         check_routes(params["routes"], n_goals)
+    elif regime == "boltzmann":
+        check_beta(params["beta"])
     elif regime == "suboptimal":
         p = params["turn_prob"]
         if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p <= 1.0:

@@ -115,7 +115,7 @@ def check_policy(task: GRTask, support: str) -> None:
     """
     if support not in SUPPORTS:
         raise UserError(f"support must be one of {', '.join(SUPPORTS)}, got {support!r}")
-    if task.regime not in ("optimal", "biased", "suboptimal"):
+    if task.regime not in ("optimal", "biased", "suboptimal", "boltzmann"):
         raise UserError(f"{task.id}: minigrid has no regime {task.regime!r}")
 
 

@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
+from grail_bench.domains.boltzmann import check_beta
 
 if TYPE_CHECKING:
     import numpy as np
@@ -51,6 +52,8 @@ if TYPE_CHECKING:
     from grail_bench.task.model import GRTask
 
 SUPPORTS = ("everywhere", "demonstrated")
+#: The Boltzmann regime's default rationality (``docs/concepts/tasks.md``, "Boltzmann").
+BOLTZMANN_BETA = 0.15
 
 
 def goal_count(problem: str) -> int:
@@ -86,12 +89,15 @@ class Symbolic:
         # An optimal plan drawn uniformly; before each of its actions, with probability detour_prob, a detour
         # of two actions that undo each other.
         "suboptimal": {"detour_prob": 0.3},
+        # Operators drawn with probability proportional to exp(beta * Q), Q from optimal plan costs
+        # (grail_bench.domains.boltzmann).
+        "boltzmann": {"beta": BOLTZMANN_BETA},
     }
     bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000)}  # published: 50
     #: Env parameters a task keeps from its card: another problem has other hypotheses, so it is a task of its own.
     fixed: Mapping[str, str] = {"problem": "run a problem set as a task of its own, with every one of its "
                                            "hypotheses: grail-bench run --task PATH"}
-    ceiling_regimes = frozenset({"optimal", "biased"})
+    ceiling_regimes = frozenset({"optimal", "biased", "boltzmann"})
 
     def check(self, regime: str, params: Mapping[str, Any], env_params: Mapping[str, Any],
               goals: Sequence[Goal]) -> None:
@@ -99,6 +105,8 @@ class Symbolic:
             p = params["detour_prob"]
             if isinstance(p, bool) or not isinstance(p, (int, float)) or not 0.0 <= p <= 1.0:
                 raise UserError(f"detour_prob must be in [0, 1], got {p!r}")
+        if regime == "boltzmann":
+            check_beta(params["beta"])
         n = goal_count(env_params["problem"])
         for goal in goals:
             if len(goal) != 1 or float(goal[0]) != int(goal[0]) or not 0 <= int(goal[0]) < n:
@@ -132,18 +140,32 @@ class Symbolic:
         return SymbolicEnv(goal, **env_params)
 
     def generate_demos(self, task: GRTask, goal: Goal, n: int, rng: np.random.Generator):
+        if task.regime == "boltzmann":
+            from grail_bench.domains.boltzmann import generate_demos as boltzmann_demos
+
+            return boltzmann_demos(task, goal, n, rng)
         from grail_bench.domains.symbolic.demos import generate_demos
 
         return generate_demos(task, goal, n, rng)
 
     def demonstrator(self, task: GRTask, goal: Goal):
+        if task.regime == "boltzmann":
+            from grail_bench.domains.boltzmann import BoltzmannDemonstrator
+
+            return BoltzmannDemonstrator(task, goal)
         from grail_bench.domains.symbolic.likelihood import GoalDemonstrator
 
         return GoalDemonstrator(task, goal)
 
     def demonstrator_policy(self, task: GRTask, goal: Goal, support: str = "everywhere") -> np.ndarray:
         """The demonstrator's action probabilities of ``goal``, ``(2 ** n_fluents, n_operators)`` (see
-        :mod:`.policy`)."""
+        :mod:`.policy`; the Boltzmann regime's is its own policy,
+        :func:`grail_bench.domains.boltzmann.demonstrator_policy`)."""
+        if task.regime == "boltzmann":
+            from grail_bench.domains.boltzmann import demonstrator_policy as boltzmann_policy
+
+            self.check_demonstrator_policy(task, support)
+            return boltzmann_policy(task, goal, support)
         from grail_bench.domains.symbolic.policy import demonstrator_policy
 
         return demonstrator_policy(task, goal, support)

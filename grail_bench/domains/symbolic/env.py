@@ -115,3 +115,12 @@ class SymbolicEnv(gym.Env):
         states = np.arange(len(table), dtype=np.int64)[:, None]
         success = ((table & self.goal_mask) == self.goal_mask) & ((states & self.goal_mask) != self.goal_mask)
         return TabularDynamics(table, success, self.model.init, self.max_steps, lambda t: 1.0)
+
+    def allowed_actions(self) -> np.ndarray:
+        """``(2 ** n_fluents, n_operators)``: the operators applicable in each state (an inapplicable one leaves
+        the state as it is; no plan takes it). The Boltzmann demonstrator draws among these only.
+
+        Raises:
+            UserError: For problems with more than 16 fluents.
+        """
+        return self.model.applicable_table()

@@ -206,13 +206,28 @@ class StripsModel:
         Raises:
             UserError: When there are more than :data:`MAX_TABLE_STATES` states.
         """
+        states = self._table_states()
+        table = np.empty((len(states), len(self.operators)), dtype=np.int64)
+        applicable = self.applicable_table()
+        for op, (_, _, add, delete) in enumerate(self._masks):
+            table[:, op] = np.where(applicable[:, op], (states & ~delete) | add, states)
+        return table
+
+    def applicable_table(self) -> np.ndarray:
+        """``(2 ** n_fluents, n_operators)`` whether each operator is applicable in each state, rows by state.
+
+        Raises:
+            UserError: When there are more than :data:`MAX_TABLE_STATES` states.
+        """
+        states = self._table_states()
+        out = np.empty((len(states), len(self.operators)), dtype=bool)
+        for op, (pre, neg, _, _) in enumerate(self._masks):
+            out[:, op] = ((states & pre) == pre) & ((states & neg) == 0)
+        return out
+
+    def _table_states(self) -> np.ndarray:
         n_states = 1 << len(self.fluents)
         if n_states > MAX_TABLE_STATES:
             raise UserError(f"this problem has {len(self.fluents)} fluents (2^{len(self.fluents)} states): tables "
                             f"over every state stop at {MAX_TABLE_STATES.bit_length() - 1} fluents")
-        states = np.arange(n_states, dtype=np.int64)
-        table = np.empty((n_states, len(self.operators)), dtype=np.int64)
-        for op, (pre, neg, add, delete) in enumerate(self._masks):
-            ok = ((states & pre) == pre) & ((states & neg) == 0)
-            table[:, op] = np.where(ok, (states & ~delete) | add, states)
-        return table
+        return np.arange(n_states, dtype=np.int64)
