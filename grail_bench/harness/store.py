@@ -657,7 +657,8 @@ def migrate(conn: sqlite3.Connection, tables: set[str], version: int, normalise:
     upgraded in memory with ``normalise=False``). The migration is one
     transaction; a store normalised by it (schema 10 or older -> 11, see the
     module docstring) is then vacuumed, returning the space the repeated JSON
-    took.
+    took.  Schema 11 -> 12 (:data:`MODE_OUTPUTS`, :func:`_add_mode_outputs`)
+    adds the tables of the other modes' per-instance outputs.
 
     Args:
         conn: The store's connection (no transaction open).
