@@ -273,19 +273,19 @@ _BY_OF = {k.of: k for k in KINDS.values()}
 _BY_ROW = {k.row: k for k in KINDS.values()}
 
 
-def kind_of(row: Any) -> Kind:
+def output_kind(row: Any) -> Kind:
     """The output kind of an output row, or of the row (of any mode) it is the outputs of."""
     return _BY_ROW.get(type(row)) or _BY_OF[type(row)]
 
 
 def output_row(outputs: Outputs) -> Any:
     """The stored form of a run's :class:`~grail_bench.harness.modes.base.Outputs` (of any mode)."""
-    return kind_of(outputs.row).output_row(outputs)
+    return output_kind(outputs.row).output_row(outputs)
 
 
 def disagreements(row: Any, outputs: Any) -> list[str]:
     """The metrics a row states that its outputs do not give (empty when every one agrees exactly)."""
-    kind = kind_of(outputs)
+    kind = output_kind(outputs)
     again = kind.recompute(outputs)
     return [name for name in kind.metrics if not _same(getattr(row, name), again[name])]
 
