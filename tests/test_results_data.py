@@ -167,6 +167,83 @@ def test_every_offline_metric_is_recomputed_exactly_from_the_per_instance_output
     assert recompute(outputs)["confusion"] == r.confusion
 
 
+@pytest.fixture(scope="module")
+def modes_run(tmp_path_factory) -> Path:
+    """A tiny run of the online, open-set and zero-shot modes (bc and gc-bc, a few updates, one or two seeds) on
+    a four-goal task, in its own store."""
+    from grail_bench.harness.api import request
+    from grail_bench.harness.planning import RecognizerSpec
+    from grail_bench.harness.sweep import run_sweep
+
+    task = "GRAIL/MiniGrid-Optimal-4Goals-v0"
+    bc = RecognizerSpec("bc", {"n_epochs": 1}, ("mse", "loglik"))
+    path = tmp_path_factory.mktemp("modes") / "modes.sqlite"
+    with ResultsStore(path) as s:
+        run_sweep([request(task, [bc], seeds=[0], mode="online"),
+                   request(task, [bc], seeds=[0, 1], observability=[0.5, 1.0], mode="open-set"),
+                   request(task, [RecognizerSpec("gc-bc", {"n_batches": 30})], seeds=[0], observability=[0.5],
+                           mode="zero-shot", protocol="prefix")], s)
+    return path
+
+
+@pytest.mark.parametrize("mode", ["online", "open-set", "zero-shot"])
+def test_every_metric_of_every_mode_is_recomputed_exactly_from_its_per_instance_outputs(modes_run, mode):
+    from grail_bench.harness.outputs import KINDS, disagreements
+
+    kind = next(k for k in KINDS.values() if k.mode == mode)
+    with ResultsStore(modes_run, read_only=True) as s:
+        rows = s.select(kind.of)
+        kept = {tuple(getattr(o, k) for k in kind.key): o for o in s.select(kind.row)}
+    assert rows and len(rows) == len(kept)
+    for r in rows:
+        outputs = kept[tuple(getattr(r, k) for k in kind.key)]
+        arrays = outputs.named()
+        assert kind.consistent(arrays)
+        assert disagreements(r, outputs) == []
+        again = kind.recompute(outputs)
+        assert {name: again[name] for name in kind.metrics} == {name: getattr(r, name) for name in kind.metrics}
+        if mode == "online":  # every prefix of every trajectory scored, and kept
+            assert len(arrays["y_true"]) == r.n_trajectories and len(arrays["scores"]) == sum(arrays["lengths"])
+        elif mode == "open-set":  # the known goals' scores, the held-out goal's observations labelled K
+            assert arrays["scores"].shape == (r.n_observations, 3) and set(arrays["y_true"]) == {0, 1, 2, 3}
+        else:  # every goal given at test time scored; the held-out ones named by index
+            assert arrays["scores"].shape == (r.n_observations, 4) and len(arrays["held_out"]) == 1
+    first = rows[0]
+    changed = {name: (getattr(first, name) + 1 if isinstance(getattr(first, name), (int, float)) else "[]")
+               for name in kind.metrics[:2]}
+    wrong = dataclasses.replace(first, **changed)
+    assert disagreements(wrong, kept[tuple(getattr(first, k) for k in kind.key)]) == list(kind.metrics[:2])
+
+
+def test_the_outputs_of_every_mode_are_exported_imported_and_validated(modes_run, tmp_path):
+    out = tmp_path / "pub"
+    with ResultsStore(modes_run, read_only=True) as s:
+        published.export(s, out)
+    assert {p.name for p in (out / "minigrid").iterdir()} >= {
+        "online_outputs.jsonl", "open_set_outputs.jsonl", "zero_shot_outputs.jsonl"}
+    rebuilt = tmp_path / "rebuilt.sqlite"
+    assert runner.invoke(app, ["results", "import", str(out), "--store", str(rebuilt)]).exit_code == 0
+    assert all_rows(rebuilt) == all_rows(modes_run)
+    result = runner.invoke(app, ["results", "validate", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "2 online_outputs, 8 open_set, 8 open_set_outputs, 1 zero_shot, 1 zero_shot_outputs" in result.stdout
+    assert "every metric recomputed from its outputs" in result.stdout
+    edit_lines(out / "minigrid" / "open_set.jsonl",
+               lambda lines: [dict(line, auroc=0.5) if i == 1 else line for i, line in enumerate(lines)])
+    edit_lines(out / "minigrid" / "zero_shot_outputs.jsonl",
+               lambda lines: [dict(line, held_out=[0, 1]) for line in lines])
+    edit_lines(out / "minigrid" / "online_outputs.jsonl", lambda lines: lines[1:])
+    result = runner.invoke(app, ["results", "validate", str(out)])
+    assert result.exit_code == 2
+    assert "stated auroc differ from those its outputs give" in result.stderr
+    assert "stated f1_held_out, f1_trained, accuracy_held_out, accuracy_trained differ" in result.stderr
+    assert "no per-instance outputs to recompute its metrics from" in result.stderr and "3 problem(s)" in result.stderr
+    edit_lines(out / "minigrid" / "online_outputs.jsonl",
+               lambda lines: [dict(line, lengths=[n + 1 for n in line["lengths"]]) for line in lines])
+    result = runner.invoke(app, ["results", "validate", str(out)])
+    assert result.exit_code == 2 and "scores one row per prefix" in result.stderr
+
+
 # --- submissions --------------------------------------------------------------------------------------------------
 
 SOURCE = {"lab": "Example Lab", "recognizer": "bc", "version": "1.0", "url": "https://example.org/bc"}

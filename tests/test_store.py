@@ -42,7 +42,8 @@ def inline(conn: sqlite3.Connection) -> None:
                 conn.execute(f"ALTER TABLE {table} DROP COLUMN {name}_ref")
     for shared in SHARED.values():
         conn.execute(f"DROP TABLE IF EXISTS {shared}")
-    conn.execute("DROP TABLE IF EXISTS outputs")  # added by schema 11 too
+    for table in ("outputs", "online_outputs", "open_set_outputs", "zero_shot_outputs"):  # added by schemas 11, 12
+        conn.execute(f"DROP TABLE IF EXISTS {table}")
 
 
 def test_add_is_idempotent_and_first_write_wins(tmp_path):
@@ -466,6 +467,38 @@ def test_a_schema_9_store_is_normalised_by_its_first_write_and_read_as_it_is_bef
     assert {"config_ref", "versions_ref", "provenance_ref"} <= columns and "config" not in columns
     assert conn.execute("SELECT COUNT(*) FROM configs").fetchone()[0] == 2  # "{}" (online) and the offline one
     assert conn.execute("SELECT COUNT(*) FROM provenance").fetchone()[0] == 1
+
+
+def test_a_schema_11_store_gains_the_tables_of_every_modes_outputs_and_keeps_every_row(tmp_path):
+    from grail_bench.harness.outputs import KINDS, OnlineOutputRow, OutputRow, pack, pack_arrays
+    from grail_bench.harness.store import MODE_OUTPUTS, OnlineRow
+
+    path = tmp_path / "v11.sqlite"
+    offline = [row(s, f1=0.1 * s) for s in range(3)]
+    kept = OutputRow("GRAIL/T-v0", "bc", "mse", "abc", 0, 0.1, "prefix", False, pack([0, 1], [2, 3], [[0, 1], [1, 0]]))
+    with ResultsStore(path) as store:
+        store.add([*offline, _online(0), kept])
+    conn = sqlite3.connect(path)
+    for kind in KINDS.values():
+        if kind.name != "outputs":
+            conn.execute(f"DROP TABLE {kind.name}")
+    conn.execute(f"PRAGMA user_version = {MODE_OUTPUTS - 1}")
+    conn.commit()
+    conn.close()
+    before = snapshot(tmp_path)
+    with ResultsStore(path, read_only=True) as reader:  # read as it is: no outputs of the other modes
+        assert reader.rows() == offline and reader.select(OutputRow) == [kept]
+        assert reader.select(OnlineOutputRow) == []
+    assert snapshot(tmp_path) == before
+    online = OnlineOutputRow("GRAIL/T-v0", "bc", "mse", "abc", 0, "prefix",
+                             pack_arrays(OnlineOutputRow.NAMES, {"y_true": [1], "lengths": [2], "scores": [[0, 1]] * 2}))
+    with ResultsStore(path) as store:
+        assert store.add([online]) == 1  # the first write migrates the file
+        assert store.rows() == offline and store.select(OnlineRow) == [_online(0)] and store.select(OutputRow) == [kept]
+        assert store.select(OnlineOutputRow) == [online]
+    conn = sqlite3.connect(path)
+    assert conn.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION >= MODE_OUTPUTS
+    assert {k.name for k in KINDS.values()} <= {r[0] for r in conn.execute("SELECT name FROM sqlite_master")}
 
 
 def test_shared_json_is_stored_once_however_many_rows_carry_it(tmp_path):

@@ -309,3 +309,23 @@ def test_zero_shot_run_of_a_recognizer_that_ties_every_goal(flat):
     assert row.accuracy == pytest.approx(accuracy) and row.accuracy_held_out == pytest.approx(accuracy)
     assert row.f1 == pytest.approx(per_class.mean()) and row.f1_held_out == pytest.approx(per_class[hidden].mean())
     assert row.n_ties == row.n_observations and row.ties == "uniform"
+
+
+@pytest.mark.parametrize("mode,levels", [("offline", (1.0,)), ("online", ()), ("open-set", (1.0,)),
+                                         ("zero-shot", (1.0,))])
+def test_tied_runs_of_every_mode_are_recomputed_exactly_from_their_outputs(flat, mode, levels):
+    from grail_bench.harness.modes import MODES, SeedRun
+    from grail_bench.harness.outputs import disagreements, output_row
+    from grail_bench.task.observation import ObservationSpec
+
+    task = grail_bench.make_task("GRAIL/MiniGrid-Optimal-4Goals-v0")
+    kept: list = []
+    job = SeedRun(task=task, planned=_planned(task), seed=1,
+                  observation=ObservationSpec.resolve("subset", "ceil", levels), versions="{}",
+                  demos=task.generate_demos(1), outputs=kept)
+    (row,), _ = MODES[mode].run(job)
+    (outputs,) = kept
+    assert outputs.row is row and row.n_ties > 0  # every observation (or prefix) tied
+    stored = output_row(outputs)
+    assert disagreements(row, stored) == []
+    assert disagreements(dataclasses.replace(row, n_ties=row.n_ties - 1), stored) == ["n_ties"]

@@ -60,8 +60,9 @@ def import_(
 def validate(
     path: Path = typer.Argument(..., help="A submission: a published folder (or one row file in one)."),
     need_outputs: bool = typer.Option(True, "--outputs/--no-outputs",
-                                      help="Require per-instance outputs of every offline row and recompute its "
-                                           "metrics (--no-outputs: for rows published before outputs were kept)."),
+                                      help="Require per-instance outputs of every row, of every mode, and "
+                                           "recompute its metrics (--no-outputs: for rows published before "
+                                           "outputs were kept)."),
     cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """Check a submission: the schema, that its tasks exist, that seeds and levels are complete, and that its
@@ -78,7 +79,7 @@ def validate(
         more = f", {len(problems) - MAX_LISTED} not listed" if len(problems) > MAX_LISTED else ""
         raise fail(f"{path} is not valid: {len(problems)} problem(s){more}")
     counts = ", ".join(f"{len(rows)} {kind}" for kind, rows in sorted(published.rows.items()))
-    checked = "every offline metric recomputed from its outputs" if need_outputs else "outputs not checked"
+    checked = "every metric recomputed from its outputs" if need_outputs else "outputs not checked"
     say(f"{path} is valid: {counts} rows; {checked}")
 
 

@@ -8,9 +8,10 @@ A published folder holds
   configurations), ``versions.jsonl`` (package versions), ``provenance.jsonl`` and ``sources.jsonl`` (the
   submissions merged rows came from; :data:`SHARED_FILES`);
 * the rows, one file per domain and kind (``minigrid/offline.jsonl``, ``minigrid/online.jsonl``,
-  ``minigrid/open_set.jsonl``, ``minigrid/zero_shot.jsonl``, ``minigrid/fits.jsonl`` and the offline rows'
-  per-instance outputs ``minigrid/outputs.jsonl``; :data:`KINDS`): one row a line, its fields as the store holds
-  them, the shared JSON referenced by hash (``config_ref``, ...).
+  ``minigrid/open_set.jsonl``, ``minigrid/zero_shot.jsonl``, ``minigrid/fits.jsonl``, and the rows' per-instance
+  outputs ``minigrid/outputs.jsonl`` (offline), ``online_outputs.jsonl``, ``open_set_outputs.jsonl`` and
+  ``zero_shot_outputs.jsonl``; :data:`KINDS`): one row a line, its fields as the store holds them, the shared JSON
+  referenced by hash (``config_ref``, ...), an output row's arrays as JSON lists (:mod:`grail_bench.harness.outputs`).
 
 Every file is sorted (rows by their key, shared entries by hash) and written with sorted keys and no spaces, so
 the same store gives byte-identical files and a republish that adds rows adds only their lines. A file larger
@@ -33,19 +34,22 @@ from typing import Any, Iterable, Iterator
 
 from grail_bench.core.atomic import write_files
 from grail_bench.core.errors import UserError
-from grail_bench.harness import diagnostics, outputs
+from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, OnlineRow, OpenSetRow, ResultRow, ZeroShotRow
-from grail_bench.harness.outputs import OutputRow, pack
+from grail_bench.harness.outputs import KINDS as OUTPUT_KINDS
+from grail_bench.harness.outputs import ROW_TYPES as OUTPUT_ROWS
+from grail_bench.harness.outputs import OutputRow, arrays_of, pack_arrays
 from grail_bench.harness.store import SHARED, ResultsStore, ref
 
 FORMAT = {"format": "grail-bench results", "version": 1}
 #: Row kind (a file's stem) -> its row type.
 KINDS: dict[str, type] = {"offline": ResultRow, "online": OnlineRow, "open_set": OpenSetRow,
-                          "zero_shot": ZeroShotRow, "fits": FitRow, "outputs": OutputRow}
+                          "zero_shot": ZeroShotRow, "fits": FitRow} | {k.name: k.row for k in OUTPUT_KINDS.values()}
 #: Row kind -> the fields that identify a row (its sort key).
 KEYS = {kind: next(m.key for m in MODES.values() if m.row is row_type) for kind, row_type in KINDS.items()
-        if row_type not in (FitRow, OutputRow)} | {"fits": diagnostics.KEY, "outputs": outputs.KEY}
+        if row_type not in (FitRow, *OUTPUT_ROWS)} | {"fits": diagnostics.KEY} | {
+            k.name: k.key for k in OUTPUT_KINDS.values()}
 #: Shared field -> the file holding its JSON texts once.
 SHARED_FILES = {name: f"{table}.jsonl" for name, table in SHARED.items()}
 #: Files larger than this (bytes, uncompressed) are written gzip-compressed.
@@ -56,6 +60,14 @@ MAX_FILE_BYTES = 1 << 30
 SCHEMA_FILE = "results.schema.json"
 _HASH = {"type": "string", "pattern": "^[0-9a-f]{64}$"}
 _TYPES = {"str": "string", "int": "integer", "float": "number", "bool": "boolean"}
+#: An output row's array -> its schema.
+_ARRAY_SPECS = {
+    "y_true": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+    "lengths": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+    "held_out": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+    "scores": {"type": "array", "items": {"type": "array", "items": {"type": "number"}}},
+    "calibration": {"type": "array", "items": {"type": "number"}},
+}
 
 
 class PublishedError(UserError):
@@ -98,11 +110,9 @@ def build_schema() -> dict[str, Any]:
     for kind, row_type in KINDS.items():
         properties, required = {}, []
         for f in fields(row_type):
-            if f.name == "data":  # an OutputRow's arrays, as lists
-                properties |= {"y_true": {"type": "array", "items": {"type": "integer", "minimum": 0}},
-                               "lengths": {"type": "array", "items": {"type": "integer", "minimum": 0}},
-                               "scores": {"type": "array", "items": {"type": "array", "items": {"type": "number"}}}}
-                required += ["y_true", "lengths", "scores"]
+            if f.name == "data":  # an output row's arrays, as lists
+                properties |= {name: _ARRAY_SPECS[name] for name in row_type.NAMES}
+                required += list(row_type.NAMES)
                 continue
             name = f"{f.name}_ref" if f.name in SHARED else f.name
             base, _, optional = str(f.type).partition(" | ")
@@ -149,7 +159,7 @@ _IS = {"string": lambda v: isinstance(v, str), "null": lambda v: v is None,
 @cache
 def _quick(definition: str) -> Any:
     """A fast test of the lines of a flat definition (objects of typed scalar properties: every row kind's but
-    ``outputs``), true exactly when the schema's validator passes the line; None for any other definition."""
+    the outputs), true exactly when the schema's validator passes the line; None for any other definition."""
     spec = schema()["$defs"][definition]
     tests, required = {}, set(spec.get("required", ()))
     for name, prop in spec["properties"].items():
@@ -199,12 +209,11 @@ def dumps(value: Any) -> str:
 
 def line_of(row: Any) -> dict[str, Any]:
     """A row as a line of its file: its fields, the shared JSON replaced by its hash."""
-    if isinstance(row, OutputRow):
-        y_true, lengths, scores = row.arrays()
-        out = {k: v for k, v in asdict(row).items() if k != "data"} | {
-            "posterior": bool(row.posterior), "y_true": y_true.tolist(), "lengths": lengths.tolist(),
-            "scores": scores.tolist()}
-        return out
+    if isinstance(row, OUTPUT_ROWS):
+        out = {k: v for k, v in asdict(row).items() if k != "data"}
+        if isinstance(row, OutputRow):
+            out["posterior"] = bool(row.posterior)
+        return out | {name: array.tolist() for name, array in row.named().items()}
     out = asdict(row)
     for name in SHARED:
         if name in out:
@@ -240,7 +249,7 @@ def render(rows_by_kind: dict[str, Iterable[Any]], shared_texts: bool = True) ->
     shared: dict[str, dict[str, str]] = {name: {} for name in SHARED}
     for kind, rows in rows_by_kind.items():
         for row in rows:
-            plain = {} if isinstance(row, OutputRow) else asdict(row)
+            plain = {} if isinstance(row, OUTPUT_ROWS) else asdict(row)
             for name in SHARED:
                 if plain.get(name) is not None:
                     shared[name][ref(plain[name])] = plain[name]
@@ -392,11 +401,15 @@ def read(path: Path, check: bool = True) -> Published:
 
 def _row(kind: str, line: dict[str, Any], shared: dict[str, dict[str, str]], where: str) -> Any:
     values = dict(line)
-    if kind == "outputs":
-        arrays = [values.pop(name, None) for name in ("y_true", "lengths", "scores")]
-        if any(a is None for a in arrays) or not len(arrays[0]) == len(arrays[1]) == len(arrays[2]):
-            raise PublishedError(f"{where}: y_true, lengths and scores must hold one entry per observation")
-        values["data"] = pack(*arrays)
+    if kind in OUTPUT_KINDS:
+        output = OUTPUT_KINDS[kind]
+        try:
+            arrays = arrays_of(output.row.NAMES, {name: values.pop(name, None) for name in output.row.NAMES})
+        except ValueError as exc:
+            raise PublishedError(f"{where}: {exc}") from None
+        if not output.consistent(arrays):
+            raise PublishedError(f"{where}: {output.shapes}")
+        values["data"] = pack_arrays(output.row.NAMES, arrays)
     for name in SHARED:
         key = f"{name}_ref"
         if key in values:

@@ -9,9 +9,10 @@ observability, observation protocol); ``online`` (every prefix scored), one
 :class:`OnlineRow` per (task, recognizer, scorer, config hash, seed, protocol);
 ``open_set`` (a goal held out), one :class:`OpenSetRow` per (task, recognizer,
 scorer, config hash, seed, observability, protocol); ``zero_shot`` (goals never
-fitted), one :class:`ZeroShotRow` per the same key; and ``outputs`` (schema
-11), the per-instance outputs of offline rows, one
-:class:`~grail_bench.harness.outputs.OutputRow` per offline row run since. Rows
+fitted), one :class:`ZeroShotRow` per the same key; and the per-instance outputs
+of the rows (:mod:`grail_bench.harness.outputs`), one output row per row run
+since, keyed like it: ``outputs`` (offline, schema 11), ``online_outputs``,
+``open_set_outputs`` and ``zero_shot_outputs`` (schema 12, :data:`MODE_OUTPUTS`). Rows
 are written in one transaction per fitted seed, in WAL mode with a busy timeout, so an
 interrupted run keeps what it finished and concurrent writers lose nothing; a
 row already stored is kept (the first write wins), unless it is stale or the run recomputes it on purpose
@@ -78,14 +79,17 @@ from grail_bench.core.paths import check_writable, data_dir
 from grail_bench.harness import diagnostics, outputs
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, Mode, OnlineRow, OpenSetRow, ResultRow, Row, ZeroShotRow
+from grail_bench.harness.outputs import KINDS as OUTPUT_KINDS
 from grail_bench.harness.outputs import OutputRow
 from grail_bench.harness.planning import task_params
 from grail_bench.task import versions
 
-SCHEMA_VERSION = 11
+SCHEMA_VERSION = 12
 #: The first schema whose row tables reference the shared tables (:data:`SHARED`) instead of repeating the JSON.
 NORMALISED = 11
-__all__ = ["NORMALISED", "SCHEMA_VERSION", "SHARED", "CeilingCache", "FitRow", "OnlineRow", "OpenSetRow", "OutputRow",
+#: The first schema keeping the per-instance outputs of the online, open-set and zero-shot rows (their tables).
+MODE_OUTPUTS = 12
+__all__ = ["MODE_OUTPUTS", "NORMALISED", "SCHEMA_VERSION", "SHARED", "CeilingCache", "FitRow", "OnlineRow", "OpenSetRow", "OutputRow",
            "ResultRow", "ResultsStore", "Row", "StoreError", "ZeroShotRow", "check_store_writable",
            "default_store_path", "migrate", "ref", "stale"]
 _HEADER = b"SQLite format 3\x00"  # the first 16 bytes of every SQLite database file
@@ -127,7 +131,7 @@ def _tables() -> dict[type, tuple[str, tuple[str, ...]]]:
     """Row type -> (table, primary key): every mode's, and the fit diagnostics'."""
     out = {mode.row: (mode.table, mode.key) for mode in MODES.values()}
     out[FitRow] = (diagnostics.TABLE, diagnostics.KEY)
-    out[OutputRow] = (outputs.TABLE, outputs.KEY)
+    out |= {kind.row: (kind.name, kind.key) for kind in OUTPUT_KINDS.values()}
     return out
 
 
@@ -224,7 +228,7 @@ class ResultsStore:
         # Reading follows the layout it finds (inline or shared JSON; a column added since reads as NULL, a table
         # added since as empty), so a store of schema 2 or newer with every table of its time is read as it is.
         # An older one is read from a copy upgraded in memory (not normalised). The file stays as it was.
-        if not current and (version < 2 or missing - {outputs.TABLE}):
+        if not current and (version < 2 or missing - set(OUTPUT_KINDS)):
             memory = sqlite3.connect(":memory:")
             self._conn.backup(memory)
             self._conn.close()
@@ -661,7 +665,8 @@ def migrate(conn: sqlite3.Connection, tables: set[str], version: int, normalise:
     upgraded in memory with ``normalise=False``). The migration is one
     transaction; a store normalised by it (schema 10 or older -> 11, see the
     module docstring) is then vacuumed, returning the space the repeated JSON
-    took.
+    took.  Schema 11 -> 12 (:data:`MODE_OUTPUTS`, :func:`_add_mode_outputs`)
+    adds the tables of the other modes' per-instance outputs.
 
     Args:
         conn: The store's connection (no transaction open).
@@ -683,6 +688,8 @@ def migrate(conn: sqlite3.Connection, tables: set[str], version: int, normalise:
                          "WITHOUT ROWID")
         if normalise and tables and version < NORMALISED:
             normalised = _normalise(conn)
+        if tables and version < MODE_OUTPUTS:
+            _add_mode_outputs(conn)
         for kind, (table, key) in _tables().items():
             conn.execute(_create(kind, table, key))
         conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
@@ -717,6 +724,14 @@ def _normalise(conn: sqlite3.Connection) -> bool:
         conn.execute(f"DROP TABLE {table}__inline")
         changed = True
     return changed
+
+
+def _add_mode_outputs(conn: sqlite3.Connection) -> None:
+    """Schema 11 -> 12 (:data:`MODE_OUTPUTS`): the tables of the online, open-set and zero-shot rows' per-instance
+    outputs, empty (rows stored before have none); every row is kept as it is."""
+    for kind in OUTPUT_KINDS.values():
+        if kind.name != outputs.TABLE:
+            conn.execute(_create(kind.row, kind.name, kind.key))
 
 
 def _migrate_v1(conn: sqlite3.Connection) -> None:

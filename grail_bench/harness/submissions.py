@@ -21,9 +21,11 @@ import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.harness.diagnostics import FitRow
-from grail_bench.harness.outputs import METRICS, OutputRow, disagreements
+from grail_bench.harness.outputs import KINDS as OUTPUT_KINDS
+from grail_bench.harness.outputs import METRICS, disagreements
+from grail_bench.harness.outputs import ROW_TYPES as OUTPUT_ROWS
 from grail_bench.harness.planning import recognizer_config, task_params
-from grail_bench.harness.published import Published, PublishedError, read
+from grail_bench.harness.published import KINDS, Published, PublishedError, read
 from grail_bench.harness.store import ResultsStore
 
 SOURCE_FILE = "source.json"
@@ -73,8 +75,8 @@ def check(published: Published, need_outputs: bool = True) -> list[str]:
 
     Checks that every task exists here with the parameters its rows were run with (the ID carries its version,
     ``-v0``), that every configuration's seeds are ``0..N-1`` and that every seed has every level any of them
-    has, and (``need_outputs``) that every offline row has per-instance outputs and states exactly the metrics
-    they give.
+    has, and (``need_outputs``) that every row, of every mode, has per-instance outputs and states exactly the
+    metrics they give (and that every output row has its row).
     """
     problems: list[str] = []
     used = {(r.task, json.dumps(task_params(r.config) if hasattr(r, "config") else {}, sort_keys=True))
@@ -102,16 +104,34 @@ def check(published: Published, need_outputs: bool = True) -> list[str]:
                 if have != levels:
                     problems.append(f"{what}: seed {seed} lacks level(s) {_listed(sorted(levels - have))}")
     if need_outputs:
-        outputs = {_offline_key(o): o for o in published.rows.get("outputs", [])}
-        for r in published.rows.get("offline", []):
-            what = f"offline {r.task} {r.recognizer}/{r.scorer} seed {r.seed} level {r.observability:g}"
-            kept = outputs.get(_offline_key(r))
-            if kept is None:
+        problems += _output_problems(published)
+    return problems
+
+
+def _output_problems(published: Published) -> list[str]:
+    """Rows without per-instance outputs, rows whose stated metrics differ from those their outputs give, and
+    outputs of no row."""
+    problems: list[str] = []
+    for output in OUTPUT_KINDS.values():
+        kind = next(name for name, row_type in KINDS.items() if row_type is output.of)
+        kept = {tuple(getattr(o, k) for k in output.key): o for o in published.rows.get(output.name, [])}
+        for r in published.rows.get(kind, []):
+            key = tuple(getattr(r, k) for k in output.key)
+            level = f" level {r.observability:g}" if hasattr(r, "observability") else ""
+            what = f"{kind} {r.task} {r.recognizer}/{r.scorer} seed {r.seed}{level}"
+            outputs = kept.pop(key, None)
+            if outputs is None:
                 problems.append(f"{what}: no per-instance outputs to recompute its metrics from")
                 continue
-            wrong = disagreements(r, kept)
+            try:
+                wrong = disagreements(r, outputs)
+            except (ValueError, IndexError) as exc:  # arrays that fit together but give no metric
+                problems.append(f"{what}: its outputs give no metrics ({exc})")
+                continue
             if wrong:
                 problems.append(f"{what}: stated {', '.join(wrong)} differ from those its outputs give")
+        problems += [f"{output.name} {o.task} {o.recognizer}/{o.scorer} seed {o.seed}: outputs of no {kind} row"
+                     for _, o in sorted(kept.items())]
     return problems
 
 
@@ -146,7 +166,7 @@ def merge_rows(path: Path) -> list[Any]:
         more = f" (and {len(problems) - 1} more; see `grail-bench results validate`)" if len(problems) > 1 else ""
         raise SubmissionError(f"not merged: {problems[0]}{more}")
     source = json.dumps(read_source(published.root), sort_keys=True)
-    return [r if isinstance(r, (FitRow, OutputRow)) else replace(r, source=source) for r in published.all_rows()]
+    return [r if isinstance(r, (FitRow, *OUTPUT_ROWS)) else replace(r, source=source) for r in published.all_rows()]
 
 
 def merge(path: Path, store: ResultsStore) -> int:

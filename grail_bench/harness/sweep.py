@@ -34,9 +34,10 @@ from grail_bench.core.trajectory import Demos
 from grail_bench.harness import diagnostics
 from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.executors import Executor, SerialExecutor
-from grail_bench.harness.modes import Row, SeedRun, get_mode
+from grail_bench.harness.modes import SeedRun, get_mode
 from grail_bench.harness.modes.base import Outputs
-from grail_bench.harness.outputs import OutputRow, output_row
+from grail_bench.harness.outputs import ROW_TYPES as OUTPUT_ROWS
+from grail_bench.harness.outputs import output_row
 from grail_bench.harness.planning import Planned, RecognizerSpec, check_channel, plan, without_identity
 from grail_bench.harness.store import ResultsStore
 from grail_bench.task import GRTask, make_task
@@ -108,7 +109,7 @@ class Unit:
 class UnitResult:
     """What a worker sends back: the unit's rows and how its models were obtained."""
 
-    rows: list[Row | FitRow | OutputRow]
+    rows: list[Any]  # Row, FitRow and output rows (grail_bench.harness.outputs)
     trained: int  # models trained by this unit
     reused: int  # models loaded from the cache
 
@@ -349,15 +350,15 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
                if progress else None)
         with bar or contextlib.nullcontext():
             for _, result in executor.map_unordered(run_unit, units):
-                stored = [r if isinstance(r, OutputRow) else replace(r, provenance=origin) for r in result.rows]
+                stored = [r if isinstance(r, OUTPUT_ROWS) else replace(r, provenance=origin) for r in result.rows]
                 if rerun:  # the unit's rows replace the stored ones at once
                     store.add(stored, replace=True)
-                    summary.rows += sum(not isinstance(r, (FitRow, OutputRow)) for r in stored)
+                    summary.rows += sum(not isinstance(r, (FitRow, *OUTPUT_ROWS)) for r in stored)
                     summary.fits += sum(isinstance(r, FitRow) for r in stored)
                 else:
-                    summary.rows += store.add(r for r in stored if not isinstance(r, (FitRow, OutputRow)))
+                    summary.rows += store.add(r for r in stored if not isinstance(r, (FitRow, *OUTPUT_ROWS)))
                     summary.fits += store.add(r for r in stored if isinstance(r, FitRow))
-                    store.add(r for r in stored if isinstance(r, OutputRow))
+                    store.add(r for r in stored if isinstance(r, OUTPUT_ROWS))
                 summary.done += 1
                 summary.trained += result.trained
                 summary.reused += result.reused

@@ -161,21 +161,20 @@ WHO = (Column("recognizer/scorer", label, label), Column("seeds", lambda r: str(
 
 @dataclass(frozen=True)
 class Outputs:
-    """What one row's metrics were computed from, per observation: the true goal, the observed steps, the scores.
+    """What one row's metrics were computed from: the per-instance arrays its mode keeps, named as the mode's
+    output kind names them (:data:`grail_bench.harness.outputs.KINDS`), in the order the run computed them.
 
     Attributes:
         row: The row.
-        y_true: Each observation's true goal (index into the task's goals).
-        lengths: Each observation's number of observed steps.
-        scored: Each observation's scores, one per goal.
-        posterior: Whether the scores are log-likelihoods of a posterior.
+        arrays: Array name -> values (offline: ``y_true``, ``lengths``, ``scores``; online: ``y_true``,
+            ``lengths``, ``scores`` of every prefix; open set: ``y_true``, ``scores``, ``calibration``; zero shot:
+            ``y_true``, ``scores``, ``held_out``).
+        posterior: Whether the scores are log-likelihoods of a posterior (offline).
     """
 
     row: Any
-    y_true: list[int]
-    lengths: list[int]
-    scored: list[np.ndarray]
-    posterior: bool
+    arrays: dict[str, Any]
+    posterior: bool = False
 
 
 @dataclass(frozen=True)
@@ -189,8 +188,7 @@ class SeedRun:
         observation: How test demonstrations are observed (protocol, rounding, levels).
         versions: JSON of the package versions, stored with each row.
         demos: The seed's demonstrations.
-        outputs: Where a mode that keeps per-instance outputs (offline) appends each row's :class:`Outputs`
-            (None: keep none).
+        outputs: Where the mode appends each row's per-instance :class:`Outputs` (None: keep none).
     """
 
     task: GRTask

@@ -137,7 +137,8 @@ def run(job: SeedRun) -> tuple[list[ResultRow], Fitted]:
                 **unit_metrics(y_true, scored, lengths, scorer.posterior, len(task.goals)),
             ))
             if job.outputs is not None:
-                job.outputs.append(Outputs(rows[-1], y_true, lengths, scored, scorer.posterior))
+                job.outputs.append(Outputs(rows[-1], {"y_true": y_true, "lengths": lengths, "scores": scored},
+                                           scorer.posterior))
     return rows, fitted
 
 

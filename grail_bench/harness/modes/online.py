@@ -43,6 +43,7 @@ from grail_bench.harness.modes.base import (
     WHO,
     Column,
     Mode,
+    Outputs,
     Record,
     Run,
     SeedRun,
@@ -288,18 +289,36 @@ def run(job: SeedRun) -> tuple[list[OnlineRow], Fitted]:
     rows = []
     for scorer in planned.scorers:
         start = time.perf_counter_ns()
-        predictions = [metrics.prediction(prefix_scores(fitted.recognizer, observed, scorer.arg, task.goals))
-                       for _, observed in labelled]
+        scored = [prefix_scores(fitted.recognizer, observed, scorer.arg, task.goals) for _, observed in labelled]
         elapsed_us = (time.perf_counter_ns() - start) / 1e3
-        n_prefixes = sum(len(p) for p in predictions)
         rows.append(OnlineRow(
             task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash, seed=job.seed,
-            protocol=spec.label, n_trajectories=len(labelled), fit_seconds_per_goal=fitted.seconds_per_goal,
-            score_us_per_prefix=elapsed_us / n_prefixes, config=planned.config, versions=job.versions,
-            n_ties=sum(metrics.n_tied(p) for p in predictions),
-            **online_metrics(predictions, labels, len(task.goals), spec.rounding),
+            protocol=spec.label, fit_seconds_per_goal=fitted.seconds_per_goal,
+            score_us_per_prefix=elapsed_us / sum(len(s) for s in scored), config=planned.config,
+            versions=job.versions, **unit_metrics(scored, labels, len(task.goals), spec.rounding),
         ))
+        if job.outputs is not None:
+            job.outputs.append(Outputs(rows[-1], {"y_true": labels, "lengths": [len(s) for s in scored],
+                                                  "scores": np.concatenate(scored)}))
     return rows, fitted
+
+
+def unit_metrics(scored: Sequence[np.ndarray], labels: Sequence[int], n_goals: int,
+                 rounding: str = "ceil") -> dict[str, Any]:
+    """The metrics of one row from its per-instance outputs: each trajectory's prefix scores and true goal.
+
+    Args:
+        scored: Per trajectory, the ``(T, K)`` scores of its prefixes (:func:`prefix_scores`).
+        labels: Each trajectory's true goal.
+        n_goals: The task's candidate goals.
+        rounding: The protocol's rounding of an observed fraction to steps.
+
+    Returns:
+        The :class:`OnlineRow` fields they determine: every metric but the timings.
+    """
+    predictions = [metrics.prediction(s) for s in scored]
+    return dict(n_trajectories=len(predictions), n_ties=sum(metrics.n_tied(p) for p in predictions),
+                **online_metrics(predictions, labels, n_goals, rounding))
 
 
 def aggregate(rows: Iterable[OnlineRow]) -> list[OnlineRecord]:

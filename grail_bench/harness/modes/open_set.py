@@ -41,6 +41,7 @@ from grail_bench.harness.modes.base import (
     WHO,
     Column,
     Mode,
+    Outputs,
     Record,
     Run,
     SeedRun,
@@ -115,19 +116,25 @@ def held_out_goal(goals: Sequence[Goal], seed: int) -> Goal:
     return tuple(goals[seed % len(goals)])
 
 
+def known_scores(recognizer: Capabilities, observations: Sequence[Any], scorer: str | None,
+                 goals: Sequence[Goal]) -> np.ndarray:
+    """Each observation's scores of the known goals ``(N, K)``."""
+    return np.stack([check_scores(recognizer.name, recognizer.score(o, scorer), goals) for o in observations])
+
+
 def best_scores(recognizer: Capabilities, observations: Sequence[Any], scorer: str | None,
                 goals: Sequence[Goal]) -> tuple[np.ndarray, np.ndarray]:
     """The best score of each observation ``(N,)``, and each goal's probability of being predicted ``(N, K)``.
 
     Goals tied at the best score share the prediction equally (:func:`metrics.prediction`).
     """
-    scores = np.stack([check_scores(recognizer.name, recognizer.score(o, scorer), goals) for o in observations])
+    scores = known_scores(recognizer, observations, scorer, goals)
     return scores.max(axis=1), metrics.prediction(scores)
 
 
 def calibrate(recognizer: Capabilities, train: Demos, level: float, observation: ObservationSpec,
-              rng: np.random.Generator, scorer: str | None, alpha: float = ALPHA) -> float:
-    """The rule's threshold: the ``alpha``-quantile of the best scores of training observations.
+              rng: np.random.Generator, scorer: str | None) -> np.ndarray:
+    """The best scores of training observations, which the rule's threshold is a quantile of (:func:`threshold_of`).
 
     Args:
         recognizer: Fitted on ``train``.
@@ -139,7 +146,12 @@ def calibrate(recognizer: Capabilities, train: Demos, level: float, observation:
     """
     observations = [observation.observe(traj, level, rng) for trajs in train.values() for traj in trajs]
     best, _ = best_scores(recognizer, observations, scorer, list(train))
-    return float(np.quantile(best, alpha))
+    return best
+
+
+def threshold_of(calibration: np.ndarray, alpha: float = ALPHA) -> float:
+    """The rule's threshold: the ``alpha``-quantile of the training observations' best scores (:func:`calibrate`)."""
+    return float(np.quantile(calibration, alpha))
 
 
 def open_set_metrics(best: np.ndarray, predicted: np.ndarray, labels: np.ndarray, threshold: float,
@@ -168,6 +180,24 @@ def open_set_metrics(best: np.ndarray, predicted: np.ndarray, labels: np.ndarray
     }
 
 
+def unit_metrics(scores: np.ndarray, labels: np.ndarray, calibration: np.ndarray) -> dict[str, Any]:
+    """The metrics of one row from its per-instance outputs.
+
+    Args:
+        scores: Each observation's scores of the known goals ``(N, K)``.
+        labels: True class: a known goal's index, or ``K`` for the held-out goal.
+        calibration: The training observations' best scores (:func:`calibrate`), which set the threshold.
+
+    Returns:
+        The :class:`OpenSetRow` fields they determine: every metric, the threshold and the counts.
+    """
+    scores = np.asarray(scores, dtype=float)
+    threshold = threshold_of(calibration)
+    predicted = metrics.prediction(scores)
+    return dict(threshold=threshold, n_observations=len(scores), n_ties=metrics.n_tied(predicted),
+                **open_set_metrics(scores.max(axis=1), predicted, np.asarray(labels), threshold, scores.shape[1]))
+
+
 def run(job: SeedRun) -> tuple[list[OpenSetRow], Fitted]:
     """Hold out seed ``seed``'s goal, fit on the others, calibrate, and score test observations of all goals.
 
@@ -188,15 +218,17 @@ def run(job: SeedRun) -> tuple[list[OpenSetRow], Fitted]:
         observations = [spec.observe(traj, level, rng) for _, traj in labelled]
         for scorer in planned.scorers:
             calibration_rng = spec.rng(seed, level, "open-set-calibration")  # the same draws per scorer
-            threshold = calibrate(fitted.recognizer, known_train, level, spec, calibration_rng, scorer.arg)
-            best, predicted = best_scores(fitted.recognizer, observations, scorer.arg, known)
+            calibration = calibrate(fitted.recognizer, known_train, level, spec, calibration_rng, scorer.arg)
+            scores = known_scores(fitted.recognizer, observations, scorer.arg, known)
             rows.append(OpenSetRow(
                 task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash, seed=seed,
-                observability=level, protocol=spec.label, held_out=json.dumps(list(hidden)), threshold=threshold,
-                n_observations=len(observations), fit_seconds_per_goal=fitted.seconds_per_goal,
-                config=planned.config, versions=job.versions, n_ties=metrics.n_tied(predicted),
-                **open_set_metrics(best, predicted, labels, threshold, len(known)),
+                observability=level, protocol=spec.label, held_out=json.dumps(list(hidden)),
+                fit_seconds_per_goal=fitted.seconds_per_goal, config=planned.config, versions=job.versions,
+                **unit_metrics(scores, labels, calibration),
             ))
+            if job.outputs is not None:
+                job.outputs.append(Outputs(rows[-1], {"y_true": labels, "scores": scores,
+                                                      "calibration": calibration}))
     return rows, fitted
 
 

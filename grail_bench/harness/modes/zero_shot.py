@@ -28,7 +28,7 @@ import json
 import time
 import zlib
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
@@ -39,6 +39,7 @@ from grail_bench.harness.modes.base import (
     WHO,
     Column,
     Mode,
+    Outputs,
     Record,
     Run,
     SeedRun,
@@ -125,38 +126,58 @@ def run(job: SeedRun) -> tuple[list[ZeroShotRow], Fitted]:
     start = time.perf_counter()
     fitted.recognizer.set_goals(task.goals)
     adapt_seconds = time.perf_counter() - start
-    is_hidden = np.array([g in hidden for g in task.goals])
+    held_out_index = [i for i, g in enumerate(task.goals) if g in hidden]
     labelled = [(i, traj) for i, goal in enumerate(task.goals) for traj in test[goal]]
     rows = []
     for level in spec.levels:
         rng = spec.rng(seed, level, "zero-shot")
         order = rng.permutation(len(labelled))
         observations = [(labelled[j][0], spec.observe(labelled[j][1], level, rng)) for j in order]
+        y_true = np.array([label for label, _ in observations])
         for scorer in planned.scorers:
-            y_true = np.array([label for label, _ in observations])
-            predicted, elapsed_ns = [], 0
+            scored, elapsed_ns = [], 0
             for _, observed in observations:
                 t0 = time.perf_counter_ns()
                 scores = fitted.recognizer.score(observed, scorer.arg)
                 elapsed_ns += time.perf_counter_ns() - t0
-                predicted.append(metrics.prediction(check_scores(planned.name, scores, task.goals)))
-            predicted = np.array(predicted)
-            confusion = metrics.expected_confusion(y_true, predicted, len(task.goals))
-            per_class = metrics.per_class_f1_of(confusion)
-            hit = predicted[np.arange(len(y_true)), y_true]  # each prediction's chance of being right
-            on_hidden = is_hidden[y_true]
+                scored.append(check_scores(planned.name, scores, task.goals))
             rows.append(ZeroShotRow(
                 task=task.id, recognizer=planned.name, scorer=scorer.label, config_hash=planned.config_hash, seed=seed,
                 observability=level, protocol=spec.label, held_out=json.dumps([list(g) for g in hidden]),
-                n_goals=len(task.goals), f1=float(per_class.mean()), accuracy=float(np.mean(hit)),
-                f1_held_out=float(per_class[is_hidden].mean()), f1_trained=float(per_class[~is_hidden].mean()),
-                accuracy_held_out=float(np.mean(hit[on_hidden])), accuracy_trained=float(np.mean(hit[~on_hidden])),
-                n_observations=len(observations), fit_seconds_per_goal=fitted.seconds_per_goal,
-                config=planned.config, versions=job.versions, n_ties=metrics.n_tied(predicted),
+                fit_seconds_per_goal=fitted.seconds_per_goal, config=planned.config, versions=job.versions,
                 adapt_seconds_per_goal=adapt_seconds / len(hidden),
                 score_us_per_observation=elapsed_ns / 1e3 / len(observations),
+                **unit_metrics(y_true, np.array(scored), held_out_index),
             ))
+            if job.outputs is not None:
+                job.outputs.append(Outputs(rows[-1], {"y_true": y_true, "scores": np.array(scored),
+                                                      "held_out": held_out_index}))
     return rows, fitted
+
+
+def unit_metrics(y_true: np.ndarray, scores: np.ndarray, held_out: Sequence[int]) -> dict[str, Any]:
+    """The metrics of one row from its per-instance outputs.
+
+    Args:
+        y_true: Each observation's true goal (index into the task's goals).
+        scores: Each observation's scores of every goal ``(N, K)``.
+        held_out: The indices of the goals held out of the fit.
+
+    Returns:
+        The :class:`ZeroShotRow` fields they determine: every metric and the counts.
+    """
+    y_true, scores = np.asarray(y_true, dtype=np.int64), np.asarray(scores, dtype=float)
+    n_goals = scores.shape[1]
+    is_hidden = np.isin(np.arange(n_goals), np.asarray(held_out, dtype=np.int64))
+    predicted = metrics.prediction(scores)
+    confusion = metrics.expected_confusion(y_true, predicted, n_goals)
+    per_class = metrics.per_class_f1_of(confusion)
+    hit = predicted[np.arange(len(y_true)), y_true]  # each prediction's chance of being right
+    on_hidden = is_hidden[y_true]
+    return dict(n_goals=n_goals, f1=float(per_class.mean()), accuracy=float(np.mean(hit)),
+                f1_held_out=float(per_class[is_hidden].mean()), f1_trained=float(per_class[~is_hidden].mean()),
+                accuracy_held_out=float(np.mean(hit[on_hidden])), accuracy_trained=float(np.mean(hit[~on_hidden])),
+                n_observations=len(y_true), n_ties=metrics.n_tied(predicted))
 
 
 def aggregate(rows: Iterable[ZeroShotRow]) -> list[ZeroShotRecord]:
