@@ -101,6 +101,8 @@ def fitted_config(task: GRTask, name: str, settings: Mapping[str, Any]) -> dict[
                        "n_demos": task.n_demos, "n_train": task.n_train}}
     if task.demos:  # demonstrations from a dataset: its content keys the results
         config["task"]["demos"] = source_digest(task.demos)
+    if task.test_params:  # shifted test demonstrations (unshifted configurations keep their hashes)
+        config["task"]["test"] = dict(task.test_params)
     return config
 
 
@@ -200,14 +202,14 @@ def fit_recognizer(task: GRTask, planned: Planned, seed: int, train: Demos, held
 
 
 def task_params(config_json: str) -> dict[str, Any]:
-    """The regime and env parameters a row was run with, and its demonstration counts (``{}`` for rows without
-    them)."""
+    """The regime, env and test parameters a row was run with, and its demonstration counts (``{}`` for rows
+    without them)."""
     try:
         task = json.loads(config_json).get("task", {})
     except (ValueError, AttributeError):
         return {}
     counts = {k: task[k] for k in ("n_demos", "n_train") if k in task}
-    return {**task.get("params", {}), **task.get("env", {}), **counts}
+    return {**task.get("params", {}), **task.get("env", {}), **task.get("test", {}), **counts}
 
 
 def recognizer_config(config_json: str) -> dict[str, Any]:
