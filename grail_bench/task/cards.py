@@ -67,7 +67,7 @@ ID_PATTERN = re.compile(r"^GRAIL/[A-Za-z0-9][A-Za-z0-9.\-]*-v\d+$")
 FILE_KEYS = {"domain", "description", "defaults", "task"}
 TASK_KEYS = {
     "id", "regime", "goals", "params", "env", "n_demos", "n_train",
-    "observability", "protocol", "rounding", "description", "demos", "goal_sets",
+    "observability", "protocol", "rounding", "description", "demos", "goal_sets", "test",
 }
 #: A ``goal_sets`` name: what it adds to the ID (``L1`` in ``GRAIL/X-L1-v0``).
 GOAL_SET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.]*$")
@@ -159,7 +159,7 @@ def _task(merged: dict[str, Any], domain: str, source: str, where: str, folder: 
             params=merged.get("params", {}), env_params=merged.get("env", {}), n_demos=merged["n_demos"],
             n_train=merged["n_train"], observability=merged["observability"], protocol=merged["protocol"],
             rounding=merged["rounding"], description=merged.get("description", ""), source=source,
-            demos=_demos_source(merged.get("demos", ""), folder),
+            demos=_demos_source(merged.get("demos", ""), folder), test_params=merged.get("test", {}),
         )
     except TaskFieldError as exc:
         raise _fail(source, f"{where}.{exc.field}", exc.why) from None

@@ -6,7 +6,8 @@ its regime's rule where a slip leaves it off the plan. A demonstration is then a
 ``(x, y, direction, action)`` pairs, the action recorded being the demonstrator's, whatever the room executed.
 :class:`SlipDemonstrator` enumerates every episode with its probability (every plan draw, every insertion
 pattern, every slip outcome), so its likelihood is exact; the episodes multiply with the horizon and the slip,
-so it is tractable on small rooms only and refuses, in one line, beyond :data:`MAX_EPISODES`.
+so it is tractable on small rooms and short horizons only and refuses, in one line, beyond
+:data:`MAX_BRANCHES`.
 """
 
 from __future__ import annotations
@@ -33,8 +34,9 @@ if TYPE_CHECKING:
 
 Pair = tuple[int, int, int, int]
 Episode = tuple[tuple[Pair, ...], int]  # the horizon's pairs, and how many of them lead up to the goal
-#: Most distinct episodes one goal's demonstrator enumerates before the ceiling is refused as intractable.
-MAX_EPISODES = 200_000
+#: Most branches (steps of partial episodes) one goal's demonstrator walks before the ceiling is refused as
+#: intractable (a few seconds).
+MAX_BRANCHES = 300_000
 
 
 class SlipDemonstrator:
@@ -45,7 +47,7 @@ class SlipDemonstrator:
         goal: One of its goals.
 
     Raises:
-        UserError: When its episodes exceed :data:`MAX_EPISODES`.
+        UserError: When its episodes take more than :data:`MAX_BRANCHES` steps to enumerate.
     """
 
     action_size = 1
@@ -66,6 +68,7 @@ class SlipDemonstrator:
         self.task, self.goal_arg = task, goal
         self.goal = (int(goal[0]), int(goal[1]))
         self.reach, _ = shortest_path_graph(self.model, self.goal)
+        self._plans: dict[State, list[tuple[tuple[int, ...], float]]] = {}
         self.episodes = self._enumerate()
         self._probs = np.array(list(self.episodes.values()))
         self._keys = list(self.episodes)
@@ -74,6 +77,11 @@ class SlipDemonstrator:
 
     def plans(self, state: State) -> list[tuple[tuple[int, ...], float]]:
         """Every plan the regime draws from ``state`` with its probability (see :func:`.demos.plan_from`)."""
+        if state not in self._plans:
+            self._plans[state] = self._draws(state)
+        return self._plans[state]
+
+    def _draws(self, state: State) -> list[tuple[tuple[int, ...], float]]:
         one = route(self.task, self.goal_arg, self.model, state)
         paths = [one] if one is not None else all_shortest_paths(self.model, state, self.goal)
         base = [(tuple(p), 1.0 / len(paths)) for p in paths]
@@ -95,20 +103,23 @@ class SlipDemonstrator:
     def _enumerate(self) -> dict[Episode, float]:
         """Every episode with its probability, by walking the closed loop's branches (plans and slips)."""
         out: dict[Episode, float] = {}
-        # (pairs so far, state, plan left, expected state, steps up to the goal or None, probability)
-        stack = [((), self.start, plan, None, None, p) for plan, p in self.plans(self.start)]
+        # (pairs so far as a linked list (earlier, pair), their count, state, plan left, expected state, steps up
+        # to the goal or None, probability)
+        stack = [(None, 0, self.start, plan, None, None, p) for plan, p in self.plans(self.start)]
+        walked = 0
         while stack:
-            pairs, state, plan, expect, reached, prob = stack.pop()
-            if len(pairs) == self.horizon:
-                key = (pairs, self.horizon if reached is None else reached)
+            walked += 1
+            if walked > MAX_BRANCHES:
+                raise UserError(f"{self.task.id}: the slipping demonstrator of goal {list(self.goal)} has too many "
+                                f"episodes to enumerate (over {MAX_BRANCHES:,} steps); its exact likelihood is for "
+                                "small rooms and short horizons")
+            pairs, t, state, plan, expect, reached, prob = stack.pop()
+            if t == self.horizon:
+                key = (_unlink(pairs), self.horizon if reached is None else reached)
                 out[key] = out.get(key, 0.0) + prob
-                if len(out) > MAX_EPISODES:
-                    raise UserError(f"{self.task.id}: the slipping demonstrator of goal {list(self.goal)} has more "
-                                    f"than {MAX_EPISODES:,} episodes; its exact likelihood is for small rooms")
                 continue
-            absorbed = state[:2] == self.goal or state[:2] in self.model.lava
-            if absorbed:  # the env stays put and no longer slips
-                stack.append(((*pairs, (*state, STAY)), state, plan, None, reached, prob))
+            if state[:2] == self.goal or state[:2] in self.model.lava:  # absorbed: no move, no slip
+                stack.append(((pairs, (*state, STAY)), t + 1, state, plan, None, reached, prob))
                 continue
             branches = [(plan, 1.0)]
             if state not in self.reach:
@@ -119,8 +130,9 @@ class SlipDemonstrator:
                 action = left[0] if left else STAY
                 nxt_expect = self.model.step(state, action)
                 for nxt, p in self.model.transition(state, action, self.slip).items():
-                    hit = reached if reached is not None else (len(pairs) + 1 if nxt[:2] == self.goal else None)
-                    stack.append(((*pairs, (*state, action)), nxt, left[1:], nxt_expect, hit, prob * share * p))
+                    hit = reached if reached is not None else (t + 1 if nxt[:2] == self.goal else None)
+                    stack.append(((pairs, (*state, action)), t + 1, nxt, left[1:], nxt_expect, hit,
+                                  prob * share * p))
         return out
 
     # -- the GoalModel protocol ------------------------------------------------------------------------------
@@ -147,6 +159,15 @@ class SlipDemonstrator:
         """Probability that this goal's demonstrator yields ``observation`` under the protocol."""
         return sum(p * observation_prob(self.span(e, selection), observation, selection)
                    for e, p in self.episodes.items())
+
+
+def _unlink(pairs: tuple | None) -> tuple[Pair, ...]:
+    """The pairs of a linked list ``(earlier, pair)``, in order."""
+    out = []
+    while pairs is not None:
+        pairs, pair = pairs
+        out.append(pair)
+    return tuple(reversed(out))
 
 
 def observation_prob(span: tuple, observation: tuple, selection: Selection) -> float:
