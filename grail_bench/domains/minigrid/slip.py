@@ -13,6 +13,7 @@ so it is tractable on small rooms and short horizons only and refuses, in one li
 from __future__ import annotations
 
 import itertools
+import json
 from math import comb
 from typing import TYPE_CHECKING, Iterator
 
@@ -35,8 +36,9 @@ if TYPE_CHECKING:
 Pair = tuple[int, int, int, int]
 Episode = tuple[tuple[Pair, ...], int]  # the horizon's pairs, and how many of them lead up to the goal
 #: Most branches (steps of partial episodes) one goal's demonstrator walks before the ceiling is refused as
-#: intractable (a few seconds).
-MAX_BRANCHES = 300_000
+#: intractable (about two seconds; a refusal is remembered for the rest of the process).
+MAX_BRANCHES = 100_000
+_refused: dict[str, str] = {}  # the demonstrators found intractable, by key: their refusal
 
 
 class SlipDemonstrator:
@@ -69,7 +71,15 @@ class SlipDemonstrator:
         self.goal = (int(goal[0]), int(goal[1]))
         self.reach, _ = shortest_path_graph(self.model, self.goal)
         self._plans: dict[State, list[tuple[tuple[int, ...], float]]] = {}
-        self.episodes = self._enumerate()
+        key = json.dumps([task.regime, task.params, task.env_params, task.test_params, self.goal, MAX_BRANCHES],
+                         sort_keys=True, default=str)
+        if key in _refused:
+            raise UserError(_refused[key])
+        try:
+            self.episodes = self._enumerate()
+        except UserError as exc:
+            _refused[key] = str(exc)
+            raise
         self._probs = np.array(list(self.episodes.values()))
         self._keys = list(self.episodes)
 
