@@ -187,6 +187,23 @@ def test_bad_shifts_are_refused_in_one_line(params, why):
     assert "\n" not in str(info.value)
 
 
+def test_gym_make_takes_the_test_parameters():
+    import gymnasium as gym
+
+    env = gym.make("GRAIL/MiniGrid-Optimal-v0", test_slip=0.1)
+    assert env.unwrapped.task.test_params == {"test_slip": 0.1}
+    assert env.unwrapped.slip == 0.0  # the env a recognizer (or a user) builds keeps the task's dynamics
+    env.close()
+
+
+def test_a_dataset_task_refuses_a_shift():
+    import dataclasses
+
+    task = dataclasses.replace(make_task("GRAIL/MiniGrid-Optimal-v0"), test_params={"test_slip": 0.1})
+    with pytest.raises(UserError, match="generated ones only"):
+        dataclasses.replace(task, demos="some/dataset-v0")
+
+
 # -- Bayes ceilings under the shift ----------------------------------------------------------------------------------
 
 class _Outcomes:
@@ -319,3 +336,30 @@ def test_large_slipping_rooms_have_no_ceiling_but_say_why(monkeypatch):
     task = make_task("GRAIL/MiniGrid-Optimal-v0").with_overrides(test_slip=0.1)
     with pytest.raises(UserError, match="small rooms"):
         bayes_ceiling(task, "prefix", 0.1)
+
+
+@pytest.mark.parametrize("regime, params", [("optimal", {"route_choice": "uniform"}),
+                                            ("suboptimal", {"turn_prob": 0.5})])
+def test_slipping_demonstrator_probabilities_match_the_generator(regime, params):
+    from grail_bench.domains.minigrid.slip import SlipDemonstrator
+
+    tiny = _tiny()
+    task = GRTask(id="GRAIL/Tiny-v0", domain="minigrid", regime=regime, goals=tiny.goals, params=params,
+                  env_params={**tiny.env_params, "max_steps": 4}, n_demos=4, n_train=2,
+                  test_params={"test_slip": 0.25}).test_task()
+    goal, n = task.goals[1], 3000
+    exact = SlipDemonstrator(task, goal).episodes
+    assert sum(exact.values()) == pytest.approx(1.0)
+    demos = task.spec.generate_demos(task, goal, n, np.random.default_rng(7))
+    counts: dict = defaultdict(int)
+    for traj in demos:
+        pairs = tuple((*map(int, o), int(a)) for o, a in zip(traj.obs[:-1], traj.acts))
+        reached = next((t + 1 for t, info in enumerate(traj.infos) if info["is_success"]), len(traj.acts))
+        counts[(pairs, reached)] += 1
+    assert set(counts) <= set(exact)  # the generator plays nothing the enumeration misses
+    likely = sorted(exact, key=exact.get, reverse=True)[:30]  # each on its own, the rare rest together
+    groups = [([e], exact[e]) for e in likely] + [([e for e in exact if e not in likely],
+                                                   1.0 - sum(exact[e] for e in likely))]
+    for episodes, p in groups:
+        freq = sum(counts[e] for e in episodes) / n
+        assert abs(freq - p) <= 5 * math.sqrt(p * (1 - p) / n) + 1 / n

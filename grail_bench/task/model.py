@@ -232,6 +232,9 @@ class GRTask:
         object.__setattr__(self, "test_params", shift)
         if not shift:
             return
+        if self.demos:
+            raise TaskFieldError("test", f"the demonstrations come from the dataset {self.demos}; test "
+                                         "parameters shift generated ones only")
         _check_bounds("test.", shift, getattr(self.spec, "bounds", None) or {})
         regime = shift.get("test_regime", self.regime)
         if not isinstance(regime, str) or regime not in self.spec.regimes:

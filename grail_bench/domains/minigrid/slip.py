@@ -12,7 +12,6 @@ so it is tractable on small rooms and short horizons only and refuses, in one li
 
 from __future__ import annotations
 
-import itertools
 import json
 from math import comb
 from typing import TYPE_CHECKING, Iterator
@@ -20,12 +19,7 @@ from typing import TYPE_CHECKING, Iterator
 import numpy as np
 
 from grail_bench.core.errors import UserError
-from grail_bench.domains.minigrid.demos import (
-    all_shortest_paths,
-    route,
-    shortest_path_graph,
-    test_env,
-)
+from grail_bench.domains.minigrid.demos import optimal_successors, route, shortest_path_graph, test_env
 from grail_bench.domains.minigrid.grid import STAY, TURN_PATTERNS, GridModel, State
 from grail_bench.task.observation import Selection, n_observed
 
@@ -69,8 +63,11 @@ class SlipDemonstrator:
                             "episodes (fixed_horizon = true)")
         self.task, self.goal_arg = task, goal
         self.goal = (int(goal[0]), int(goal[1]))
-        self.reach, _ = shortest_path_graph(self.model, self.goal)
-        self._plans: dict[State, list[tuple[tuple[int, ...], float]]] = {}
+        self.dist, self.count = shortest_path_graph(self.model, self.goal)
+        self.reach = self.dist
+        suboptimal = task.regime == "suboptimal"
+        self.turn_prob = float(task.params["turn_prob"]) if suboptimal else 0.0
+        self.patterns = TURN_PATTERNS[task.params["turn_pattern"]] if suboptimal else ()
         key = json.dumps([task.regime, task.params, task.env_params, task.test_params, self.goal, MAX_BRANCHES],
                          sort_keys=True, default=str)
         if key in _refused:
@@ -83,39 +80,43 @@ class SlipDemonstrator:
         self._probs = np.array(list(self.episodes.values()))
         self._keys = list(self.episodes)
 
-    # -- the closed-loop demonstrator's plans ----------------------------------------------------------------
+    # -- the closed-loop demonstrator, its draws made when they are needed ------------------------------------
+    # Drawing a plan whole (a shortest path, then an insertion before each of its actions) and drawing each piece
+    # as the demonstrator reaches it give the same distribution: the path's next action uniformly among shortest
+    # paths is each optimal successor weighted by the shortest paths through it, and the insertions are drawn
+    # independently per action. Drawn lazily, the branches stay few.
 
-    def plans(self, state: State) -> list[tuple[tuple[int, ...], float]]:
-        """Every plan the regime draws from ``state`` with its probability (see :func:`.demos.plan_from`)."""
-        if state not in self._plans:
-            self._plans[state] = self._draws(state)
-        return self._plans[state]
-
-    def _draws(self, state: State) -> list[tuple[tuple[int, ...], float]]:
+    def fresh(self, state: State) -> tuple[tuple[int, ...] | None, tuple[int, ...], bool]:
+        """The demonstrator's plan state from ``state``: its one route (None: drawn step by step), no turns
+        pending, the insertion before its next action not drawn yet."""
         one = route(self.task, self.goal_arg, self.model, state)
-        paths = [one] if one is not None else all_shortest_paths(self.model, state, self.goal)
-        base = [(tuple(p), 1.0 / len(paths)) for p in paths]
-        if self.task.regime != "suboptimal":
-            return base
-        turn_prob = float(self.task.params["turn_prob"])
-        patterns = TURN_PATTERNS[self.task.params["turn_pattern"]]
-        options = [((), 1.0 - turn_prob)] * (turn_prob < 1.0) + [(p, turn_prob / len(patterns)) for p in patterns]
-        out: dict[tuple[int, ...], float] = {}
-        for path, weight in base:
-            for choice in itertools.product(options, repeat=len(path)):
-                plan = tuple(a for (turns, _), action in zip(choice, path) for a in (*turns, action))
-                prob = weight
-                for _, share in choice:
-                    prob *= share
-                out[plan] = out.get(plan, 0.0) + prob
-        return list(out.items())
+        return (tuple(one) if one is not None else None), (), False
+
+    def _actions(self, state: State, base: tuple[int, ...] | None, pending: tuple[int, ...],
+                 drawn: bool) -> list[tuple[int, tuple[int, ...] | None, tuple[int, ...], bool, float]]:
+        """The demonstrator's next action from a plan state, each with the plan state after it and its
+        probability."""
+        if pending:
+            return [(pending[0], base, pending[1:], True, 1.0)]
+        if not drawn and self.patterns:
+            out = [] if self.turn_prob == 1.0 else self._actions(state, base, (), True)
+            out = [(a, b, q, d, p * (1.0 - self.turn_prob)) for a, b, q, d, p in out]
+            share = self.turn_prob / len(self.patterns)
+            return out + [(pattern[0], base, tuple(pattern[1:]), True, share) for pattern in self.patterns]
+        if base is not None:
+            return [(base[0], base[1:], (), False, 1.0)] if base else [(STAY, base, (), False, 1.0)]
+        if self.dist[state] == 0:
+            return [(STAY, None, (), False, 1.0)]
+        succ = optimal_successors(self.model, self.dist, state)
+        total = sum(self.count[s] for s in succ.values())
+        return [(a, None, (), False, self.count[s] / total) for a, s in sorted(succ.items())]
 
     def _enumerate(self) -> dict[Episode, float]:
-        """Every episode with its probability, by walking the closed loop's branches (plans and slips)."""
+        """Every episode with its probability, by walking the closed loop's branches (draws and slips)."""
         out: dict[Episode, float] = {}
-        # (pairs so far as a linked list (earlier, pair), their count, state, plan left, expected state, steps up
-        # to the goal or None, probability)
-        stack = [(None, 0, self.start, plan, None, None, p) for plan, p in self.plans(self.start)]
+        # (pairs so far as a linked list (earlier, pair), their count, state, plan state, expected state,
+        # steps up to the goal or None, probability)
+        stack = [(None, 0, self.start, self.fresh(self.start), None, None, 1.0)]
         walked = 0
         while stack:
             walked += 1
@@ -128,20 +129,16 @@ class SlipDemonstrator:
                 key = (_unlink(pairs), self.horizon if reached is None else reached)
                 out[key] = out.get(key, 0.0) + prob
                 continue
-            if state[:2] == self.goal or state[:2] in self.model.lava:  # absorbed: no move, no slip
+            if state[:2] == self.goal or state not in self.reach:  # at the goal or in lava: absorbed, no slip
                 stack.append(((pairs, (*state, STAY)), t + 1, state, plan, None, reached, prob))
                 continue
-            branches = [(plan, 1.0)]
-            if state not in self.reach:
-                branches = [((), 1.0)]
-            elif expect is not None and state != expect:  # a slip left the plan: plan anew from here
-                branches = self.plans(state)
-            for left, share in branches:
-                action = left[0] if left else STAY
+            if expect is not None and state != expect:  # a slip left the plan: plan anew from here
+                plan = self.fresh(state)
+            for action, base, pending, drawn, share in self._actions(state, *plan):
                 nxt_expect = self.model.step(state, action)
                 for nxt, p in self.model.transition(state, action, self.slip).items():
                     hit = reached if reached is not None else (t + 1 if nxt[:2] == self.goal else None)
-                    stack.append(((pairs, (*state, action)), t + 1, nxt, left[1:], nxt_expect, hit,
+                    stack.append(((pairs, (*state, action)), t + 1, nxt, (base, pending, drawn), nxt_expect, hit,
                                   prob * share * p))
         return out
 
