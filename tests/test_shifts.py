@@ -363,3 +363,17 @@ def test_slipping_demonstrator_probabilities_match_the_generator(regime, params)
     for episodes, p in groups:
         freq = sum(counts[e] for e in episodes) / n
         assert abs(freq - p) <= 5 * math.sqrt(p * (1 - p) / n) + 1 / n
+
+
+def test_cli_ceiling_names_the_shift_and_refuses_a_bad_one_in_one_line():
+    from typer.testing import CliRunner
+
+    from grail_bench.cli import app
+
+    env = {"COLUMNS": "200"}
+    ok = CliRunner().invoke(app, ["ceiling", "-t", "GRAIL/MiniGrid-Optimal-v0", "-p", "prefix", "-o", "0.3",
+                                  "--param", "test_obstacles=[[4, 4]]"], env=env)
+    assert ok.exit_code == 0, ok.output
+    assert "test_obstacles=[[4, 4]]" in ok.output
+    bad = CliRunner().invoke(app, ["ceiling", "-t", "GRAIL/MiniGrid-Optimal-v0", "--param", "test_slip=2"], env=env)
+    assert bad.exit_code == 2 and bad.output.count("\n") == 1 and "test_slip: 2 is out of range" in bad.output
