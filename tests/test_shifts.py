@@ -67,17 +67,21 @@ def test_recognizer_envs_refuse_the_tables_of_a_slipping_room():
         GRMiniGridEnv((7, 1), slip=0.1).tabular_dynamics()
 
 
-def test_point_maze_action_scale_executes_the_scaled_action():
-    from grail_bench.domains.point_maze import DOMAIN
-
-    task = make_task("GRAIL/PointMaze-Biased-v0")
-    scaled = DOMAIN.make_env(task.goals[0], **task.env_params, action_scale=0.5)
-    plain = DOMAIN.make_env(task.goals[0], **task.env_params)
-    a, b = scaled.reset(seed=0)[0], plain.reset(seed=0)[0]
-    for action in ([0.8, -0.4], [1.0, 1.0], [-0.6, 0.2]):
+@pytest.mark.parametrize("task_id, actions", [
+    ("GRAIL/PointMaze-Biased-v0", ([0.8, -0.4], [1.0, 1.0], [-0.6, 0.2])),
+    ("GRAIL/PandaReach-Optimal-v0", ([0.8, -0.4, 0.2], [1.0, 1.0, -1.0], [-0.6, 0.2, 0.0])),
+])
+def test_action_scale_executes_the_scaled_action(task_id, actions):
+    task = make_task(task_id)
+    scaled = task.spec.make_env(task.goals[0], **task.env_params, action_scale=0.5)
+    plain = task.spec.make_env(task.goals[0], **task.env_params)
+    scaled.reset(seed=0), plain.reset(seed=0)
+    for action in actions:
         a = scaled.step(np.array(action, dtype=np.float32))[0]
         b = plain.step(0.5 * np.array(action, dtype=np.float32))[0]
         np.testing.assert_allclose(a, b, atol=1e-6)
+    moved = plain.step(np.array(actions[0], dtype=np.float32))[0]
+    assert not np.allclose(scaled.step(np.array(actions[0], dtype=np.float32))[0], moved)  # the scale matters
     scaled.close(), plain.close()
 
 
