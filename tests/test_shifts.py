@@ -136,6 +136,12 @@ def test_the_cross_regime_needs_its_regimes_parameters():
         task.with_overrides(test_regime="biased")
     biased = task.with_overrides(test_regime="biased", test_regime_params={"routes": ["NE", "ES"]})
     assert biased.test_task().params == {"routes": ["NE", "ES"]}
+    overrides = biased.overrides_against(task)  # as a stored run records it, and reads it back
+    assert overrides.label() == 'test_regime="biased" test_regime_params={"routes": ["NE", "ES"]}'
+    assert task.with_overrides(**overrides.as_dict()) == biased
+    from grail_bench.task.overrides import TaskOverrides
+
+    assert TaskOverrides.from_json(overrides.to_json()) == overrides
 
 
 def test_cached_training_demonstrations_are_shared_with_the_unshifted_task(monkeypatch):
