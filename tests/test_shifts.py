@@ -387,3 +387,14 @@ def test_cli_ceiling_names_the_shift_and_refuses_a_bad_one_in_one_line():
     assert "test_obstacles=[[4, 4]]" in ok.output
     bad = CliRunner().invoke(app, ["ceiling", "-t", "GRAIL/MiniGrid-Optimal-v0", "--param", "test_slip=2"], env=env)
     assert bad.exit_code == 2 and bad.output.count("\n") == 1 and "test_slip: 2 is out of range" in bad.output
+
+
+def test_a_card_sets_test_parameters_in_its_test_table():
+    from grail_bench.task.cards import parse_card
+
+    text = ('domain = "minigrid"\n[[task]]\nid = "GRAIL/Mine-v0"\nregime = "optimal"\ngoals = [[7, 1], [7, 7]]\n'
+            'test = { test_slip = 0.1, test_regime = "suboptimal" }\n')
+    (task,) = parse_card(text, "mine.toml")
+    assert task.test_params == {"test_slip": 0.1, "test_regime": "suboptimal"}
+    with pytest.raises(UserError, match=r"mine.toml: .*test.test_slip"):
+        parse_card(text.replace("0.1", "7"), "mine.toml")

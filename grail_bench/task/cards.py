@@ -18,7 +18,9 @@ parameters), ``env`` (env parameters), ``n_demos``, ``n_train``,
 ``observability``, ``protocol``, ``rounding``, ``description``, and ``demos``:
 a Minari dataset to take the demonstrations from instead of the generator (a
 folder, relative to the card's folder, or a dataset ID; read when the task is
-made, see :mod:`grail_bench.task.demos`).
+made, see :mod:`grail_bench.task.demos`), and ``test``: test parameters, which
+change the test demonstrations only (``test = { test_slip = 0.1 }``, see
+:meth:`~grail_bench.task.model.GRTask.test_task`).
 
 ``goal_sets`` names smaller goal sets of the same task: a table ``{ name = [goal, ...], ... }``, each set
 drawn from the block's ``goals`` in any order, that adds one task per entry, equal to the block's but for its
