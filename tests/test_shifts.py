@@ -339,11 +339,11 @@ def test_ceiling_with_moved_obstacles_uses_the_test_room():
     assert a != b
 
 
-def test_large_slipping_rooms_have_no_ceiling_but_say_why(monkeypatch):
+def test_large_slipping_rooms_of_other_regimes_have_no_ceiling_but_say_why(monkeypatch):
     from grail_bench.domains.minigrid import slip
 
     monkeypatch.setattr(slip, "MAX_BRANCHES", 20_000)  # the same refusal, sooner
-    task = make_task("GRAIL/MiniGrid-Optimal-v0").with_overrides(test_slip=0.1)
+    task = make_task("GRAIL/MiniGrid-Suboptimal-v1").with_overrides(test_slip=0.1)  # not Markov: no DP either
     with pytest.raises(UserError, match="small rooms"):
         bayes_ceiling(task, "prefix", 0.1)
 
@@ -398,3 +398,40 @@ def test_a_card_sets_test_parameters_in_its_test_table():
     assert task.test_params == {"test_slip": 0.1, "test_regime": "suboptimal"}
     with pytest.raises(UserError, match=r"mine.toml: .*test.test_slip"):
         parse_card(text.replace("0.1", "7"), "mine.toml")
+
+
+@pytest.mark.parametrize("params", [{"route_choice": "uniform"}, {"routes": ["NE", "ES"]}])
+@pytest.mark.parametrize("protocol", sorted(BUILTIN))
+def test_markov_slipping_likelihood_is_the_enumerated_one(params, protocol):
+    from grail_bench.domains.minigrid.slip import MarkovSlipDemonstrator, SlipDemonstrator
+    from grail_bench.harness.ceiling import _selection
+
+    tiny = _tiny()
+    regime = "biased" if "routes" in params else "optimal"
+    task = GRTask(id="GRAIL/Tiny-v0", domain="minigrid", regime=regime, goals=tiny.goals, params=params,
+                  env_params=tiny.env_params, n_demos=4, n_train=2, test_params={"test_slip": 0.2}).test_task()
+    selection = _selection(protocol, 0.4, "ceil")
+    for goal in task.goals:
+        exact, markov = SlipDemonstrator(task, goal), MarkovSlipDemonstrator(task, goal)
+        seen: dict = defaultdict(float)
+        for episode, p in exact.support():
+            for obs, q in exact.observations(episode, selection):
+                seen[obs] += p * q
+        for obs, p in seen.items():
+            assert markov.likelihood(obs, selection) == pytest.approx(p, abs=1e-12)
+        rng = np.random.default_rng(0)
+        drawn = [markov.sample_observation(rng, selection) for _ in range(200)]
+        assert all(obs in seen for obs in drawn)
+
+
+def test_large_slipping_rooms_get_a_monte_carlo_ceiling(monkeypatch):
+    from grail_bench.domains.minigrid import slip
+
+    tiny = _tiny(route_choice="uniform", test_slip=0.2)
+    exact = bayes_ceiling(tiny, "subset", 0.4, method="exact")
+    monkeypatch.setattr(slip, "MAX_BRANCHES", 50)  # too large to enumerate: the dynamic programme's likelihood
+    estimate = bayes_ceiling(tiny, "subset", 0.4, samples=4000)
+    assert estimate.method == "monte-carlo" and exact.method == "exact"
+    assert abs(estimate.accuracy - exact.accuracy) < 4 * estimate.stderr + 1e-9
+    room = make_task("GRAIL/MiniGrid-Optimal-v0").with_overrides(test_slip=0.2)
+    assert bayes_ceiling(room, "prefix", 0.3, samples=100).method == "monte-carlo"

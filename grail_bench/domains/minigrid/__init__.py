@@ -97,9 +97,14 @@ class MiniGrid:
 
     def demonstrator(self, task: GRTask, goal: Goal):
         if task.test_params.get("test_slip"):
-            from grail_bench.domains.minigrid.slip import SlipDemonstrator
+            from grail_bench.domains.minigrid.slip import MarkovSlipDemonstrator, SlipDemonstrator, markov
 
-            return SlipDemonstrator(task, goal)
+            try:
+                return SlipDemonstrator(task, goal)  # every episode enumerated: an exact ceiling
+            except UserError:
+                if not markov(task):
+                    raise
+                return MarkovSlipDemonstrator(task, goal)  # its likelihood exact still: a Monte Carlo ceiling
         from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
 
         return GoalDemonstrator(task, goal)

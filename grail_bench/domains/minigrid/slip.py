@@ -7,7 +7,9 @@ its regime's rule where a slip leaves it off the plan. A demonstration is then a
 :class:`SlipDemonstrator` enumerates every episode with its probability (every plan draw, every insertion
 pattern, every slip outcome), so its likelihood is exact; the episodes multiply with the horizon and the slip,
 so it is tractable on small rooms and short horizons only and refuses, in one line, beyond
-:data:`MAX_BRANCHES`.
+:data:`MAX_BRANCHES`. Where the demonstrator acts by its state alone (``optimal`` drawing paths uniformly,
+``biased``), :class:`MarkovSlipDemonstrator` gives the same likelihood in any room by dynamic programming
+(the Monte Carlo ceiling's); the others have no ceiling beyond the enumeration.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ if TYPE_CHECKING:
     from grail_bench.core.trajectory import Goal
     from grail_bench.task.model import GRTask
 
+N_ACTIONS = 4
 Pair = tuple[int, int, int, int]
 Episode = tuple[tuple[Pair, ...], int]  # the horizon's pairs, and how many of them lead up to the goal
 #: Most branches (steps of partial episodes) one goal's demonstrator walks before the ceiling is refused as
@@ -129,12 +132,16 @@ class SlipDemonstrator:
                 key = (_unlink(pairs), self.horizon if reached is None else reached)
                 out[key] = out.get(key, 0.0) + prob
                 continue
-            if state[:2] == self.goal or state not in self.reach:  # at the goal or in lava: absorbed, no slip
+            if state[:2] == self.goal or state[:2] in self.model.lava:  # absorbed: no move, no slip
                 stack.append(((pairs, (*state, STAY)), t + 1, state, plan, None, reached, prob))
                 continue
             if expect is not None and state != expect:  # a slip left the plan: plan anew from here
                 plan = self.fresh(state)
-            for action, base, pending, drawn, share in self._actions(state, *plan):
+            if state in self.reach:
+                actions = self._actions(state, *plan)
+            else:  # cut off from the goal: the demonstrator stays (the room may still slip)
+                actions = [(STAY, *plan, 1.0)]
+            for action, base, pending, drawn, share in actions:
                 nxt_expect = self.model.step(state, action)
                 for nxt, p in self.model.transition(state, action, self.slip).items():
                     hit = reached if reached is not None else (t + 1 if nxt[:2] == self.goal else None)
@@ -191,3 +198,118 @@ def observation_prob(span: tuple, observation: tuple, selection: Selection) -> f
             if observation[j - 1] == pair:
                 ways[j] += ways[j - 1]
     return ways[k] / comb(n, k)
+
+
+class MarkovSlipDemonstrator:
+    """A demonstrator whose action depends on its state only (``optimal`` drawing its paths uniformly,
+    ``biased``) in the slipping test room, for rooms too large to enumerate: its likelihood is exact, by
+    dynamic programming over time, state and observed pairs matched (the Monte Carlo ceiling's).
+
+    In these regimes planning anew after a slip is acting by the same policy from the new state: the next
+    action of a uniformly drawn shortest path is each optimal successor weighted by the shortest paths through
+    it, and the route a heading order prefers from a state on it continues that route.
+
+    Args:
+        task: A MiniGrid task whose test parameters set ``test_slip``, in a Markov regime (see :func:`markov`).
+        goal: One of its goals.
+    """
+
+    action_size = 1
+    enumerable = False
+
+    def __init__(self, task: GRTask, goal: Goal) -> None:
+        env = test_env(task, goal)
+        base = env.unwrapped
+        model: GridModel = base.model
+        self.start: State = (*base.start, base.start_dir)
+        self.horizon = int(base.max_steps)
+        slip = float(base.slip)
+        env.close()
+        g = (int(goal[0]), int(goal[1]))
+        dist, count = shortest_path_graph(model, g)
+        self.states = model.states()
+        self.index = {s: i for i, s in enumerate(self.states)}
+        n = len(self.states)
+        self.policy = np.zeros((n, N_ACTIONS))
+        self.moves = np.zeros((N_ACTIONS, n, n))  # moves[a, s, s']: the room's transition
+        self.goal_states = np.array([s[:2] == g for s in self.states])
+        for i, s in enumerate(self.states):
+            absorbed = s[:2] == g or s[:2] in model.lava
+            if absorbed or s not in dist:
+                self.policy[i, STAY] = 1.0
+            else:
+                one = route(task, goal, model, s)
+                if one is not None:
+                    self.policy[i, one[0]] = 1.0
+                else:
+                    succ = optimal_successors(model, dist, s)
+                    total = sum(count[t] for t in succ.values())
+                    for a, t in succ.items():
+                        self.policy[i, a] = count[t] / total
+            for a in range(N_ACTIONS):
+                outcomes = {s: 1.0} if absorbed else model.transition(s, a, slip)
+                for t, p in outcomes.items():
+                    self.moves[a, i, self.index[t]] += p
+
+    def _episode(self, rng: np.random.Generator) -> Episode:
+        """One episode drawn as the closed-loop demonstrator plays it."""
+        i, pairs, reached = self.index[self.start], [], None
+        for t in range(self.horizon):
+            a = int(rng.choice(N_ACTIONS, p=self.policy[i]))
+            pairs.append((*self.states[i], a))
+            i = int(rng.choice(len(self.states), p=self.moves[a, i]))
+            if reached is None and self.goal_states[i]:
+                reached = t + 1
+        return tuple(pairs), self.horizon if reached is None else reached
+
+    def sample_observation(self, rng: np.random.Generator, selection: Selection) -> tuple:
+        """An episode and then its observation, drawn as the harness draws them."""
+        pairs, reached = self._episode(rng)
+        return selection.sample(pairs if selection.horizon else pairs[:reached], rng)
+
+    def likelihood(self, observation: tuple, selection: Selection) -> float:
+        """Probability that this goal's demonstrator yields ``observation`` under the protocol."""
+        k = len(observation)
+        observed = []
+        for pair in observation:
+            state = tuple(int(c) for c in pair[:3])
+            if state not in self.index:
+                return 0.0
+            observed.append((self.index[state], int(pair[3])))
+        mass = np.zeros((len(self.states), k + 1))  # probability x ways the pairs so far spell the first j
+        mass[self.index[self.start], 0] = 1.0
+        total = 0.0
+
+        def ends(n: int, m: np.ndarray) -> float:
+            """What spans of ``n`` pairs, with ``m`` their mass, add to the likelihood."""
+            if n_observed(selection.level, n, selection.rounding) != k:
+                return 0.0
+            return float(m[:, k].sum()) / (comb(n, k) if selection.random_subset else 1)
+
+        for t in range(self.horizon):
+            nxt = np.zeros_like(mass)
+            for a in range(N_ACTIONS):
+                acted = mass * self.policy[:, a:a + 1]
+                if selection.random_subset:
+                    emitted = acted.copy()
+                    for j, (s, b) in enumerate(observed):
+                        if b == a:
+                            emitted[s, j + 1] += acted[s, j]
+                elif t < k:  # a prefix: pair t must be observed pair t
+                    emitted = np.zeros_like(acted)
+                    s, b = observed[t]
+                    if b == a:
+                        emitted[s, t + 1] = acted[s, t]
+                else:
+                    emitted = acted
+                nxt += self.moves[a].T @ emitted
+            if not selection.horizon:  # the span ends where the goal is reached
+                total += ends(t + 1, nxt[self.goal_states])
+                nxt[self.goal_states] = 0.0
+            mass = nxt
+        return total + ends(self.horizon, mass)
+
+
+def markov(task: GRTask) -> bool:
+    """Whether the task's demonstrator acts by its state alone (see :class:`MarkovSlipDemonstrator`)."""
+    return task.regime == "biased" or (task.regime == "optimal" and task.params.get("route_choice") != "fixed")
