@@ -250,6 +250,9 @@ class MarkovSlipDemonstrator:
                 outcomes = {s: 1.0} if absorbed else model.transition(s, a, slip)
                 for t, p in outcomes.items():
                     self.moves[a, i, self.index[t]] += p
+        from scipy.sparse import csr_matrix
+
+        self._moved_by = [csr_matrix(self.moves[a].T) for a in range(N_ACTIONS)]  # a few successors per state
 
     def _episode(self, rng: np.random.Generator) -> Episode:
         """One episode drawn as the closed-loop demonstrator plays it."""
@@ -302,7 +305,7 @@ class MarkovSlipDemonstrator:
                         emitted[s, t + 1] = acted[s, t]
                 else:
                     emitted = acted
-                nxt += self.moves[a].T @ emitted
+                nxt += self._moved_by[a] @ emitted
             if not selection.horizon:  # the span ends where the goal is reached
                 total += ends(t + 1, nxt[self.goal_states])
                 nxt[self.goal_states] = 0.0
