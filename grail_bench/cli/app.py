@@ -646,7 +646,8 @@ def ceiling(
             results = [bayes_ceiling(gr_task, spec.protocol, level, rounding=spec.rounding, method=method,
                                      samples=samples, seed=seed, pairs_only=pairs_only, noise=noise, channel=channel)
                        for level in spec.levels]
-        console.print(ceiling_table(task, results))
+        variant = gr_task.overrides_against(make_task(task)).label()  # e.g. test_slip=0.1
+        console.print(ceiling_table(f"{task} ({variant})" if variant else task, results))
         if json_path is not None:
             write_text(json_path, json.dumps([c.as_dict() for c in results], indent=2) + "\n", "ceilings")
 

@@ -135,8 +135,11 @@ def normalised(score: float, ceiling: float, chance: float) -> float | None:
 
 
 def has_ceiling(task: GRTask) -> bool:
-    """Whether the task's demonstrator has a known likelihood."""
-    return task.regime in task.spec.ceiling_regimes
+    """Whether the demonstrator of the task's test demonstrations has a known likelihood: its test regime's,
+    under the shifts of the dynamics the domain's likelihood takes exactly (its ``ceiling_shifts``)."""
+    test = task.test_task()
+    exact = getattr(task.spec, "ceiling_shifts", frozenset())
+    return test.regime in task.spec.ceiling_regimes and set(test.test_params) <= set(exact)
 
 
 def _selection(protocol: str, level: float, rounding: str) -> Selection:
@@ -252,9 +255,11 @@ PLAIN = ObservationModel()
 def _demonstrators(task: GRTask) -> list[GoalModel]:
     if not has_ceiling(task):
         known = ", ".join(task.spec.ceiling_regimes) or "none"
+        shifts = ", ".join(sorted(getattr(task.spec, "ceiling_shifts", ()))) or "none"
         raise UserError(f"{task.id}: the Bayes ceiling needs a demonstrator with a known likelihood; "
-                        f"{task.domain} has one for these regimes: {known}")
-    return [task.spec.demonstrator(task, goal) for goal in task.goals]
+                        f"{task.domain} has one for these regimes: {known} (and these test shifts: {shifts})")
+    test = task.test_task()  # the test demonstrations' demonstrator: what a recognizer is judged on
+    return [task.spec.demonstrator(test, goal) for goal in task.goals]
 
 
 def _exact_size(demonstrators: list, selection, model: ObservationModel = PLAIN) -> int | None:
@@ -393,6 +398,7 @@ def _cache_path(task: GRTask, label: str, level: float, samples: int,
            "params": dict(task.params), "env": dict(task.env_params), "protocol": label, "level": level,
            "samples": samples, "seed": CACHED_SEED, "schema": 1,
            "domain": task.domain} | ({"pairs_only": True} if pairs_only else {})
+    key |= {"test": dict(task.test_params)} if task.test_params else {}  # unshifted ceilings keep their keys
     generator = int(getattr(task.spec, "generator_version", 1))
     key |= {"generator": generator} if generator != 1 else {}  # a domain's new demonstrator: new ceilings
     return key, cache_dir() / "ceilings" / f"{key_digest(key)}.json"

@@ -119,6 +119,8 @@ def fitted_config(task: GRTask, name: str, settings: Mapping[str, Any],
     content = digest(task) if digest is not None else None
     if content:  # files the task is made of (a symbolic problem set): their content keys the results
         config["task"]["content"] = content
+    if task.test_params:  # shifted test demonstrations (unshifted configurations keep their hashes)
+        config["task"]["test"] = dict(task.test_params)
     plugin = identity(name)
     if plugin is not None:
         config["identity"] = plugin
@@ -260,14 +262,14 @@ def fit_recognizer(task: GRTask, planned: Planned, seed: int, train: Demos, held
 
 
 def task_params(config_json: str) -> dict[str, Any]:
-    """The regime and env parameters a row was run with, and its demonstration counts (``{}`` for rows without
-    them)."""
+    """The regime, env and test parameters a row was run with, and its demonstration counts (``{}`` for rows
+    without them)."""
     try:
         task = json.loads(config_json).get("task", {})
     except (ValueError, AttributeError):
         return {}
     counts = {k: task[k] for k in ("n_demos", "n_train") if k in task}
-    return {**task.get("params", {}), **task.get("env", {}), **counts}
+    return {**task.get("params", {}), **task.get("env", {}), **task.get("test", {}), **counts}
 
 
 def recognizer_config(config_json: str) -> dict[str, Any]:

@@ -18,8 +18,10 @@ parameters), ``env`` (env parameters), ``n_demos``, ``n_train``,
 ``observability``, ``protocol``, ``rounding``, ``description``, and ``demos``:
 a Minari dataset to take the demonstrations from instead of the generator (a
 folder, relative to the card's folder, or a dataset ID; read when the task is
-made, see :mod:`grail_bench.task.demos`). An env parameter that names a file (a symbolic ``problem``) is read
-from beside the card too, when the file is there.
+made, see :mod:`grail_bench.task.demos`), and ``test``: test parameters, which
+change the test demonstrations only (``test = { test_slip = 0.1 }``, see
+:meth:`~grail_bench.task.model.GRTask.test_task`). An env parameter that names a file (a symbolic ``problem``)
+is read from beside the card too, when the file is there.
 
 ``goal_sets`` names smaller goal sets of the same task: a table ``{ name = [goal, ...], ... }``, each set
 drawn from the block's ``goals`` in any order, that adds one task per entry, equal to the block's but for its
@@ -69,7 +71,7 @@ ID_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_.\-]*/[A-Za-z0-9][A-Za-z0-9.\-]*-v
 FILE_KEYS = {"domain", "description", "defaults", "task"}
 TASK_KEYS = {
     "id", "regime", "goals", "params", "env", "n_demos", "n_train",
-    "observability", "protocol", "rounding", "description", "demos", "goal_sets",
+    "observability", "protocol", "rounding", "description", "demos", "goal_sets", "test",
 }
 #: A ``goal_sets`` name: what it adds to the ID (``L1`` in ``GRAIL/X-L1-v0``).
 GOAL_SET_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9.]*$")
@@ -176,7 +178,7 @@ def _task(merged: dict[str, Any], domain: str, source: str, where: str, folder: 
             n_demos=merged["n_demos"],
             n_train=merged["n_train"], observability=merged["observability"], protocol=merged["protocol"],
             rounding=merged["rounding"], description=merged.get("description", ""), source=source,
-            demos=_demos_source(merged.get("demos", ""), folder),
+            demos=_demos_source(merged.get("demos", ""), folder), test_params=merged.get("test", {}),
         )
     except TaskFieldError as exc:
         raise _fail(source, f"{where}.{exc.field}", exc.why) from None

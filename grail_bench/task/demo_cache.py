@@ -55,22 +55,29 @@ def source_digest(domain_module: str) -> str:
 
 
 def goal_demos(task: TaskView, domain: Domain, goal: Goal, n: int, seed: int,
-               generate: Callable[[], list[Trajectory]]) -> list[Trajectory]:
+               generate: Callable[[], list[Trajectory]], keep_from: int = 0) -> list[Trajectory]:
     """``generate()``'s demonstrations of ``goal``, from the cache where they were generated before.
 
     Args:
-        task: The task (its regime, parameters and env parameters key the entry).
+        task: The task (its regime, parameters and env parameters key the entry, and its test parameters
+            when it has any: the test split of a shifted task, see :mod:`grail_bench.task.demos`).
         domain: The task's domain.
         goal: The goal.
         n: Demonstrations of the goal.
         seed: The task's demonstration seed.
-        generate: Generates them (the domain's ``generate_demos`` on the goal's own stream).
+        generate: Generates them (the domain's ``generate_demos`` on the goal's own stream), those from
+            ``keep_from`` on.
+        keep_from: How many of the ``n`` ``generate`` leaves out (0: all of them are kept).
     """
     key = {"domain": domain.name, "regime": task.regime, "params": dict(task.params),
            "env": dict(task.env_params), "goal": list(goal), "seed": seed, "n": n,
            "source": source_digest(type(domain).__module__),
            "versions": package_versions(_PACKAGES + tuple(getattr(domain, "packages", ())))}
-    entry = cached(KIND, key, lambda: pack(generate(), domain.name), arrays=True, check=lambda a: check(a, n))
+    shift = dict(getattr(task, "test_params", None) or {})
+    if shift or keep_from:  # unshifted entries keep their keys
+        key |= {"test": shift, "from": keep_from}
+    entry = cached(KIND, key, lambda: pack(generate(), domain.name), arrays=True,
+                   check=lambda a: check(a, n - keep_from))
     return unpack(entry.state)
 
 

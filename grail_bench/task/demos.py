@@ -6,6 +6,10 @@
   ``(seed, goal)`` (:mod:`grail_bench.core.seeding`), so a goal's
   demonstrations are the same in every task that has it; a domain that sets
   ``cache_demos`` has them kept on disk (:mod:`grail_bench.task.demo_cache`).
+* A task with test parameters (a test regime or shifted dynamics, :meth:`GRTask.test_task`) takes its
+  training demonstrations from the task without them (the very same ones, from the same cache entries), and
+  its test demonstrations from :meth:`GRTask.test_task`, generated from the same stream: the same draws as
+  the unshifted task's up to where the shift makes them differ.
 
 The model (:mod:`grail_bench.task.model`) imports nothing above it: importing
 this module (which ``import grail_bench.task`` does) installs it as the model's
@@ -44,7 +48,11 @@ def generate_demos(task: GRTask, seed: int, n_demos: int | None = None) -> Demos
                             f"the task expects {task.n_train}")
         return loaded.demos
     n = task.n_demos if n_demos is None else n_demos
-    return {goal: _goal_demos(task, goal, n, seed) for goal in task.goals}
+    if not task.shifted:
+        return {goal: _goal_demos(task, goal, n, seed) for goal in task.goals}
+    nominal, shifted = task.nominal(), task.test_task()
+    return {goal: _goal_demos(nominal, goal, n, seed)[:task.n_train]
+            + _goal_demos(shifted, goal, n, seed, keep_from=task.n_train) for goal in task.goals}
 
 
 def with_dataset(task: GRTask, source: Any) -> GRTask:
@@ -69,18 +77,19 @@ def with_dataset(task: GRTask, source: Any) -> GRTask:
         raise UserError(f"{task.id}: {source}: {exc}") from None
 
 
-def _goal_demos(task: GRTask, goal: Goal, n: int, seed: int) -> list[Trajectory]:
-    """One goal's demonstrations, from its own stream; through the disk cache where the domain asks for it."""
+def _goal_demos(task: GRTask, goal: Goal, n: int, seed: int, keep_from: int = 0) -> list[Trajectory]:
+    """One goal's demonstrations from its own stream, those from ``keep_from`` on (the test split of a shifted
+    task); through the disk cache where the domain asks for it."""
     domain = task.spec
 
     def generate() -> list[Trajectory]:
-        return domain.generate_demos(task, goal, n, goal_rng(seed, goal, DEMOS))
+        return domain.generate_demos(task, goal, n, goal_rng(seed, goal, DEMOS))[keep_from:]
 
     if not getattr(domain, "cache_demos", False):
         return generate()
     from grail_bench.task.demo_cache import goal_demos
 
-    return goal_demos(task, domain, goal, n, seed, generate)
+    return goal_demos(task, domain, goal, n, seed, generate, keep_from)
 
 
 install_demo_source(DemoSource(generate=generate_demos, with_dataset=with_dataset))

@@ -76,6 +76,17 @@ class Domain(Protocol):
     it when it is built (from a card, ``--param``, ``make_task`` or ``gym.make``), before any work, naming the
     parameter, the value and the range.
 
+    A domain may also declare ``test_params``: its test-time shifts of the dynamics, each with the value that
+    means "as in training" (MiniGrid's ``test_slip``; see :meth:`~grail_bench.task.model.GRTask.test_task`),
+    which its ``generate_demos`` and ``demonstrator`` apply when a task's ``test_params`` set them (they are
+    handed the task's ``test_task()``), never its ``make_env`` for recognizers; with them
+    ``check_test(test_params, env_params, goals)``, validating them cheaply, and ``ceiling_shifts``: the shifts
+    under which its ``demonstrator`` likelihood stays exact (the Bayes ceiling is refused under the others),
+    and ``shift_regimes``: the regimes whose demonstrators take them (default: every regime; the others are
+    refused with the shifts).
+    ``test_regime`` and ``test_regime_params`` (another regime for the test demonstrations) need nothing of
+    a domain.
+
     A domain may also declare ``ends_early(env_params)``: why its episodes may end before ``max_steps`` (a
     goal reached, lava), or None when every episode runs to it. Recognizers that train on episodes of one
     length (GAIL, AIRL) refuse such a task where a run is planned.

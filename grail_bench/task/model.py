@@ -26,6 +26,10 @@ ENV_ONLY = ("render_mode", "goal")  # gym.make arguments that shape one env, not
 FIELD_BOUNDS: Mapping[str, Range] = {"n_demos": Range(2, 10_000), "n_train": Range(1, 9_999)}
 #: How many candidate goals a task may have (every goal is fitted and scored: a size of work).
 GOAL_COUNT = Range(2, 1_000)
+#: Test-time parameters every domain takes, with the values that mean "as in training": the regime of the test
+#: demonstrations and parameters of that regime (see :meth:`GRTask.test_task`). A domain's ``test_params`` add
+#: its shifts of the dynamics.
+TEST_DEFAULTS: Mapping[str, Any] = {"test_regime": "", "test_regime_params": {}}
 
 
 class TaskFieldError(UserError):
@@ -138,6 +142,9 @@ class GRTask:
         source: The card file that defines the task.
         demos: A Minari dataset (a folder, a folder of datasets, or an ID) to take the demonstrations from
             instead of the generator (see :mod:`grail_bench.task.demos`); empty for the generator.
+        test_params: How the test demonstrations differ from the training ones: only the test parameters
+            set to something other than "as in training" (:data:`TEST_DEFAULTS` and the domain's
+            ``test_params``, e.g. MiniGrid's ``test_slip``); empty for a task tested as it is trained.
     """
 
     id: str
@@ -154,6 +161,7 @@ class GRTask:
     description: str = ""
     source: str = ""
     demos: str = ""
+    test_params: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         spec = self.spec
@@ -212,9 +220,89 @@ class GRTask:
             raise
         except UserError as exc:  # the domain's own checks: of the goals, or else of the parameters
             raise TaskFieldError("goals" if str(exc).startswith("goal") else "params", str(exc)) from None
+        self._check_test_params()
+
+    def _check_test_params(self) -> None:
+        """Validate :attr:`test_params` and keep only the values that shift something (see :meth:`test_task`)."""
+        if not isinstance(self.test_params, Mapping):
+            raise TaskFieldError("test", "expected a table")
+        defaults = test_defaults(self.spec)
+        extra = sorted(set(self.test_params) - set(defaults))
+        if extra:
+            raise TaskFieldError(f"test.{extra[0]}", f"unknown test parameter (known: {', '.join(defaults)})")
+        shift = {k: v for k, v in self.test_params.items() if freeze(v) != freeze(defaults[k])}
+        if shift.get("test_regime") == self.regime and "test_regime_params" not in shift:
+            del shift["test_regime"]  # the task's own regime as it is: no shift
+        object.__setattr__(self, "test_params", shift)
+        if not shift:
+            return
+        if self.demos:
+            raise TaskFieldError("test", f"the demonstrations come from the dataset {self.demos}; test "
+                                         "parameters shift generated ones only")
+        _check_bounds("test.", shift, getattr(self.spec, "bounds", None) or {})
+        regime = shift.get("test_regime", self.regime)
+        if not isinstance(regime, str) or regime not in self.spec.regimes:
+            raise TaskFieldError("test.test_regime", f"unknown regime {regime!r} for domain {self.domain!r} "
+                                                     f"(known: {', '.join(self.spec.regimes)})")
+        extra_params = shift.get("test_regime_params", {})
+        if not isinstance(extra_params, Mapping):
+            raise TaskFieldError("test.test_regime_params", "expected a table of the test regime's parameters")
+        unknown = sorted(set(extra_params) - set(self.spec.regimes[regime]))
+        if unknown:
+            raise TaskFieldError("test.test_regime_params", f"{unknown[0]!r} is no parameter of the {regime} "
+                                 f"regime (known: {', '.join(self.spec.regimes[regime]) or 'none'})")
+        if regime != self.regime or extra_params:
+            try:
+                self.spec.check(regime, self._test_regime_params(), self.env_params, self.goals)
+            except UserError as exc:
+                raise TaskFieldError("test.test_regime_params", f"the {regime} test regime: {exc} (set its "
+                                     "parameters in test_regime_params)") from None
+        dynamics = sorted(k for k in shift if k not in TEST_DEFAULTS)
+        if dynamics and regime not in getattr(self.spec, "shift_regimes", self.spec.regimes):
+            raise TaskFieldError(f"test.{dynamics[0]}", f"the {regime} demonstrator is generated under the "
+                                                        "nominal dynamics only; shifts apply to the "
+                                 f"{', '.join(self.spec.shift_regimes)} regimes")
+        check = getattr(self.spec, "check_test", None)
+        try:
+            if check is not None:
+                check(shift, self.env_params, self.goals)
+        except UserError as exc:
+            raise TaskFieldError("test", str(exc)) from None
+
+    def _test_regime_params(self) -> dict[str, Any]:
+        """The test regime's parameters: its defaults, the task's own where the regime shares them, then
+        ``test_regime_params``."""
+        regime = self.test_params.get("test_regime", self.regime)
+        defaults = self.spec.regimes[regime]
+        own = {k: v for k, v in self.params.items() if k in defaults}
+        return {**defaults, **own, **self.test_params.get("test_regime_params", {})}
 
     def __hash__(self) -> int:
-        return hash((self.id, self.regime, self.goals, repr(sorted(self.params.items()))))
+        return hash((self.id, self.regime, self.goals, repr(sorted(self.params.items())),
+                     repr(sorted(self.test_params.items()))))
+
+    @property
+    def shifted(self) -> bool:
+        """Whether the test demonstrations differ from the training ones in regime or dynamics."""
+        return bool(self.test_params)
+
+    def nominal(self) -> GRTask:
+        """This task with its test demonstrations as its training ones (no test parameters)."""
+        return dataclasses.replace(self, test_params={}) if self.test_params else self
+
+    def test_task(self) -> GRTask:
+        """The task the test demonstrations are generated (and the Bayes ceiling computed) from.
+
+        Its regime is ``test_regime`` (with that regime's parameters: its defaults, the task's own where they
+        are shared, then ``test_regime_params``); its :attr:`test_params` keep only the dynamics shifts, which
+        the domain's demonstrator applies (its env parameters stay the task's, so recognizers build nominal
+        envs). Without test parameters, this task.
+        """
+        if not self.test_params:
+            return self
+        dynamics = {k: v for k, v in self.test_params.items() if k not in TEST_DEFAULTS}
+        return dataclasses.replace(self, regime=self.test_params.get("test_regime", self.regime),
+                                   params=self._test_regime_params(), test_params=dynamics)
 
     @property
     def protocol_label(self) -> str:
@@ -243,9 +331,12 @@ class GRTask:
         """
         spec = self.spec
         params, env_params, fields = dict(self.params), dict(self.env_params), {}
+        tests, test_names = dict(self.test_params), test_defaults(spec)
         for name, value in overrides.items():
             if name in ("n_demos", "n_train"):
                 fields[name] = value
+            elif name in test_names:
+                tests[name] = value
             elif name == "demos":
                 continue  # applied last, to the task it is for
             elif name in spec.regimes[self.regime]:
@@ -262,10 +353,11 @@ class GRTask:
                                 "--cards (docs/guides/tasks-and-demos.md, 'Your own task card')")
             else:
                 hint = " (it applies to gym.make, not to a task)" if name in ENV_ONLY else ""
-                known = sorted({*spec.regimes[self.regime], *spec.env_defaults, "n_demos", "n_train", "demos"})
+                known = sorted({*spec.regimes[self.regime], *spec.env_defaults, *test_names, "n_demos", "n_train",
+                                "demos"})
                 raise UserError(f"{self.id} cannot apply parameter {name!r}{hint}; known: {', '.join(known)}")
         try:
-            task = dataclasses.replace(self, params=params, env_params=env_params, **fields)
+            task = dataclasses.replace(self, params=params, env_params=env_params, test_params=tests, **fields)
         except TaskFieldError as exc:
             raise UserError(f"{self.id}: {exc}") from None
         if "demos" not in overrides:
@@ -278,10 +370,10 @@ class GRTask:
         return task
 
     def settings(self) -> dict[str, Any]:
-        """Every parameter an override can set, by name: regime and env parameters, the demonstration counts
-        and ``demos`` (empty for the generator)."""
-        return {**self.params, **self.env_params, "n_demos": self.n_demos, "n_train": self.n_train,
-                "demos": self.demos}
+        """Every parameter an override can set, by name: regime and env parameters, the test parameters, the
+        demonstration counts and ``demos`` (empty for the generator)."""
+        return {**self.params, **self.env_params, **test_defaults(self.spec), **self.test_params,
+                "n_demos": self.n_demos, "n_train": self.n_train, "demos": self.demos}
 
     def overrides_against(self, base: GRTask) -> TaskOverrides:
         """How this task differs from ``base`` (usually its card's task): the settings whose values differ.
@@ -374,6 +466,12 @@ class GRTask:
                                 f"n_train={self.n_train}")
             train[goal], test[goal] = list(trajs[: self.n_train]), list(trajs[self.n_train :])
         return train, test
+
+
+def test_defaults(spec: Domain) -> dict[str, Any]:
+    """The test parameters a domain's tasks take, each with its "as in training" value: :data:`TEST_DEFAULTS`
+    and the domain's own ``test_params`` (shifts of its dynamics)."""
+    return {**TEST_DEFAULTS, **(getattr(spec, "test_params", None) or {})}
 
 
 def _make_env(task: GRTask, goal: Goal) -> gym.Env:

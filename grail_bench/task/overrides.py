@@ -16,17 +16,26 @@ from typing import Any, Iterator, Mapping
 from grail_bench.core.errors import UserError
 
 
+class _Table(tuple):
+    """A frozen mapping: its sorted ``(key, value)`` pairs, which :func:`thaw` makes a table again."""
+
+    __slots__ = ()
+
+
 def freeze(value: Any) -> Any:
     """``value`` with every list made a tuple and every mapping a sorted tuple of pairs (hashable, comparable)."""
     if isinstance(value, Mapping):
-        return tuple(sorted((str(k), freeze(v)) for k, v in value.items()))
+        return _Table(sorted((str(k), freeze(v)) for k, v in value.items()))
     if isinstance(value, (list, tuple)):
         return tuple(freeze(v) for v in value)
     return value
 
 
 def thaw(value: Any) -> Any:
-    """The inverse of :func:`freeze` for sequences: tuples back to lists (what JSON and the cards give)."""
+    """The inverse of :func:`freeze`: tuples back to lists and frozen mappings back to tables (what JSON and the
+    cards give)."""
+    if isinstance(value, _Table):
+        return {k: thaw(v) for k, v in value}
     if isinstance(value, tuple):
         return [thaw(v) for v in value]
     return value

@@ -3,7 +3,8 @@ rows stored before an ID's meaning moved are read.
 
 A task's **fingerprint** (:func:`fingerprint`) is a short sha256 of the canonical JSON (sorted keys, no spaces) of
 what defines it: its card entry (domain, regime, goals, observability levels, protocol, rounding, demonstration
-counts and dataset), every regime and env parameter (defaults merged in) and the version of its domain's
+counts and dataset), every regime and env parameter (defaults merged in), the test parameters that shift
+its test demonstrations (only when it has any) and the version of its domain's
 demonstration generator (a domain's ``generator_version``, 1 when it declares none; a domain bumps it when its
 demonstrations change for the same parameters). A file's absolute path (a dataset's, a symbolic problem's) counts
 by its name, so that a task fingerprints the same on every machine. The ID and the description are names, not
@@ -48,7 +49,7 @@ def definition(task: GRTask) -> dict[str, Any]:
         "n_train": task.n_train, "observability": list(task.observability), "protocol": task.protocol,
         "rounding": task.rounding, "demos": Path(task.demos).name if task.demos else "",
         "generator": int(getattr(task.spec, "generator_version", 1)),
-    }
+    } | ({"test": dict(task.test_params)} if task.test_params else {})  # unshifted tasks keep their fingerprints
 
 
 def _env(task: GRTask) -> dict[str, Any]:

@@ -5,7 +5,7 @@ start, walls and lava) through the env parameters, e.g. gr_libs' crossing layout
 * :mod:`.grid`: actions, headings, pure-Python dynamics, regime parameters (no minigrid import).
 * :mod:`.env`: the goal-pinned minigrid env.
 * :mod:`.demos`: the scripted demonstrators; :mod:`.likelihood`: their exact
-  likelihood, for the Bayes ceiling; :mod:`.policy`: their action
+  likelihood, for the Bayes ceiling (:mod:`.slip`: in a slipping test room); :mod:`.policy`: their action
   distributions on every state, for the ``demonstrator`` recognizer.
 """
 
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
-from grail_bench.domains.minigrid.grid import check_params, split_obstacles
+from grail_bench.domains.minigrid.grid import TEST_SHIFTS, check_params, check_slip, split_obstacles
 
 #: The Boltzmann regime's default rationality (``docs/concepts/tasks.md``, "Boltzmann": where its Bayes ceiling
 #: lies between chance and the optimal regime's).
@@ -54,8 +54,16 @@ class MiniGrid:
         "boltzmann": {"beta": BOLTZMANN_BETA},
     }
     # Far above every published room (9 and 13 cells a side, at most 200 steps): a mistyped size is refused.
-    bounds: Mapping[str, Range] = {"size": Range(high=64), "max_steps": Range(1, 10_000)}
+    bounds: Mapping[str, Range] = {"size": Range(high=64), "max_steps": Range(1, 10_000),
+                                   "test_slip": Range(0.0, 1.0)}
     ceiling_regimes = frozenset(regimes)
+    # Test-time shifts of the dynamics (see .grid.TEST_SHIFTS): the test demonstrations are generated in the
+    # shifted room; training demonstrations and every env a recognizer builds stay nominal.
+    test_params: Mapping[str, Any] = TEST_SHIFTS
+    # Shifts under which the demonstrators' likelihood stays exact (see .likelihood).
+    ceiling_shifts = frozenset({"test_obstacles", "test_slip"})
+    # Regimes whose demonstrators take the dynamics shifts (the Boltzmann one is drawn from the nominal tables).
+    shift_regimes = ("optimal", "biased", "suboptimal")
     noop_action = 3  # grid.STAY: the agent neither turns nor moves
     # Runs stored before route_choice existed drew every demonstration's path uniformly.
     implicit: Mapping[str, Any] = {"route_choice": "uniform"}
@@ -70,6 +78,17 @@ class MiniGrid:
         for goal in goals:
             if tuple(int(c) for c in goal) not in free:
                 raise UserError(f"goal {list(goal)} is not a free cell of the room (walls and lava excluded)")
+
+    def check_test(self, test_params: Mapping[str, Any], env_params: Mapping[str, Any],
+                   goals: Sequence[Goal]) -> None:
+        """Validate the test shifts (``test_slip``, ``test_obstacles``) against the room and goals."""
+        if "test_slip" in test_params:
+            check_slip(test_params["test_slip"])
+        if test_params.get("test_obstacles") is not None:
+            free = _free_cells({**env_params, "obstacles": test_params["test_obstacles"]})
+            for goal in goals:
+                if tuple(int(c) for c in goal) not in free:
+                    raise UserError(f"test_obstacles: goal {list(goal)} is not a free cell of the test room")
 
     def ends_early(self, env_params: Mapping[str, Any]) -> str | None:
         """Why episodes may end before ``max_steps``, or None (see :class:`~grail_bench.task.domain.Domain`)."""
@@ -94,6 +113,15 @@ class MiniGrid:
             from grail_bench.domains.boltzmann import BoltzmannDemonstrator
 
             return BoltzmannDemonstrator(task, goal)
+        if task.test_params.get("test_slip"):
+            from grail_bench.domains.minigrid.slip import MarkovSlipDemonstrator, SlipDemonstrator, markov
+
+            try:
+                return SlipDemonstrator(task, goal)  # every episode enumerated: an exact ceiling
+            except UserError:
+                if not markov(task):
+                    raise
+                return MarkovSlipDemonstrator(task, goal)  # its likelihood exact still: a Monte Carlo ceiling
         from grail_bench.domains.minigrid.likelihood import GoalDemonstrator
 
         return GoalDemonstrator(task, goal)

@@ -23,6 +23,15 @@
 
 Every demonstration is rolled out in the goal's own env, so observations come
 from the real dynamics; after the goal the agent stays until the horizon.
+
+Test demonstrations of a task with shifted dynamics (``test_obstacles``,
+``test_slip``, see :mod:`.grid`) are rolled out in the shifted room, planned in
+it. Under ``test_slip`` the demonstrator acts in closed loop: it follows its
+plan while the room does what it intends, and when a step slips it plans anew
+from where it is, by its regime's rule (uniform: a shortest path drawn
+uniformly from there; fixed or biased: the path its heading order prefers from
+there; suboptimal: with its turn insertions). A slip into lava ends the
+episode there, unsuccessful.
 """
 
 from __future__ import annotations
@@ -36,6 +45,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import rollout
 from grail_bench.domains.minigrid.grid import (
     FORWARD,
+    test_env_overrides,
     HEADINGS,
     LEFT,
     RIGHT,
@@ -152,6 +162,45 @@ def play(env, actions: list[int]) -> Trajectory:
     return rollout(env, lambda obs, t: actions[t] if t < len(actions) else STAY, require_success=True)
 
 
+def test_env(task: GRTask, goal: Goal):
+    """The env of ``goal``'s demonstrations: the task's, shifted by its test shifts (a task's
+    :meth:`~grail_bench.task.model.GRTask.test_task` carries them)."""
+    return task.make_env(goal, **test_env_overrides(task.test_params))
+
+
+def plan_from(task: GRTask, goal: Goal, model: GridModel, state: State, rng: np.random.Generator) -> list[int]:
+    """A plan from ``state`` to ``goal`` drawn by the task's regime (see the module docstring)."""
+    g = (int(goal[0]), int(goal[1]))
+    one = route(task, goal, model, state)
+    plan = list(one) if one is not None else sample_shortest_path(model, state, g, rng)
+    if task.regime == "suboptimal":
+        plan = insert_turns(plan, float(task.params["turn_prob"]), rng, task.params["turn_pattern"])
+    return plan
+
+
+def play_closed_loop(env, task: GRTask, goal: Goal, plan: list[int], rng: np.random.Generator) -> Trajectory:
+    """Follow ``plan`` in a slipping env, planning anew from where a slip leaves the agent (the episode may
+    end unsuccessful: in lava, or at the horizon)."""
+    base = env.unwrapped
+    g = (int(goal[0]), int(goal[1]))
+    reach, _ = shortest_path_graph(base.model, g)
+    state = {"plan": list(plan), "expect": None}
+
+    def act(obs, t: int) -> int:
+        here = (int(obs[0]), int(obs[1]), int(obs[2]))
+        if here[:2] == g or here not in reach:
+            return STAY  # at the goal, or in lava (absorbed there)
+        if state["expect"] is not None and here != state["expect"]:  # the last step slipped
+            state["plan"] = plan_from(task, goal, base.model, here, rng)
+        if not state["plan"]:
+            return STAY
+        action = state["plan"].pop(0)
+        state["expect"] = base.model.step(here, action)
+        return action
+
+    return rollout(env, act, seed=int(rng.integers(2**31)))
+
+
 def fixed_path(model: GridModel, start: State, goal: tuple[int, int]) -> list[int]:
     """The one shortest path of the ``fixed`` route choice: straight ahead first.
 
@@ -177,17 +226,13 @@ def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -
     """Demonstrations of one goal under the task's regime (see module docstring)."""
     if task.regime not in ("optimal", "biased", "suboptimal"):
         raise UserError(f"{task.id}: minigrid has no regime {task.regime!r}")
-    env = task.make_env(goal)
+    env = test_env(task, goal)
     base = env.unwrapped
     start = (*base.start, base.start_dir)
-    g = (int(goal[0]), int(goal[1]))
-    one = route(task, goal, base.model, start)
-    plans = []
-    for _ in range(n):
-        plan = list(one) if one is not None else sample_shortest_path(base.model, start, g, rng)
-        if task.regime == "suboptimal":
-            plan = insert_turns(plan, float(task.params["turn_prob"]), rng, task.params["turn_pattern"])
-        plans.append(plan)
-    demos = [play(env, plan) for plan in plans]
+    if base.slip:
+        demos = [play_closed_loop(env, task, goal, plan_from(task, goal, base.model, start, rng), rng)
+                 for _ in range(n)]
+    else:
+        demos = [play(env, plan) for plan in [plan_from(task, goal, base.model, start, rng) for _ in range(n)]]
     env.close()
     return demos

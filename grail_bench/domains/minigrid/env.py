@@ -11,6 +11,10 @@ goal does not end the episode: the agent is absorbed there, every further
 action is a no-op with zero reward, and the episode is truncated after
 ``max_steps``. ``info["is_success"]`` tells whether the goal has been reached.
 
+With ``slip`` (test-time shifted dynamics, see :mod:`grail_bench.domains.minigrid`; 0 for every env a
+recognizer builds) each step before the goal or lava executes, with probability ``slip``, one of the three
+other actions drawn uniformly instead of the one given (from the env's ``np_random``, seeded by ``reset``).
+
 Lava (``[x, y, "lava"]`` obstacles) ends the episode when entered, as in
 minigrid, with no reward: the episode terminates, or with ``fixed_horizon``
 the agent is absorbed in the lava, as at the goal, until the horizon (and
@@ -52,6 +56,7 @@ class GRMiniGridEnv(MiniGridEnv):
         obstacles: Interior obstacle cells: ``[x, y]`` a wall, ``[x, y, "lava"]`` lava.
         max_steps: Episode horizon.
         fixed_horizon: Absorb at the goal instead of terminating.
+        slip: Probability that a step executes another action than the one given (see the module docstring).
         render_mode: ``"rgb_array"``, ``"human"`` or ``None``.
     """
 
@@ -65,9 +70,13 @@ class GRMiniGridEnv(MiniGridEnv):
         obstacles: Sequence[Sequence[Any]] = ((7, 4),),
         max_steps: int = 60,
         fixed_horizon: bool = True,
+        slip: float = 0.0,
         render_mode: str | None = None,
     ) -> None:
         self.model = GridModel.of(size, obstacles)
+        if not 0.0 <= float(slip) <= 1.0:
+            raise UserError(f"slip must be a probability in [0, 1], got {slip!r}")
+        self.slip = float(slip)
         self.goal = (int(goal[0]), int(goal[1]))
         self.start = (int(start[0]), int(start[1]))
         self.start_dir = int(start_dir)
@@ -112,6 +121,7 @@ class GRMiniGridEnv(MiniGridEnv):
 
     def vector_copies(self, n_envs: int):
         """``n_envs`` copies of this env stepped at once in numpy (an SB3 ``VecEnv``, same transitions)."""
+        self._deterministic("vector copies")
         from grail_bench.domains.minigrid.vector import MiniGridVecEnv
 
         return MiniGridVecEnv(self, n_envs)
@@ -122,6 +132,7 @@ class GRMiniGridEnv(MiniGridEnv):
         Cells outside the free area are never entered; their rows stay in place, as do those of lava, where the
         episode has ended without reward (absorbed, as the env with ``fixed_horizon`` keeps it).
         """
+        self._deterministic("tabular dynamics")
         states = all_states(self.observation_space)
         n_actions = int(self.action_space.n)
         next_state = np.tile(np.arange(len(states))[:, None], (1, n_actions))
@@ -137,6 +148,10 @@ class GRMiniGridEnv(MiniGridEnv):
         horizon = int(self.max_steps)
         # minigrid's reward for reaching the goal (MiniGridEnv._reward), the same float operations
         return TabularDynamics(next_state, success, start, horizon, lambda t: 1 - 0.9 * (t / horizon))
+
+    def _deterministic(self, what: str) -> None:
+        if self.slip:
+            raise UserError(f"{what} step the room's deterministic dynamics; this env slips (slip={self.slip:g})")
 
     @property
     def state(self) -> State:
@@ -155,7 +170,10 @@ class GRMiniGridEnv(MiniGridEnv):
             self.step_count += 1
             truncated = self.step_count >= self.max_steps
             return self.gen_obs(), 0.0, False, truncated, {"is_success": self._success}
-        obs, reward, terminated, truncated, info = super().step(_TO_MINIGRID[int(action)])
+        executed = int(action)
+        if self.slip and self.np_random.random() < self.slip:
+            executed = [a for a in range(len(ACTION_NAMES)) if a != executed][int(self.np_random.integers(3))]
+        obs, reward, terminated, truncated, info = super().step(_TO_MINIGRID[executed])
         if terminated:  # the goal or lava
             self._absorbed = self.fixed_horizon
             self._success = tuple(self.agent_pos) == self.goal

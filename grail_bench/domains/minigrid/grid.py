@@ -74,6 +74,16 @@ class GridModel:
             return (x + dx, y + dy, d) if self.free(x + dx, y + dy) else state
         return state
 
+    def transition(self, state: State, action: int, slip: float = 0.0) -> dict[State, float]:
+        """The successors of ``state`` under ``action`` with their probabilities when each step executes, with
+        probability ``slip``, one of the three other actions drawn uniformly (as the env with ``slip`` does)."""
+        out = {self.step(state, action): 1.0 - slip}
+        for other in range(len(ACTION_NAMES)):
+            if other != action:
+                nxt = self.step(state, other)
+                out[nxt] = out.get(nxt, 0.0) + slip / (len(ACTION_NAMES) - 1)
+        return {s: p for s, p in out.items() if p > 0.0}
+
 
 def split_obstacles(obstacles: Sequence[Sequence[Any]]) -> tuple[frozenset[Cell], frozenset[Cell]]:
     """Wall cells and lava cells of an ``obstacles`` list (``[x, y]`` a wall, ``[x, y, "lava"]`` lava).
@@ -92,6 +102,33 @@ def split_obstacles(obstacles: Sequence[Sequence[Any]]) -> tuple[frozenset[Cell]
     if walls & lava:
         raise UserError(f"cell {list(min(walls & lava))} is both a wall and lava")
     return frozenset(walls), frozenset(lava)
+
+
+#: Test-time shifts of the dynamics (task parameters applied to the test demonstrations only), each with the value
+#: that means "as in training": ``test_slip``, the probability that a step executes one of the three other
+#: actions, drawn uniformly, instead of the demonstrator's (which is the action recorded); ``test_obstacles``,
+#: the room's obstacles at test time (the same form as the ``obstacles`` env parameter; None: the task's own).
+TEST_SHIFTS: dict[str, Any] = {"test_slip": 0.0, "test_obstacles": None}
+
+
+def test_env_overrides(test_params: Mapping[str, Any]) -> dict[str, Any]:
+    """The env keyword arguments of the test demonstrations' env under a task's test shifts."""
+    out: dict[str, Any] = {}
+    if test_params.get("test_slip"):
+        out["slip"] = float(test_params["test_slip"])
+    if test_params.get("test_obstacles") is not None:
+        out["obstacles"] = test_params["test_obstacles"]
+    return out
+
+
+def check_slip(value: Any) -> None:
+    """Refuse a ``test_slip`` that is no probability.
+
+    Raises:
+        UserError: Naming the value.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 1.0:
+        raise UserError(f"test_slip must be a probability in [0, 1], got {value!r}")
 
 
 TURNS = (LEFT, RIGHT)

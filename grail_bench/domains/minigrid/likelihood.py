@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
-from grail_bench.domains.minigrid.demos import all_shortest_paths, insert_turns, route, sample_shortest_path
+from grail_bench.domains.minigrid.demos import all_shortest_paths, insert_turns, route, sample_shortest_path, test_env
 from grail_bench.domains.minigrid.grid import STAY, TURN_PATTERNS, GridModel, State
 from grail_bench.task.observation import Selection, n_observed
 
@@ -47,7 +47,7 @@ class GoalDemonstrator:
     action_size = 1
 
     def __init__(self, task: GRTask, goal: Goal) -> None:
-        env = task.make_env(goal)
+        env = test_env(task, goal)  # the room of the test demonstrations (its test_obstacles, if any)
         base = env.unwrapped
         self.model: GridModel = base.model
         self.start: State = (*base.start, base.start_dir)

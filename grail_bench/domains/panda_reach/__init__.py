@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
+from grail_bench.domains.shifts import ACTION_SCALE, ACTION_SCALE_BOUND, check_action_scale
 
 if TYPE_CHECKING:
     import numpy as np
@@ -50,8 +51,10 @@ class PandaReach:
         "uniform": {"expert": "sac", "expert_steps": 15000, "expert_seed": 0, "half_width": 0.1},
     }
     # Sizes of work, far above the published ones (50 steps, a 15,000-step expert).
-    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000), "expert_steps": Range(1, 10_000_000)}
+    bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000), "expert_steps": Range(1, 10_000_000),
+                                   **ACTION_SCALE_BOUND}
     ceiling_regimes: frozenset[str] = frozenset()  # a learned expert plus continuous noise: no likelihood
+    test_params: Mapping[str, Any] = ACTION_SCALE  # test-time shifted dynamics (grail_bench.domains.shifts)
     noop_action = (0.0, 0.0, 0.0)  # the zero displacement of the end effector: the arm stays where it is
     cache_demos = True  # a seed's rollouts take minutes: generated once, kept on disk
 
@@ -73,6 +76,11 @@ class PandaReach:
             raise UserError(f"max_action must be in (0, 1], got {max_action!r}")
         for goal in goals:
             check_reach(goal)
+
+    def check_test(self, test_params: Mapping[str, Any], env_params: Mapping[str, Any],
+                   goals: Sequence[Goal]) -> None:
+        """Validate the test shift (``test_action_scale``)."""
+        check_action_scale(test_params)
 
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.panda_reach.env import GRPandaReachEnv

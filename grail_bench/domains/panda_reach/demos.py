@@ -21,6 +21,7 @@ import numpy as np
 
 from grail_bench.core.seeding import EXPERT, goal_seed
 from grail_bench.core.trajectory import rollout
+from grail_bench.domains.shifts import action_scale_overrides
 
 if TYPE_CHECKING:
     from grail_bench.core.trajectory import Trajectory
@@ -72,7 +73,7 @@ def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -
     else:
         expert = sac_expert(task, goal, int(task.params["expert_seed"]))
     noise = noise_sampler(task, rng)
-    env = task.make_env(goal)
+    env = task.make_env(goal, **action_scale_overrides(task.test_params))  # a test split's shifted dynamics
     try:
         return [rollout(env, lambda obs, t: np.clip(expert(obs) + noise(), -limit, limit).astype(np.float32))
                 for _ in range(n)]

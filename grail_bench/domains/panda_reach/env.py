@@ -73,13 +73,15 @@ class GRPandaReachEnv(Env):
         max_steps: Fixed episode horizon.
         distance_threshold: Success radius in metres (panda-gym's 0.05).
         max_action: Actions are clipped to ``[-max_action, max_action]`` (gr_libs' set uses 0.5).
+        action_scale: Each step executes the (clipped) action times this, clipped again (test-time shifted
+            dynamics, see :mod:`grail_bench.domains.shifts`; 1 for every env a recognizer builds).
         render_mode: ``"rgb_array"`` or ``None`` (pybullet runs headless).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 25}
 
     def __init__(self, goal: Sequence[float] = GOALS[0], *, max_steps: int = 50, distance_threshold: float = 0.05,
-                 max_action: float = 1.0, render_mode: str | None = None) -> None:
+                 max_action: float = 1.0, action_scale: float = 1.0, render_mode: str | None = None) -> None:
         if render_mode not in (None, "rgb_array"):
             raise UserError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         target = np.asarray(goal, dtype=np.float64)
@@ -93,6 +95,9 @@ class GRPandaReachEnv(Env):
         if not 0 < max_action <= 1:
             raise UserError(f"max_action must be in (0, 1], got {max_action}")
         self.max_action = float(max_action)
+        if not float(action_scale) > 0:
+            raise UserError(f"action_scale must be a number > 0, got {action_scale!r}")
+        self.action_scale = float(action_scale)
         with quiet_native_output():
             self._env = PandaReachEnv(render_mode="rgb_array", reward_type="dense", control_type="ee")
         reach = self._env.task
@@ -124,7 +129,10 @@ class GRPandaReachEnv(Env):
         action = np.asarray(action, dtype=np.float32)
         if action.shape != (3,) or not np.all(np.isfinite(action)):
             raise ValueError(f"invalid action {action!r}; expected 3 finite numbers")
-        obs, reward, terminated, _, info = self._env.step(np.clip(action, -self.max_action, self.max_action))
+        executed = np.clip(action, -self.max_action, self.max_action)
+        if self.action_scale != 1.0:  # test-time shifted dynamics (grail_bench.domains.shifts)
+            executed = np.clip(self.action_scale * executed, -self.max_action, self.max_action).astype(np.float32)
+        obs, reward, terminated, _, info = self._env.step(executed)
         self._steps += 1
         return (obs["observation"].astype(np.float32), float(reward), False, self._steps >= self.max_steps,
                 {"is_success": bool(terminated)})

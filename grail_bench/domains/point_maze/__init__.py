@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 from grail_bench.core.bounds import Range
 from grail_bench.core.errors import UserError
 from grail_bench.domains.point_maze.maze import check_params
+from grail_bench.domains.shifts import ACTION_SCALE, ACTION_SCALE_BOUND, check_action_scale
 
 if TYPE_CHECKING:
     import numpy as np
@@ -42,9 +43,11 @@ class PointMaze:
     }
     # Sizes of work, far above the published ones (100-200 steps, a 30,000-step expert).
     bounds: Mapping[str, Range] = {"max_steps": Range(1, 10_000), "action_repeat": Range(1, 1_000),
-                                   "expert_steps": Range(1, 10_000_000)}
+                                   "expert_steps": Range(1, 10_000_000), **ACTION_SCALE_BOUND}
     # The scripted routes are deterministic; action noise has a density but no enumerable support.
     ceiling_regimes = frozenset({"optimal", "biased"})
+    test_params: Mapping[str, Any] = ACTION_SCALE  # test-time shifted dynamics (grail_bench.domains.shifts)
+    ceiling_shifts = frozenset(ACTION_SCALE)  # the scripted routes stay deterministic: their likelihood exact
     cache_demos = True  # a seed's rollouts take minutes: generated once, kept on disk
     noop_action = (0.0, 0.0)  # no force on the ball
 
@@ -58,6 +61,11 @@ class PointMaze:
                 value = params[name]
                 if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                     raise UserError(f"{name} must be a non-negative integer, got {value!r}")
+
+    def check_test(self, test_params: Mapping[str, Any], env_params: Mapping[str, Any],
+                   goals: Sequence[Goal]) -> None:
+        """Validate the test shift (``test_action_scale``)."""
+        check_action_scale(test_params)
 
     def make_env(self, goal: Goal, **env_params: Any):
         from grail_bench.domains.point_maze.env import GRPointMazeEnv

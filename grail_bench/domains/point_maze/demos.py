@@ -16,6 +16,10 @@ so without noise a route always gives the same trajectory. ``expert = "sac"``
 replaces it by a SAC agent trained once per goal on the library's reward and
 cached (``expert_steps``, ``expert_seed``); the route regimes then do not apply
 and only ``optimal`` and ``noisy`` accept it.
+
+Test demonstrations under ``test_action_scale`` (:mod:`grail_bench.domains.shifts`) are rolled out with the
+scaled actuator; the controller, closed-loop, still steers, and one that fails to reach the goal is kept as
+it is.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from grail_bench.core.errors import UserError
 from grail_bench.core.seeding import EXPERT, goal_seed
 from grail_bench.core.trajectory import rollout
 from grail_bench.domains.point_maze.maze import Cell, Maze, biased_route, shortest_routes
+from grail_bench.domains.shifts import action_scale_overrides
 
 if TYPE_CHECKING:
     from grail_bench.core.trajectory import Trajectory
@@ -87,7 +92,7 @@ def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -
     maze, start = Maze.parse(task.env_params["maze"]), tuple(task.env_params["start"])
     cell = (int(goal[0]), int(goal[1]))
     sigma = float(task.params.get("sigma", 0.0))
-    env = task.make_env(goal)
+    env = task.make_env(goal, **action_scale_overrides(task.test_params))  # a test split's shifted dynamics
     expert = sac_controller(task, goal) if task.params.get("expert") == "sac" else None
     demos = []
     try:
@@ -106,7 +111,8 @@ def generate_demos(task: GRTask, goal: Goal, n: int, rng: np.random.Generator) -
                 return np.clip(act(obs) + noise, -1.0, 1.0).astype(np.float32)
 
             try:
-                demos.append(rollout(env, policy, require_success=True))
+                # under shifted dynamics a demonstration may fail: that is part of the shift
+                demos.append(rollout(env, policy, require_success=not task.test_params))
             except RuntimeError as exc:
                 if expert is None:
                     raise

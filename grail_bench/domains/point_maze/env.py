@@ -35,13 +35,19 @@ class GRPointMazeEnv(Env):
         action_repeat: Simulator steps (of 10 ms) per env step, each with the same action; the
             library's is 1, at which crossing a cell takes 20 steps or more.
         reward_type: The library's ``"dense"`` or ``"sparse"`` reward.
+        action_scale: Each step executes the action times this, clipped to [-1, 1] (test-time shifted
+            dynamics, see :mod:`grail_bench.domains.shifts`; 1 for every env a recognizer builds).
         render_mode: ``"rgb_array"`` or ``None``.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
 
     def __init__(self, goal: Sequence[int], *, maze: Sequence[str], start: Sequence[int], max_steps: int = 100,
-                 action_repeat: int = 5, reward_type: str = "dense", render_mode: str | None = None) -> None:
+                 action_repeat: int = 5, reward_type: str = "dense", action_scale: float = 1.0,
+                 render_mode: str | None = None) -> None:
+        if not float(action_scale) > 0:
+            raise UserError(f"action_scale must be a number > 0, got {action_scale!r}")
+        self.action_scale = float(action_scale)
         if render_mode not in (None, "rgb_array"):
             raise UserError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.maze = Maze.parse(maze)
@@ -84,7 +90,10 @@ class GRPointMazeEnv(Env):
         action = np.asarray(action, dtype=np.float32)
         if action.shape != (2,) or not np.all(np.isfinite(action)):
             raise ValueError(f"invalid action {action!r}; expected 2 finite numbers")
-        obs, reward, _, _, _ = self._env.step(np.clip(action, -1.0, 1.0))
+        executed = np.clip(action, -1.0, 1.0)
+        if self.action_scale != 1.0:
+            executed = np.clip(self.action_scale * executed, -1.0, 1.0).astype(np.float32)
+        obs, reward, _, _, _ = self._env.step(executed)
         self._steps += 1
         position = obs["achieved_goal"]
         self._reached = self._reached or bool(np.linalg.norm(position - self.goal_xy) <= SUCCESS_RADIUS)

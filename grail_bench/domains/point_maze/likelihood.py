@@ -18,6 +18,7 @@ import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.trajectory import goal_horizon, rollout
+from grail_bench.domains.shifts import action_scale_overrides
 from grail_bench.domains.point_maze.demos import route_controller
 from grail_bench.domains.point_maze.maze import Maze, biased_route, shortest_routes
 from grail_bench.task.observation import Selection, n_observed
@@ -49,11 +50,12 @@ class RouteDemonstrator:
             self.routes = [biased_route(maze, start, cell, task.params["routes"][task.goal_index(goal)])]
         else:
             self.routes = sorted(shortest_routes(maze, start, cell))
-        env = task.make_env(goal)
+        env = task.make_env(goal, **action_scale_overrides(task.test_params))  # a test split's shifted dynamics
         self._pairs: dict[str, tuple[list[Pair], int]] = {}
         for route in self.routes:
             act = route_controller(maze, start, route)
-            traj = rollout(env, lambda obs, t: np.clip(act(obs), -1.0, 1.0).astype(np.float32), require_success=True)
+            traj = rollout(env, lambda obs, t: np.clip(act(obs), -1.0, 1.0).astype(np.float32),
+                           require_success=not task.test_params)
             pairs = [tuple(np.concatenate([o, a]).tolist()) for o, a in zip(traj.obs[:-1], traj.acts)]
             self._pairs[route] = (pairs, goal_horizon(traj))
         env.close()
