@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
-from scipy.special import softmax
 
 from grail_bench.core.errors import UserError
 from grail_bench.stats import robust
@@ -143,6 +142,8 @@ def calibration(loglik: np.ndarray, n_steps: int, label: int) -> tuple[float, fl
     The posterior is the softmax of summed log-likelihoods (mean ``loglik``
     times the ``n_steps`` observed), i.e. Bayes' rule with a uniform prior.
     """
+    from scipy.special import softmax  # here: the report imports this module, not scipy.special
+
     p = softmax(loglik * n_steps)
     target = np.zeros_like(p)
     target[label] = 1.0
