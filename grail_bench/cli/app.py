@@ -332,7 +332,7 @@ def leaderboard_(
             fits = ([f for f in store.select(FitRow) if filters.task(f.task) and filters.method(f.recognizer)]
                     if shown else [])
             where = store.path
-        cache = CeilingCache(where) if not read_only and where != ":memory:" else None
+        cache = CeilingCache(where, read_only=read_only) if where != ":memory:" else None
         if not selected[mode.name] and filters:
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} match "
                        f"{_filter_text(filters)}")

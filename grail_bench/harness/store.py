@@ -424,8 +424,9 @@ class CeilingCache:
     only, or in use) is simply not written to; nothing else in the file is touched.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, read_only: bool = False) -> None:
         self.path = Path(path).expanduser()
+        self.read_only = read_only  # read the table, never write it (``leaderboard --read-only``)
 
     def get(self, digests: Iterable[str]) -> dict[str, str]:
         """The stored ``{digest: JSON}`` of those of ``digests`` that are cached."""
@@ -449,7 +450,10 @@ class CeilingCache:
             return {}
 
     def put(self, entries: dict[str, str]) -> bool:
-        """Store ``{digest: JSON}``; False when the store cannot be written (nothing is then changed)."""
+        """Store ``{digest: JSON}``; False when the store cannot be written, or is read only (nothing is then
+        changed)."""
+        if self.read_only:
+            return False
         if not entries:
             return True
         try:
