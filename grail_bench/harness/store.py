@@ -515,10 +515,16 @@ def _row_checker(kind: type) -> Callable[[tuple], str | None]:
 
 
 def _square(matrix: Any) -> bool:
-    """Whether ``matrix`` is a non-empty square list of lists of numbers."""
-    return (isinstance(matrix, list) and len(matrix) > 0
-            and all(isinstance(row, list) and len(row) == len(matrix)
-                    and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row) for row in matrix))
+    """Whether ``matrix`` (as JSON reads it) is a non-empty square list of lists of numbers."""
+    if not isinstance(matrix, list) or not matrix:
+        return False
+    n = len(matrix)
+    if not all(isinstance(row, list) and len(row) == n for row in matrix):
+        return False
+    return {type(v) for row in matrix for v in row} <= _NUMBERS  # one set per matrix: every stored row is checked
+
+
+_NUMBERS = frozenset({int, float})  # JSON's numbers (a bool is neither)
 
 
 def _insert(kind: type, table: str, key: tuple[str, ...]) -> str:

@@ -269,8 +269,9 @@ def summarize_many(groups: Sequence[Sequence[float]], reps: int = BOOTSTRAP_REPS
             chunk = items[start:start + 256]
             x = np.stack([v for _, v in chunk])
             # Means of (replicates x seeds) rows, as each group's own bootstrap takes them (a 3-d mean sums in
-            # another order, off in the last bit).
-            means = x[:, draws].reshape(-1, n).mean(axis=-1).reshape(len(chunk), reps)
+            # another order, off in the last bit). take() lays the draws out row by row (x[:, draws] does not, so
+            # reshaping it copied them all again).
+            means = np.take(x, draws, axis=1).reshape(-1, n).mean(axis=-1).reshape(len(chunk), reps)
             lows, highs = np.percentile(means, [tail, 100 - tail], axis=-1)
             iqms = robust.iqm(x)
             for (i, v), low, high, iqm in zip(chunk, lows, highs, np.atleast_1d(iqms)):
