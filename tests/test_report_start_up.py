@@ -55,12 +55,15 @@ def test_a_kept_description_is_read_without_importing_the_recognizer(tmp_path):
     assert _python(code, cache) == first[:7] + [False]  # the second process reads what the first kept
 
 
-def test_a_malformed_cache_file_is_described_again(tmp_path, monkeypatch):
+@pytest.mark.parametrize("text", ['{"named": {"bc": {"paper_name": "WRONG"',
+                                  '{"named": {"bc": {"paper_name": "WRONG", "default_scorer": 3, "reference": false}}, '
+                                  '"settings": {}}'])
+def test_a_malformed_cache_file_is_described_again(tmp_path, monkeypatch, text):
     monkeypatch.setenv("GRAIL_BENCH_CACHE", str(tmp_path))
     descriptions.forget()
     path = tmp_path / "recognizers" / f"{descriptions.fingerprint()}.json"
     path.parent.mkdir(parents=True)
-    path.write_text('{"named": {"bc": {"paper_name": "WRONG"', encoding="utf-8")
+    path.write_text(text, encoding="utf-8")
     try:
         assert descriptions.named("bc").paper_name == recognizer_info("bc").paper_name
         descriptions.save()

@@ -77,7 +77,9 @@ def _load() -> _Entries:
         stored = json.loads(entries.path.read_text(encoding="utf-8"))
         entries.named = {name: Named(**n) if n is not None else None for name, n in stored["named"].items()}
         entries.settings = {name: dict(s) for name, s in stored["settings"].items()}
-        if not all(isinstance(v, (str, type(None))) for s in entries.settings.values() for v in s.values()):
+        if not all(isinstance(v, (str, type(None))) for s in entries.settings.values() for v in s.values()) \
+                or not all(n is None or (isinstance(n.paper_name, str) and isinstance(n.default_scorer, str)
+                                         and isinstance(n.reference, bool)) for n in entries.named.values()):
             raise ValueError("malformed")
     except (OSError, ValueError, TypeError, KeyError, AttributeError):
         entries.named, entries.settings = {}, {}  # missing or malformed: described again, from the recognizers
