@@ -295,9 +295,9 @@ def leaderboard_(
     method: Optional[List[str]] = typer.Option(None, "--method", help=METHOD_FILTER_HELP),
     boards: bool = typer.Option(False, "--boards", help="Also print the paper-style F1 tables, a row per task and "
                                 "level, with Bayes ceilings (computed once, then cached in the store)."),
-    read_only: bool = typer.Option(False, "--read-only", help="Change nothing in the store: the Bayes ceilings "
-                                   "computed are kept in the user's cache folder only (default: in the store's "
-                                   "ceilings table too, where it can be written)."),
+    read_only: bool = typer.Option(False, "--read-only", help="Change nothing in the store: the Bayes ceilings it "
+                                   "holds are read, those computed are kept in the user's cache folder only "
+                                   "(default: in the store's ceilings table too, where it can be written)."),
     all_variants: bool = typer.Option(False, "--all-variants", help="List every named variant under its method "
                                       "in the claims table (default: the best one beside it)."),
     scorer: Optional[List[str]] = typer.Option(
@@ -356,7 +356,7 @@ def leaderboard_(
             fits = ([f for f in store.select(FitRow) if filters.task(f.task) and filters.method(f.recognizer)]
                     if shown else [])
             where = store.path
-        cache = CeilingCache(where) if not read_only and where != ":memory:" else None
+        cache = CeilingCache(where, read_only=read_only) if where != ":memory:" else None
         if not selected[mode.name] and filters:
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} match "
                        f"{_filter_text(filters)}")

@@ -107,6 +107,10 @@ class Registry(Generic[T]):
         """Remove an entry registered with :meth:`register` (nothing if there is none)."""
         self._local.pop(name, None)
 
+    def local_names(self) -> list[str]:
+        """The names registered in this process with :meth:`register`."""
+        return list(self._local)
+
     def _plugins(self) -> dict[str, str]:
         return dict(self._scan()[0])
 

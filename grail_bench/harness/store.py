@@ -433,8 +433,9 @@ class CeilingCache:
     only, or in use) is simply not written to; nothing else in the file is touched.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, read_only: bool = False) -> None:
         self.path = Path(path).expanduser()
+        self.read_only = read_only  # read the table, never write it (``leaderboard --read-only``)
 
     def get(self, digests: Iterable[str]) -> dict[str, str]:
         """The stored ``{digest: JSON}`` of those of ``digests`` that are cached."""
@@ -458,7 +459,10 @@ class CeilingCache:
             return {}
 
     def put(self, entries: dict[str, str]) -> bool:
-        """Store ``{digest: JSON}``; False when the store cannot be written (nothing is then changed)."""
+        """Store ``{digest: JSON}``; False when the store cannot be written, or is read only (nothing is then
+        changed)."""
+        if self.read_only:
+            return False
         if not entries:
             return True
         try:
@@ -520,10 +524,16 @@ def _row_checker(kind: type) -> Callable[[tuple], str | None]:
 
 
 def _square(matrix: Any) -> bool:
-    """Whether ``matrix`` is a non-empty square list of lists of numbers."""
-    return (isinstance(matrix, list) and len(matrix) > 0
-            and all(isinstance(row, list) and len(row) == len(matrix)
-                    and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row) for row in matrix))
+    """Whether ``matrix`` (as JSON reads it) is a non-empty square list of lists of numbers."""
+    if not isinstance(matrix, list) or not matrix:
+        return False
+    n = len(matrix)
+    if not all(isinstance(row, list) and len(row) == n for row in matrix):
+        return False
+    return {type(v) for row in matrix for v in row} <= _NUMBERS  # one set per matrix: every stored row is checked
+
+
+_NUMBERS = frozenset({int, float})  # JSON's numbers (a bool is neither)
 
 
 def _insert(kind: type, table: str, key: tuple[str, ...], replace: bool = False) -> str:

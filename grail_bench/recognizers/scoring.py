@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from scipy.special import erf, softmax
 
 from grail_bench.core.errors import UserError
 from grail_bench.core.registry import Registry
@@ -198,6 +197,8 @@ def wasserstein_gaussian_steps(mean: np.ndarray, std: np.ndarray, actions: np.nd
     point mass on the observed action, averaged over action dimensions, in
     closed form: ``E|X - a| = s*sqrt(2/pi)*exp(-z^2/2) + (a - m)*erf(z/sqrt(2))``
     with ``z = (a - m) / s``; ``(K, T)``."""
+    from scipy.special import erf  # here: the report imports this module, not scipy.special
+
     diff = actions[None] - mean
     std = np.broadcast_to(std, diff.shape)
     z = diff / std
@@ -238,6 +239,8 @@ def loglik_gaussian(mean: np.ndarray, std: np.ndarray, actions: np.ndarray) -> n
 
 def posterior(scores: np.ndarray, n_steps: int) -> np.ndarray:
     """Posterior over goals from mean log-likelihoods: softmax of their sums (uniform prior)."""
+    from scipy.special import softmax  # here: the report imports this module, not scipy.special
+
     return softmax(scores * n_steps)
 
 

@@ -28,8 +28,8 @@ from functools import lru_cache
 from typing import Any, Iterable, Literal
 
 from grail_bench.harness.planning import config_hash, fitted_config
+from grail_bench.recognizers import descriptions
 from grail_bench.recognizers.identity import identity
-from grail_bench.recognizers.registry import UnknownRecognizerError, build, recognizer_info
 from grail_bench.task import find_task
 
 Kind = Literal["canonical", "variant", "archived"]
@@ -115,30 +115,22 @@ def value_text(value: Any) -> str:
 @lru_cache(maxsize=None)
 def method_of(recognizer: str) -> tuple[str, str | None]:
     """``(published name, own scorer)`` of a recognizer (its own name and no scorer when not registered)."""
-    try:
-        info = recognizer_info(recognizer)
-    except UnknownRecognizerError:
-        return recognizer, None
-    return info.paper_name, info.default_scorer
+    named = descriptions.named(recognizer)
+    return (recognizer, None) if named is None else (named.paper_name, named.default_scorer)
 
 
 @lru_cache(maxsize=None)
 def _is_reference(recognizer: str) -> bool:
-    try:
-        return recognizer_info(recognizer).reference
-    except UnknownRecognizerError:
-        return False
+    named = descriptions.named(recognizer)
+    return named is not None and named.reference
 
 
 @lru_cache(maxsize=None)
 def _settings(recognizer: str, stored: str | None) -> str | None:
     """The recognizer's settings as today's code builds them from ``stored`` (JSON; None: its defaults), as
-    canonical JSON; None when it cannot be built (not registered, or the settings are refused)."""
-    try:
-        return json.dumps(build(recognizer, json.loads(stored) if stored else None).config, sort_keys=True,
-                          default=str)
-    except Exception:  # noqa: BLE001 - a plugin gone, or settings refused today: the configuration is archived
-        return None
+    canonical JSON; None when it cannot be built (not registered, or the settings are refused: the configuration
+    is archived)."""
+    return descriptions.settings(recognizer, stored)
 
 
 @lru_cache(maxsize=None)
@@ -168,6 +160,7 @@ def configurations(records: Iterable[Any]) -> dict[ConfigKey, Configuration]:
         key = config_key(r)
         if key not in out:
             out[key] = configuration(r)
+    descriptions.save()  # the recognizers described here are not imported next time
     return out
 
 

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
-from scipy.special import softmax
 
 from grail_bench.core.errors import UserError
 from grail_bench.stats import robust
@@ -143,6 +142,8 @@ def calibration(loglik: np.ndarray, n_steps: int, label: int) -> tuple[float, fl
     The posterior is the softmax of summed log-likelihoods (mean ``loglik``
     times the ``n_steps`` observed), i.e. Bayes' rule with a uniform prior.
     """
+    from scipy.special import softmax  # here: the report imports this module, not scipy.special
+
     p = softmax(loglik * n_steps)
     target = np.zeros_like(p)
     target[label] = 1.0
@@ -268,8 +269,9 @@ def summarize_many(groups: Sequence[Sequence[float]], reps: int = BOOTSTRAP_REPS
             chunk = items[start:start + 256]
             x = np.stack([v for _, v in chunk])
             # Means of (replicates x seeds) rows, as each group's own bootstrap takes them (a 3-d mean sums in
-            # another order, off in the last bit).
-            means = x[:, draws].reshape(-1, n).mean(axis=-1).reshape(len(chunk), reps)
+            # another order, off in the last bit). take() lays the draws out row by row (x[:, draws] does not, so
+            # reshaping it copied them all again).
+            means = np.take(x, draws, axis=1).reshape(-1, n).mean(axis=-1).reshape(len(chunk), reps)
             lows, highs = np.percentile(means, [tail, 100 - tail], axis=-1)
             iqms = robust.iqm(x)
             for (i, v), low, high, iqm in zip(chunk, lows, highs, np.atleast_1d(iqms)):
