@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -196,6 +197,7 @@ def test_a_problem_sets_rows_read_elsewhere_are_named_by_their_settings_and_chec
     assert unread.returncode == 0, unread.stderr
     assert unread.stdout.count("not loaded here") == 1 and named in unread.stdout
     assert "the problem set symbolic:star (give --task PATH to check it)" in unread.stdout
+    assert re.search(r"strata: symbolic\s*$", unread.stdout, re.M)  # its domain, as when the set is read
     given = leaderboard(store.path, "--task", str(folder))  # with it: checked as a run plans it
     assert given.returncode == 0, given.stderr
     assert "not loaded here" not in given.stdout and named in given.stdout and "symbolic:star" in given.stdout
