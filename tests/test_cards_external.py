@@ -300,8 +300,12 @@ def test_a_run_on_an_own_goal_set_is_labelled_with_its_own_id(tmp_path):
     assert out.returncode == 0, out.stderr
     rows = json.loads(records.read_text())
     assert {r["task"] for r in rows} == {TASK} and all(0 <= r["f1_mean"] <= 1 for r in rows)
-    board = CliRunner().invoke(app, ["leaderboard", "--store", str(store)], env={"COLUMNS": "200"})
-    assert board.exit_code == 0 and f"the cards of {TASK} are not loaded" in board.output  # said, not silent
+    board = CliRunner().invoke(app, ["leaderboard", "--store", str(store), "--markdown", str(tmp_path / "b.md")],
+                               env={"COLUMNS": "200"})
+    assert board.exit_code == 0 and board.output.count("not loaded here") == 1  # said once, not silent
+    assert f"the cards of {TASK} (give --cards PATH or GRAIL_BENCH_CARDS)" in board.output
+    text = (tmp_path / "b.md").read_text()  # named by the recognizer's settings: canonical, never archived
+    assert "| Demonstrator (perfect imitation) (reference) |" in text and "archived" not in text
     from grail_bench.harness.store import ResultsStore
 
     load_cards(folder)

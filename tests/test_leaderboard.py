@@ -209,3 +209,30 @@ def test_profiles_gaps_and_calibration_are_written_from_the_ceilings(tmp_path):
     text = (tmp_path / "CALIBRATION.md").read_text()
     assert "loglik" in text and "| 0.40 |" in text  # ECE: |0.5 - 0.9|
     assert "## minigrid (3 strata)" in (tmp_path / "PROFILES.md").read_text()
+
+
+def test_rows_of_a_task_not_loaded_here_are_named_by_their_settings_never_archived_for_that():
+    """A user's own task whose card (or problem set) this process has not loaded cannot be planned again: its rows
+    are canonical or a named variant as their settings say, archived only where the settings themselves are no
+    longer today's (a setting refused, or one added since); a shipped task no longer known stays archived."""
+    from grail_bench.report.configs import configuration, not_loaded
+
+    def on(task, record):
+        return dataclasses.replace(record, task=task)
+
+    default = offline_record("GRAIL/MiniGrid-Optimal-v0", "gail", 0.1, 0.5, scorer="mse")
+    longer = offline_record("GRAIL/MiniGrid-Optimal-v0", "gail", 0.1, 0.9, scorer="mse",
+                            settings={"total_timesteps": 160000})
+    older = offline_record("GRAIL/MiniGrid-Optimal-v0", "gail", 0.1, 0.5, scorer="mse", drop="total_timesteps")
+    refused = dataclasses.replace(default, recognizer_config={**default.recognizer_config, "no_such_setting": 1})
+    for task in ("MyLab/Gone-v0", "symbolic:my-problems"):
+        assert not_loaded(task)
+        assert configuration(on(task, default)).label == "GAIL-GRAIL"
+        assert configuration(on(task, default)).canonical
+        assert configuration(on(task, longer)).label == "GAIL-GRAIL · total_timesteps 160 000"
+        assert configuration(on(task, older)).kind == "archived"  # a setting added since: not today's settings
+        assert configuration(on(task, refused)).kind == "archived"
+    assert not not_loaded("GRAIL/Gone-v0") and configuration(on("GRAIL/Gone-v0", default)).kind == "archived"
+    assert not not_loaded("GRAIL/MiniGrid-Optimal-v0")
+    board = built([on("MyLab/Gone-v0", default), on("MyLab/Gone-v0", longer)])
+    assert not board.archive and [b.columns for b in board.boards] == [["GAIL-GRAIL"]]

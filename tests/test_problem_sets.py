@@ -4,6 +4,11 @@ of its own, and the ``dataset`` protocol scores each problem's own obs.dat again
 from __future__ import annotations
 
 import json
+import os
+import re
+import shutil
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -170,3 +175,32 @@ def test_the_generators_dataset_layout_runs_level_by_level(tmp_path):
     write_dataset(tmp_path, names=["grid"], levels=[100], seed=0)
     (task,) = problem_set_tasks(tmp_path / "grid" / "100")
     assert task.id == "symbolic:grid/100" and len(task.goals) == 3
+
+
+def leaderboard(store: Path, *args: str) -> subprocess.CompletedProcess:
+    """``grail-bench leaderboard`` in a new process (one that has read no problem set)."""
+    root = Path(grail_bench.__file__).resolve().parents[1]
+    return subprocess.run([sys.executable, "-m", "grail_bench", "leaderboard", "--store", str(store), *args],
+                          capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "PYTHONPATH": str(root), "COLUMNS": "200"})
+
+
+def test_a_problem_sets_rows_read_elsewhere_are_named_by_their_settings_and_checked_given_its_path(whole, tmp_path):
+    folder = shutil.copytree(whole, tmp_path / "star")
+    store = ResultsStore(tmp_path / "r.sqlite")
+    (task,) = problem_set_tasks(folder)
+    for settings in ({}, {"heuristic": "uniqueness"}):
+        grail_bench.evaluate(task, ("landmarks", settings), seeds=1, store=store)
+    store.close()
+    named = "1 named variants and 0 archived configurations"
+    unread = leaderboard(store.path)  # without the set: its task cannot be planned again, its rows are not archived
+    assert unread.returncode == 0, unread.stderr
+    assert unread.stdout.count("not loaded here") == 1 and named in unread.stdout
+    assert "the problem set symbolic:star (give --task PATH to check it)" in unread.stdout
+    assert re.search(r"strata: symbolic\s*$", unread.stdout, re.M)  # its domain, as when the set is read
+    given = leaderboard(store.path, "--task", str(folder))  # with it: checked as a run plans it
+    assert given.returncode == 0, given.stderr
+    assert "not loaded here" not in given.stdout and named in given.stdout and "symbolic:star" in given.stdout
+    write_problem(replace(star(), observations=(("move", "c", "a01"),)), folder / "star_hyp-0_100.tar.bz2")
+    edited = leaderboard(store.path, "--task", str(folder))  # another set under its name: run by an earlier one
+    assert edited.returncode == 0 and "0 named variants and 2 archived configurations" in edited.stdout

@@ -100,14 +100,26 @@ def tasks(
     _say_skipped_cards()
 
 
-def _say_cardless(rows: list) -> None:
-    """One line when rows belong to tasks of cards not loaded here (their configurations show as archived)."""
-    from grail_bench.task import find_task
+def _say_not_loaded(rows: list) -> None:
+    """One line when rows belong to a user's own tasks not known here (a card not loaded, a problem set not read):
+    their configurations are judged by their recognizers' settings alone (:func:`~grail_bench.report.configs.
+    not_loaded`), and how to check them in full."""
+    from grail_bench.domains.symbolic.problem_set import PREFIX
+    from grail_bench.report.configs import not_loaded
 
-    missing = sorted({r.task for r in rows if not r.task.startswith("GRAIL/") and find_task(r.task) is None})
-    if missing:
-        say(f"the cards of {', '.join(missing)} are not loaded: their rows show as archived; give the cards with "
-            "--cards PATH or GRAIL_BENCH_CARDS")
+    missing = sorted({r.task for r in rows if not_loaded(r.task)})
+    sets = [t for t in missing if t.startswith(PREFIX)]
+    cards = [t for t in missing if not t.startswith(PREFIX)]
+    parts = ([f"the problem set {_names(sets)} (give --task PATH to check it)"] if sets else []) + \
+            ([f"the cards of {_names(cards)} (give --cards PATH or GRAIL_BENCH_CARDS)"] if cards else [])
+    if parts:
+        say(f"not loaded here, their rows judged by their recognizers' settings alone: {'; '.join(parts)}")
+
+
+def _names(names: list[str], shown: int = 3) -> str:
+    """``a, b, c and 4 more``."""
+    more = f" and {len(names) - shown} more" if len(names) > shown else ""
+    return ", ".join(names[:shown]) + more
 
 
 def _say_skipped_cards() -> None:
@@ -247,6 +259,22 @@ def _run_tasks(names: list[str]) -> list:
     return [t for name in names for t in (problem_set_tasks(Path(name).expanduser()) if is_path(name) else [name])]
 
 
+def _read_tasks(names: Optional[List[str]]) -> Optional[List[str]]:
+    """The reading commands' ``--task`` values as filters: an ID or glob as given, a problem set's path (as `run`
+    takes it) as its tasks' IDs, each made known here so that its rows are checked as `run` plans them."""
+    from grail_bench.task.registration import remember
+
+    if not names:
+        return names
+    out = []
+    for task in _run_tasks(list(dict.fromkeys(names))):
+        if not isinstance(task, str):
+            remember(task)
+            task = task.id
+        out.append(task)
+    return out
+
+
 def _observations(profile: Optional[str], observability: Optional[str], protocol: Optional[str],
                   rounding: Optional[str]) -> list[tuple[Optional[str], Optional[str], Optional[str]]]:
     """The (levels, protocol, rounding) of each request of a run: the options as given, or one per protocol of an
@@ -290,7 +318,9 @@ def leaderboard_(
     reference: Optional[Path] = typer.Option(None, "--reference",
                                              help="CSV of reported values (columns task, recognizer, observability, f1) to show beside "
                                                   "ours."),
-    task: Optional[List[str]] = typer.Option(None, "--task", "-t", help=TASK_FILTER_HELP),
+    task: Optional[List[str]] = typer.Option(
+        None, "--task", "-t", help=TASK_FILTER_HELP[:-1] + ", or a symbolic problem set's path as `run` takes it "
+                                   "(its tasks, checked against today's code)."),
     domain: Optional[List[str]] = typer.Option(None, "--domain", "-d", help=DOMAIN_FILTER_HELP),
     method: Optional[List[str]] = typer.Option(None, "--method", help=METHOD_FILTER_HELP),
     boards: bool = typer.Option(False, "--boards", help="Also print the paper-style F1 tables, a row per task and "
@@ -348,7 +378,7 @@ def leaderboard_(
             SAMPLES.check("samples", samples)
         outputs(files=[markdown_path, plot], folders=[html, profiles])
         ref = read_reference(reference) if reference else None
-        filters = Filters.of(task, domain, method)
+        filters = Filters.of(_read_tasks(task), domain, method)
         with open_store(store_path, must_exist=True) as store:
             selected = {name: _select(store, m, filters, scorer, protocol) for name, m in MODES.items()
                         if name == mode.name or (html is not None)}
@@ -364,7 +394,7 @@ def leaderboard_(
             hint = "" if mode.name == "offline" else f" --mode {mode.name}"
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} yet; run "
                        f"`grail-bench run{hint}` first")
-        _say_cardless(selected[mode.name])
+        _say_not_loaded(selected[mode.name])
         if ablation:
             rows = ablation_rows(MODES["offline"].aggregate(selected["offline"]))
             if not rows:
@@ -450,10 +480,12 @@ def _select(store, mode, filters, scorer: Optional[List[str]],  # noqa: ANN001
             protocol: Optional[List[str]]) -> list:
     """Stored rows of one mode, narrowed by the leaderboard's --task, --domain, --method, --scorer and
     --protocol."""
+    from grail_bench.domains.symbolic.problem_set import PREFIX
+
     where = {"protocol": protocol} if protocol else {}
     exact = filters.tasks and not any(set(p) & set("*?[") for p in filters.tasks)
     if exact:  # plain IDs: narrowed where the rows are read
-        where["task"] = [p if "/" in p else f"GRAIL/{p}" for p in filters.tasks]
+        where["task"] = [p if "/" in p or p.startswith(PREFIX) else f"GRAIL/{p}" for p in filters.tasks]
     return [r for r in store.select(mode, **where) if filters.row(r)
             and (not scorer or r.scorer in scorer or f"{r.recognizer}/{r.scorer}" in scorer)]
 

@@ -147,7 +147,11 @@ def short_name(task_id: str) -> str:
 
 
 def domain_of(task_id: str) -> str:
-    """``GRAIL/PandaReach-Gaussian-0.1-v0`` -> ``PandaReach`` (any namespace: ``MyLab/Grid-v0`` -> ``Grid``)."""
+    """``GRAIL/PandaReach-Gaussian-0.1-v0`` -> ``PandaReach`` (any namespace: ``MyLab/Grid-v0`` -> ``Grid``; a
+    problem set's ``symbolic:my-set`` -> ``symbolic``, its domain)."""
+    kind, colon, _ = task_id.partition(":")
+    if colon and "/" not in kind:
+        return kind
     return task_id.split("/", 1)[-1].split("-", 1)[0]
 
 

@@ -18,6 +18,11 @@ version or source of a plugin are archived too.
 Runs on demonstrations from a dataset (``run --demos``) are a configuration of their own, labelled by the
 dataset's name (``toy · demos my-dataset``): canonical or a named variant as the recognizer's settings say, never
 archived for the dataset (today's code is checked against the run with the dataset as the run recorded it).
+
+Runs of a user's own task not known in the reading process (a card not loaded, a problem set not given) cannot be planned
+again: they are never archived for that. They are judged by what can still be judged, the recognizer's settings
+as today's code builds them and a plugin's identity: archived where either differs, else canonical or a named
+variant as above (:func:`not_loaded`; the commands that read them say so in one line).
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ from grail_bench.harness.planning import config_hash, fitted_config
 from grail_bench.recognizers import descriptions
 from grail_bench.recognizers.identity import identity
 from grail_bench.task import find_task
+from grail_bench.task.external import RESERVED
 
 Kind = Literal["canonical", "variant", "archived"]
 
@@ -141,6 +147,15 @@ def _current_hash(task_id: str, params: str, recognizer: str, settings: str, dem
     return config_hash(fitted_config(task, recognizer, json.loads(settings), demos=json.loads(demos)))
 
 
+def not_loaded(task_id: str) -> bool:
+    """Whether a task is a user's own (a card's from outside grail-bench, whose IDs never take ``GRAIL/``, or a
+    problem set's, ``symbolic:<name>``) that is not known in this process: its card not loaded (``--cards``,
+    ``GRAIL_BENCH_CARDS``), its problem set not read (``--task PATH``). Its rows are named by their recognizer's
+    settings and identity alone (see the module docstring); a ``GRAIL/`` task no longer shipped is an earlier
+    version's."""
+    return not task_id.startswith(RESERVED) and find_task(task_id) is None
+
+
 def _canonical_json(value: Any) -> str:
     return json.dumps(value, sort_keys=True, default=str)
 
@@ -174,16 +189,19 @@ def configuration(record: Any) -> Configuration:
     stored = _canonical_json(record.recognizer_config)
     demos = dict(getattr(record, "dataset", None) or {})
     dataset = (demos.get("dataset") or f"dataset {demos['demos'][:6]}") if demos.get("demos") else None
-    rebuilt, default = _settings(record.recognizer, stored), _settings(record.recognizer, None)
-    current = rebuilt is not None and _current_hash(record.task, _canonical_json(record.task_params),
-                                                    record.recognizer, rebuilt,
-                                                    _canonical_json(demos)) == record.config_hash
     if own is None:  # a plugin no longer installed: nothing to compare with, its runs shown as they are
         return Configuration("variant", method, tuple(sorted(record.recognizer_config.items())), scorer,
                              record.config_hash, record.recognizer, submitted_by, dataset)
+    rebuilt, default = _settings(record.recognizer, stored), _settings(record.recognizer, None)
+    note = _identity_note(record.recognizer, _canonical_json(getattr(record, "identity", None) or {}))
+    if not not_loaded(record.task):
+        current = rebuilt is not None and _current_hash(record.task, _canonical_json(record.task_params),
+                                                        record.recognizer, rebuilt,
+                                                        _canonical_json(demos)) == record.config_hash
+    else:  # its task is not known here: judged by what still can be, the settings as built today and the plugin
+        current = rebuilt == stored and not note
     changes = _changes(record.recognizer_config, default)
     kind: Kind = "archived" if not current else "canonical" if not changes and scorer is None else "variant"
-    note = _identity_note(record.recognizer, _canonical_json(getattr(record, "identity", None) or {}))
     return Configuration(kind, method, changes, scorer, record.config_hash, record.recognizer, submitted_by,
                          dataset, note if kind == "archived" else "")
 
