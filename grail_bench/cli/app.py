@@ -493,7 +493,8 @@ def _select(store, mode, filters, scorer: Optional[List[str]],  # noqa: ANN001
 @app.command()
 def reproduce(
     profile: str = typer.Option("quick", "--profile", help="quick (2 seeds, small budgets), paper, support "
-                                "(off-support rules, occupancy, demonstrator), or a TOML file."),
+                                "(off-support rules, occupancy, demonstrator), breadth (gr_libs' problems, symbolic "
+                                "tasks), open-questions (test-time shifts, cross-regime), or a TOML file."),
     only: Optional[List[str]] = typer.Option(
         None, "--only", help="Only this section of the profile (minigrid, panda, budget-bc, ...; an unknown name "
                              "lists them all); repeatable."),

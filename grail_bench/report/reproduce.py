@@ -12,7 +12,11 @@ per goal (``vary = {task_param = "n_train", values = [...], test = 3}``) takes
 each value in turn, optionally at its own ``observability`` levels and
 ``seeds``; a scaling study (``vary = {tasks = "n_goals"}``) runs its tasks,
 one per goal count, and fits each method's fit-cost exponent. Those sections
-write ``BUDGETS.md`` and ``budgets.png`` instead of joining the paper's tables. A section's ``config`` sets hyperparameters of all
+write ``BUDGETS.md`` and ``budgets.png`` instead of joining the paper's tables. A
+shift sweep (``vary = {test = [{test_slip = 0.0}, {test_slip = 0.1}]}``, or the name of a list of the
+profile's ``[shifts]`` table, ``test = "slip"``) runs its tasks under each table of test parameters in turn
+(docs/concepts/shifts.md) and joins the tables: each shifted task is a named variant of its own, and a table
+that shifts nothing is the task itself. A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
 its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant); its ``protocol`` and
 ``rounding`` (e.g. ``protocol = "prefix"``, ``rounding = "floor"``) replace each task's default, and its
 ``noise`` and ``channel`` set the observation model (``noise = 0.2``, ``channel = "actions"``). The grid runs
@@ -54,8 +58,9 @@ from grail_bench.report.text import markdown
 from grail_bench.stats.verdict import plateau, scaling_exponent
 from grail_bench.task import find_task, make_task
 from grail_bench.task.observation import ObservationSpec, check_noise, parse_observability
+from grail_bench.task.versions import fingerprint
 
-PROFILES = ("quick", "paper", "support", "breadth")
+PROFILES = ("quick", "paper", "support", "breadth", "open-questions")
 
 
 @dataclass(frozen=True)
@@ -63,9 +68,11 @@ class Vary:
     """A budget study: one parameter taking each of several values.
 
     Attributes:
-        param: A recognizer hyperparameter, the task parameter ``n_train``, or ``n_goals`` (a scaling study).
-        values: The values, in increasing order (a scaling study's are its tasks' goal counts).
-        of: ``"recognizer"``, ``"task"`` or ``"tasks"`` (the section's tasks are the values).
+        param: A recognizer hyperparameter, the task parameter ``n_train``, ``n_goals`` (a scaling study) or
+            ``test`` (a shift sweep).
+        values: The values, in increasing order (a scaling study's are its tasks' goal counts; a shift sweep's
+            are tables of test parameters).
+        of: ``"recognizer"``, ``"task"``, ``"tasks"`` (the section's tasks are the values) or ``"test"``.
         test: With ``n_train``, the test demonstrations kept per goal (``n_demos = n_train + test``).
     """
 
@@ -75,15 +82,32 @@ class Vary:
     test: int = 3
 
     @classmethod
-    def parse(cls, raw: Mapping[str, Any], where: str) -> Vary:
+    def parse(cls, raw: Mapping[str, Any], where: str, shifts: Mapping[str, Any] | None = None) -> Vary:
         """From a section's ``vary`` table.
+
+        Args:
+            raw: The table.
+            where: Where it stands, for errors.
+            shifts: The profile's named lists of test-parameter tables (its ``[shifts]`` table), which
+                ``test = "name"`` names.
 
         Raises:
             UserError: Unless it names one parameter and at least two values.
         """
-        if not isinstance(raw, Mapping) or sum(k in raw for k in ("param", "task_param", "tasks")) != 1:
+        if not isinstance(raw, Mapping) or sum(k in raw for k in ("param", "task_param", "tasks", "test")) != 1:
             raise UserError(f"{where}: vary needs param (a recognizer's) or task_param (n_train), and values; "
-                            "or tasks = \"n_goals\"")
+                            "or tasks = \"n_goals\"; or test (a list of tables of test parameters)")
+        if "test" in raw:
+            tables = raw["test"]
+            if isinstance(tables, str):
+                if tables not in (shifts or {}):
+                    raise UserError(f"{where}: vary names the shift list {tables!r}, which the profile's [shifts] "
+                                    f"table lacks (it has {', '.join(shifts or {}) or 'none'})")
+                tables = (shifts or {})[tables]
+            if not isinstance(tables, list) or len(tables) < 2 or not all(isinstance(t, Mapping) for t in tables):
+                raise UserError(f"{where}: vary's test needs at least two tables of test parameters "
+                                "([{test_slip = 0.0}, {test_slip = 0.1}])")
+            return cls("test", tuple(dict(t) for t in tables), "test")
         if "tasks" in raw:
             if raw["tasks"] != "n_goals":
                 raise UserError(f"{where}: vary's tasks must be \"n_goals\" (the section's tasks by goal count)")
@@ -135,11 +159,18 @@ class Section:
                                    task=task))
         return out
 
+    @property
+    def study(self) -> bool:
+        """Whether this section is a budget or scaling study (``BUDGETS.md``), not part of the tables."""
+        return self.vary is not None and self.vary.of != "test"
+
     def _variants(self, config: Mapping[str, Mapping[str, Any]]) -> list[tuple[dict[str, Any], list]]:
         """``(task parameters, [(recognizer, hyperparameters), ...])`` of each request per task."""
         base = [(r, {**config.get(r, {}), **self.config}) for r in self.recognizers]
         if self.vary is None or self.vary.of == "tasks":
             return [(dict(self.params), base)]
+        if self.vary.of == "test":
+            return [({**self.params, **table}, base) for table in self.vary.values]
         if self.vary.of == "task":
             return [({**self.params, "n_train": v, "n_demos": v + self.vary.test}, base) for v in self.vary.values]
         return [(dict(self.params), [(r, {**c, self.vary.param: v}) for r, c in base for v in self.vary.values])]
@@ -180,9 +211,9 @@ class Profile:
                             f"{', '.join(s.name for s in self.sections)}")
         if seeds is not None and seeds < 1:
             raise UserError(f"--seeds must be at least 1, got {seeds}")
-        requests = [r if seeds is None else dataclasses.replace(r, seeds=tuple(seed_list(seeds)))
-                    for section in self.sections if not only or section.name in only
-                    for r in section.requests(self.seeds, self.config)]
+        requests = _distinct([r if seeds is None else dataclasses.replace(r, seeds=tuple(seed_list(seeds)))
+                              for section in self.sections if not only or section.name in only
+                              for r in section.requests(self.seeds, self.config)])
         if not recognizers:
             return requests
         chosen = {spec.name for r in requests for spec in r.specs}
@@ -196,19 +227,33 @@ class Profile:
 
     def grid_requests(self, only: Sequence[str] = ()) -> list[Request]:
         """The requests of the sections that are not budget studies (the paper's tables and the modes')."""
-        return [r for s in self.sections if s.vary is None and (not only or s.name in only)
-                for r in s.requests(self.seeds, self.config)]
+        return _distinct([r for s in self.sections if not s.study and (not only or s.name in only)
+                          for r in s.requests(self.seeds, self.config)])
 
     def studies(self, only: Sequence[str] = ()) -> list[tuple[Section, list[Request]]]:
         """The budget-study sections (with ``vary``) to write, with their requests."""
         return [(s, s.requests(self.seeds, self.config)) for s in self.sections
-                if s.vary is not None and (not only or s.name in only)]
+                if s.study and (not only or s.name in only)]
+
+
+def _distinct(requests: Sequence[Request]) -> list[Request]:
+    """The requests without repeats: a request for the same task (by fingerprint: a shift sweep's unshifted
+    value is the task itself), recognizers, seeds, observation and mode as an earlier one is dropped."""
+    seen: set[tuple[Any, ...]] = set()
+    out = []
+    for r in requests:
+        key = (r.task_id, fingerprint(r.task), repr(r.specs), r.seeds, repr(r.observation), r.mode)
+        if key not in seen:
+            seen.add(key)
+            out.append(r)
+    return out
 
 
 def load_profile(name_or_path: str) -> Profile:
     """A shipped profile by name (``quick``, ``paper``) or a TOML file of the same shape.
 
-    A section lists its tasks, or names one of the lists of the profile's ``[tasks]`` table.
+    A section lists its tasks, or names one of the lists of the profile's ``[tasks]`` table; a shift sweep's
+    ``vary = {test = "slip"}`` names one of the lists of its ``[shifts]`` table.
 
     Raises:
         UserError: For an unknown name, an unreadable file or a malformed profile.
@@ -227,11 +272,14 @@ def load_profile(name_or_path: str) -> Profile:
         raise UserError(f"cannot read profile {name_or_path}: {exc}") from None
     try:
         task_lists = _task_lists(data.get("tasks", {}))
+        shifts = data.get("shifts", {})
+        if not isinstance(shifts, dict):
+            raise TypeError("[shifts] must map a name to a list of tables of test parameters")
         sections = tuple(Section(
             s["name"], _section_tasks(s, task_lists, f"profile {name_or_path}"), tuple(s["recognizers"]),
             tuple(s.get("scorers", ())),
             dict(s.get("params", {})), str(s.get("mode", "offline")),
-            Vary.parse(s["vary"], f"profile {name_or_path}: section {s['name']!r}") if "vary" in s else None,
+            Vary.parse(s["vary"], f"profile {name_or_path}: section {s['name']!r}", shifts) if "vary" in s else None,
             parse_observability(s["observability"]) if "observability" in s else (),
             int(s["seeds"]) if "seeds" in s else None, dict(s.get("config", {})),
             _optional_name(s, "protocol"), _optional_name(s, "rounding"), float(s.get("noise", 0.0)),
