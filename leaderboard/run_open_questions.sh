@@ -10,7 +10,7 @@
 # .cache: every shift level and off-support rule reuses the task's models from it), WORKERS parallel units
 # (default 2), into this checkout's store leaderboard/results.sqlite; tables, figures and the manifest go to
 # leaderboard/open-questions/, the log and the process id beside them (run.log, run.pid). It resumes from the store
-# where it stops: run it again with the same commit. Planned: 11 740 units (tests/test_sweep.py); see
+# where it stops: run it again with the same commit. Planned: 10 550 units (tests/test_sweep.py); see
 # leaderboard/README.md, "To be published", for the expected time. Start it on a quiet machine only.
 set -euo pipefail
 cd "$(dirname "$0")/.."

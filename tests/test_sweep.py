@@ -323,10 +323,10 @@ BREADTH_UNITS = (2 * (5 * 6 + 8 * 4 + 3 * 4) * 10 + 2 * (20 * 3 + 32 * 3) * 10 +
 
 # The open questions: 17 MiniGrid recognizer configurations (the paper's 4 methods, 3 under the occupancy scorer,
 # 3 with off_support stay and 3 with uniform, BC with stay pairs, bip and grnet, the demonstrator) on the paper's
-# 7 tasks at 5 slip levels, on 10 tasks (with the 3 Boltzmann ones) under 3 test regimes less the 6 where a task
+# 7 tasks at 4 slip levels, on 10 tasks (with the 3 Boltzmann ones) under 3 test regimes less the 6 where a task
 # meets its own regime unshifted (those units are the slip sweep's first level, run once), and on the 3 2-goal
 # tasks under the biased regime; 15 PointMaze configurations on 2 maps at 4 actuator scales; 10 seeds each.
-OPEN_QUESTIONS_UNITS = (17 * (7 * 5 + (10 * 3 - 6) + 3) + 15 * 2 * 4) * 10
+OPEN_QUESTIONS_UNITS = (17 * (7 * 4 + (10 * 3 - 6) + 3) + 15 * 2 * 4) * 10
 
 
 @pytest.mark.parametrize("name, units", [("quick", 7 * 4 * 2 + 10 * 4 * 2 + 4 * 2 + 4 * 2 + 2),
@@ -347,12 +347,12 @@ slip = [{ test_slip = 0.0 }, { test_slip = 0.2 }]
 name = "slip"
 tasks = ["GRAIL/MiniGrid-Optimal-v0"]
 recognizers = ["bc"]
-vary = { test = "slip" }
+vary = { shift = "slip" }
 [[section]]
 name = "regimes"
 tasks = ["GRAIL/MiniGrid-Optimal-v0"]
 recognizers = ["bc"]
-vary = { test = [{ test_regime = "optimal" }, { test_regime = "suboptimal" }] }
+vary = { shift = [{ test_regime = "optimal" }, { test_regime = "suboptimal" }] }
 """
 
 
@@ -368,10 +368,10 @@ def test_a_shift_sweep_runs_each_table_of_test_parameters_once_in_the_tables(tmp
     with ResultsStore(":memory:") as store:
         hashes = [plan_request(r, store)[0][0].config_hash for r in requests]
     assert len(set(hashes)) == 3  # the shifted tasks' rows are keyed apart from the task's own
-    path.write_text(SHIFTS.replace('test = "slip"', 'test = "drift"'))
+    path.write_text(SHIFTS.replace('shift = "slip"', 'shift = "drift"'))
     with pytest.raises(UserError, match=r"names the shift list 'drift', which the profile's \[shifts\] table"):
         load_profile(str(path))
-    path.write_text(SHIFTS.replace('test = "slip"', "test = [{ test_slip = 0.1 }]"))
+    path.write_text(SHIFTS.replace('shift = "slip"', "shift = [{ test_slip = 0.1 }]"))
     with pytest.raises(UserError, match="at least two tables of test parameters"):
         load_profile(str(path))
 

@@ -13,8 +13,8 @@ each value in turn, optionally at its own ``observability`` levels and
 ``seeds``; a scaling study (``vary = {tasks = "n_goals"}``) runs its tasks,
 one per goal count, and fits each method's fit-cost exponent. Those sections
 write ``BUDGETS.md`` and ``budgets.png`` instead of joining the paper's tables. A
-shift sweep (``vary = {test = [{test_slip = 0.0}, {test_slip = 0.1}]}``, or the name of a list of the
-profile's ``[shifts]`` table, ``test = "slip"``) runs its tasks under each table of test parameters in turn
+shift sweep (``vary = {shift = [{test_slip = 0.0}, {test_slip = 0.1}]}``, or the name of a list of the
+profile's ``[shifts]`` table, ``shift = "slip"``) runs its tasks under each table of test parameters in turn
 (docs/concepts/shifts.md) and joins the tables: each shifted task is a named variant of its own, and a table
 that shifts nothing is the task itself. A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
 its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant); its ``protocol`` and
@@ -69,7 +69,7 @@ class Vary:
 
     Attributes:
         param: A recognizer hyperparameter, the task parameter ``n_train``, ``n_goals`` (a scaling study) or
-            ``test`` (a shift sweep).
+            ``shift`` (a shift sweep).
         values: The values, in increasing order (a scaling study's are its tasks' goal counts; a shift sweep's
             are tables of test parameters).
         of: ``"recognizer"``, ``"task"``, ``"tasks"`` (the section's tasks are the values) or ``"test"``.
@@ -89,25 +89,25 @@ class Vary:
             raw: The table.
             where: Where it stands, for errors.
             shifts: The profile's named lists of test-parameter tables (its ``[shifts]`` table), which
-                ``test = "name"`` names.
+                ``shift = "name"`` names.
 
         Raises:
             UserError: Unless it names one parameter and at least two values.
         """
-        if not isinstance(raw, Mapping) or sum(k in raw for k in ("param", "task_param", "tasks", "test")) != 1:
+        if not isinstance(raw, Mapping) or sum(k in raw for k in ("param", "task_param", "tasks", "shift")) != 1:
             raise UserError(f"{where}: vary needs param (a recognizer's) or task_param (n_train), and values; "
-                            "or tasks = \"n_goals\"; or test (a list of tables of test parameters)")
-        if "test" in raw:
-            tables = raw["test"]
+                            "or tasks = \"n_goals\"; or shift (a list of tables of test parameters)")
+        if "shift" in raw:
+            tables = raw["shift"]
             if isinstance(tables, str):
                 if tables not in (shifts or {}):
                     raise UserError(f"{where}: vary names the shift list {tables!r}, which the profile's [shifts] "
                                     f"table lacks (it has {', '.join(shifts or {}) or 'none'})")
                 tables = (shifts or {})[tables]
             if not isinstance(tables, list) or len(tables) < 2 or not all(isinstance(t, Mapping) for t in tables):
-                raise UserError(f"{where}: vary's test needs at least two tables of test parameters "
+                raise UserError(f"{where}: vary's shift needs at least two tables of test parameters "
                                 "([{test_slip = 0.0}, {test_slip = 0.1}])")
-            return cls("test", tuple(dict(t) for t in tables), "test")
+            return cls("shift", tuple(dict(t) for t in tables), "test")
         if "tasks" in raw:
             if raw["tasks"] != "n_goals":
                 raise UserError(f"{where}: vary's tasks must be \"n_goals\" (the section's tasks by goal count)")
@@ -253,7 +253,7 @@ def load_profile(name_or_path: str) -> Profile:
     """A shipped profile by name (``quick``, ``paper``) or a TOML file of the same shape.
 
     A section lists its tasks, or names one of the lists of the profile's ``[tasks]`` table; a shift sweep's
-    ``vary = {test = "slip"}`` names one of the lists of its ``[shifts]`` table.
+    ``vary = {shift = "slip"}`` names one of the lists of its ``[shifts]`` table.
 
     Raises:
         UserError: For an unknown name, an unreadable file or a malformed profile.
