@@ -49,7 +49,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from importlib.metadata import version
-from typing import Annotated, Any, Literal, Mapping, Sequence
+from typing import Annotated, Any, Callable, Literal, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -77,6 +77,44 @@ from grail_bench.recognizers.contract import (
 from grail_bench.recognizers.gcbc import GCBCRecognizer
 
 ROLLOUTS = 7  #: the seed stream of a goal's reference rollouts (grail_bench.core.seeding uses 0-2)
+
+
+def goals_and_spaces(name: str, demos: Demos, env_factory: EnvFactory | None) -> tuple[list[Goal], Any, Any]:
+    """The goals of ``demos`` in training order (sorted, not as listed) and the env's observation and action
+    spaces, for a recognizer that learns from every goal's demonstrations at once.
+
+    Raises:
+        UserError: For fewer than two goals, a goal without demonstrations, or no env factory.
+    """
+    if len(demos) < 2:
+        raise UserError(f"{name}: need demonstrations of at least two goals, got {len(demos)}")
+    if env_factory is None:
+        raise UserError(f"{name}: needs the env factory, to read the observation and action spaces")
+    ordered = sorted(tuple(g) for g in demos)
+    empty = [g for g in ordered if not len(demos[g])]
+    if empty:
+        raise UserError(f"{name}: goal {empty[0]} has no demonstrations")
+    env = env_factory(ordered[0])
+    try:
+        return ordered, env.observation_space, env.action_space
+    finally:
+        env.close()
+
+
+def train_cached(model: str, key: Mapping[str, Any] | None, train: Callable[[], tuple[dict[str, Any], dict[str, Any]]]
+                 ) -> tuple[dict[str, Any], dict[str, Any], float, bool]:
+    """Run ``train`` (one thread) or take its result from the model cache under ``key`` (None: no cache).
+
+    Returns:
+        The state dict, the extra record, the training seconds and whether the entry was reused.
+    """
+    with single_thread():
+        if key is None:
+            start = time.perf_counter()
+            state, extra = train()
+            return state, extra, time.perf_counter() - start, False
+        entry = cached(model, dict(key), train)
+        return entry.state, entry.extra, entry.seconds, entry.reused
 
 
 @dataclass(frozen=True)
@@ -297,19 +335,7 @@ class GRAMLRecognizer(RecognizerBase):
 
     def _fit_metric(self, demos: Demos, env_factory: EnvFactory | None, seed: int,
                     cache_key: str | None) -> FitReport:
-        if len(demos) < 2:
-            raise UserError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
-        if env_factory is None:
-            raise UserError(f"{self.name}: needs the env factory, to read the observation and action spaces")
-        ordered = sorted(tuple(g) for g in demos)  # the training set's order: by goal, not as listed
-        empty = [g for g in ordered if not len(demos[g])]
-        if empty:
-            raise UserError(f"{self.name}: goal {empty[0]} has no demonstrations")
-        env = env_factory(ordered[0])
-        try:
-            self.observation_space, self.action_space = env.observation_space, env.action_space
-        finally:
-            env.close()
+        ordered, self.observation_space, self.action_space = goals_and_spaces(self.name, demos, env_factory)
         cut = {g: [until_success(t) for t in demos[g]] for g in ordered}
         states = np.concatenate([np.asarray(t.obs[:-1]) for g in ordered for t in cut[g]])
         self.encoder = StepEncoder(self.observation_space, self.action_space,
@@ -323,17 +349,11 @@ class GRAMLRecognizer(RecognizerBase):
             losses = train_metric(model, sequences, metric, seed)
             return model.state_dict(), {"curves": {"loss": losses}}
 
-        start = time.perf_counter()
-        with single_thread():
-            if cache_key is None:
-                state, extra = train()
-                seconds, reused = time.perf_counter() - start, False
-            else:
-                key = {"model": "graml-metric", "config": settings_key(metric, models=True), "env": cache_key,
-                       "seed": seed, "goals": [list(g) for g in ordered],
-                       "demos": demos_digest([t for g in ordered for t in demos[g]]), "versions": [version("torch")]}
-                entry = cached("graml-metric", key, train)
-                state, extra, seconds, reused = entry.state, entry.extra, entry.seconds, entry.reused
+        key = None if cache_key is None else {
+            "model": "graml-metric", "config": settings_key(metric, models=True), "env": cache_key, "seed": seed,
+            "goals": [list(g) for g in ordered], "demos": demos_digest([t for g in ordered for t in demos[g]]),
+            "versions": [version("torch")]}
+        state, extra, seconds, reused = train_cached("graml-metric", key, train)
         self.model = SiameseLSTM(self.encoder.size, metric.hidden)
         self.model.load_state_dict(state)
         self.model.eval()

@@ -25,10 +25,9 @@ It scores only the goals it was fitted on (its output layer has one unit per goa
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 from importlib.metadata import version
-from typing import Annotated, Any, Mapping, Sequence
+from typing import Annotated, Any, Sequence
 
 import numpy as np
 import torch
@@ -36,9 +35,8 @@ from torch import nn
 from torch.nn import functional as F
 from torch.nn.utils.rnn import pack_padded_sequence, pad_sequence
 
-from grail_bench.contrib.graml import StepEncoder
+from grail_bench.contrib.graml import StepEncoder, goals_and_spaces, train_cached
 from grail_bench.core.bounds import Range
-from grail_bench.core.cache import cached
 from grail_bench.core.errors import UserError
 from grail_bench.core.spaces import preprocess
 from grail_bench.core.torchutil import single_thread
@@ -226,19 +224,7 @@ class GRNetRecognizer(RecognizerBase):
         Raises:
             UserError: For fewer than two goals, a goal without demonstrations, or no env factory.
         """
-        if len(demos) < 2:
-            raise UserError(f"{self.name}: need demonstrations of at least two goals, got {len(demos)}")
-        if env_factory is None:
-            raise UserError(f"{self.name}: needs the env factory, to read the observation and action spaces")
-        ordered = sorted(tuple(g) for g in demos)  # the training set's order: by goal, not as listed
-        empty = [g for g in ordered if not len(demos[g])]
-        if empty:
-            raise UserError(f"{self.name}: goal {empty[0]} has no demonstrations")
-        env = env_factory(ordered[0])
-        try:
-            self.observation_space, self.action_space = env.observation_space, env.action_space
-        finally:
-            env.close()
+        ordered, self.observation_space, self.action_space = goals_and_spaces(self.name, demos, env_factory)
         trajs = [list(demos[g]) for g in ordered]
         first = trajs[0][0]
         states = np.concatenate([np.asarray(until_success(t).obs[:-1]) for ts in trajs for t in ts])  # to the goal
@@ -253,17 +239,11 @@ class GRNetRecognizer(RecognizerBase):
             losses = train_classifier(model, sequences, labels, self.config, rng)
             return model.state_dict(), {"curves": {"loss": losses}}
 
-        start = time.perf_counter()
-        with single_thread():
-            if cache_key is None:
-                state, extra = train()
-                seconds, reused = time.perf_counter() - start, False
-            else:
-                key = {"model": "grnet", "config": settings_key(self.config, models=True), "env": cache_key,
-                       "seed": seed, "goals": [list(g) for g in ordered],
-                       "demos": demos_digest([t for ts in trajs for t in ts]), "versions": [version("torch")]}
-                entry = cached("grnet", key, train)
-                state, extra, seconds, reused = entry.state, entry.extra, entry.seconds, entry.reused
+        key = None if cache_key is None else {
+            "model": "grnet", "config": settings_key(self.config, models=True), "env": cache_key, "seed": seed,
+            "goals": [list(g) for g in ordered], "demos": demos_digest([t for ts in trajs for t in ts]),
+            "versions": [version("torch")]}
+        state, extra, seconds, reused = train_cached("grnet", key, train)
         self.model = GoalGRU(self.encoder.size, self.config.hidden, len(ordered))
         self.model.load_state_dict(state)
         self.model.eval()
