@@ -187,6 +187,24 @@ def test_rerun_replaces_the_rows_and_an_interrupted_one_keeps_the_old(tmp_path, 
         assert len(store.rows()) == 6
 
 
+def test_add_outputs_runs_again_only_the_units_stored_without_outputs(tmp_path, lookup):
+    req = request(TASK, ["lookup"], seeds=3)
+    path = tmp_path / "s.sqlite"
+    with ResultsStore(path) as store:
+        run_sweep([req], store)
+        before = f1s(store)
+    with sqlite3.connect(path) as conn:  # seed 1 as stored before the store kept outputs
+        assert conn.execute("DELETE FROM outputs WHERE seed = 1").rowcount == 3
+    with ResultsStore(path) as store:
+        assert run_sweep([req], store).done == 0  # a plain run finds every unit stored
+        summary = run_sweep([req], store, add_outputs=True)
+        assert (summary.done, summary.skipped, summary.rows) == (1, 2, 3)
+        assert f1s(store) == before and len(store.rows()) == 9
+        with sqlite3.connect(path) as conn:
+            assert sorted(conn.execute("SELECT seed, count(*) FROM outputs GROUP BY seed")) == [(0, 3), (1, 3), (2, 3)]
+        assert run_sweep([req], store, add_outputs=True).done == 0  # nothing left: resumable
+
+
 def test_a_failed_replacing_write_keeps_the_stored_rows(tmp_path):
     from dataclasses import replace
 

@@ -513,6 +513,9 @@ def reproduce(
     run: bool = typer.Option(True, help="Run the units the store lacks (--no-run: write the tables and figures "
                                         "from the rows it holds, and count the units missing)."),
     progress: bool = typer.Option(True, help="Show a progress bar."),
+    add_outputs: bool = typer.Option(False, "--add-outputs", help="Also run again the units stored without "
+                                     "per-instance outputs (rows from before the store kept them), replacing "
+                                     "their rows as each finishes; resumable."),
     cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
     """Run a profile's grid (resuming from the store), then write the paper's tables and figures."""
@@ -538,9 +541,9 @@ def reproduce(
                 open_store(store_path or out / "results.sqlite") as store:
             if run:
                 summary = run_sweep(requests, store, chosen, progress=progress, description=f"reproduce {profile}",
-                                    notice=say)
+                                    notice=say, add_outputs=add_outputs)
             else:
-                summary = plan_sweep(requests, store)[1]
+                summary = plan_sweep(requests, store, add_outputs=add_outputs)[1]
             meta = manifest(sys.argv, chosen_profile, only or [], chosen, started, summary, commit,
                             recognizer or [], seeds)
             tasks = sorted({r.task_id for r in requests})

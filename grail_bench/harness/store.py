@@ -406,6 +406,25 @@ class ResultsStore:
                 self.select(kind, task=task, recognizer=recognizer, scorer=scorer, config_hash=config_hash,
                             protocol=protocol) if not stale(r)}
 
+    def with_outputs(self, task: str, recognizer: str, scorer: str, config_hash: str, protocol: str,
+                     kind: type[Row] | Mode = ResultRow) -> set[tuple[int, float | None]]:
+        """``(seed, observability)`` pairs of one configuration whose per-instance outputs are stored (rows run
+        before the store kept them have none; observability ``None`` online)."""
+        row = kind.row if isinstance(kind, Mode) else kind
+        table = next(k.name for k in OUTPUT_KINDS.values() if k.of is row)
+        columns = self._columns[table]
+        if not columns:
+            return set()
+        tasks = sorted(versions.aliases([task]))
+        sql = (f"SELECT seed, {'observability' if 'observability' in columns else 'NULL'} FROM {table} WHERE "
+               f"task IN ({', '.join('?' * len(tasks))}) AND recognizer = ? AND scorer = ? AND config_hash = ? "
+               "AND protocol = ?")
+        try:
+            found = self._conn.execute(sql, [*tasks, recognizer, scorer, config_hash, protocol]).fetchall()
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot read results store {self.path}: {exc}") from None
+        return {(int(seed), level) for seed, level in found}
+
 
 def _resolved(rows: list[Any]) -> list[Any]:
     """Rows stored under a task version whose meaning has since moved, read as the version they were run with

@@ -192,8 +192,10 @@ def run_unit(unit: Unit) -> UnitResult:
     return UnitResult(rows, trained=report.trained, reused=report.reused)
 
 
-def plan_request(request: Request, store: ResultsStore, rerun: bool = False) -> tuple[list[Planned], list[Unit], int]:
-    """Check a request and list its units not yet in ``store`` (every unit with ``rerun``).
+def plan_request(request: Request, store: ResultsStore, rerun: bool = False,
+                 add_outputs: bool = False) -> tuple[list[Planned], list[Unit], int]:
+    """Check a request and list its units not yet in ``store`` (every unit with ``rerun``; with ``add_outputs``,
+    also the units stored without their per-instance outputs).
 
     Returns:
         ``(planned recognizers, units to run, units already stored)``.
@@ -214,6 +216,9 @@ def plan_request(request: Request, store: ResultsStore, rerun: bool = False) -> 
     units, skipped = [], 0
     for p in planned:
         done = [store.completed(task.id, p.name, label, p.config_hash, request.label, mode) for label in p.labels]
+        if add_outputs:
+            done = [d & store.with_outputs(task.id, p.name, label, p.config_hash, request.label, mode)
+                    for d, label in zip(done, p.labels)]
         for seed in request.seeds:
             if not rerun and all((seed, lv) in d for lv in levels for d in done):
                 skipped += 1
@@ -288,13 +293,14 @@ def _take_turns(units: Sequence[Unit], workers: int) -> list[Unit]:
 
 
 def plan_sweep(requests: Sequence[Request], store: ResultsStore, workers: int = 1,
-               rerun: bool = False) -> tuple[list[Unit], SweepSummary]:
+               rerun: bool = False, add_outputs: bool = False) -> tuple[list[Unit], SweepSummary]:
     """Plan every request (all are checked before any unit runs): the units to run (``rerun``: every unit, even
-    one stored), in order for ``workers`` (:func:`order_units`), and the counts."""
+    one stored; ``add_outputs``: also those stored without per-instance outputs), in order for ``workers``
+    (:func:`order_units`), and the counts."""
     summary = SweepSummary()
     units: list[Unit] = []
     for request in requests:
-        planned, todo, skipped = plan_request(request, store, rerun)
+        planned, todo, skipped = plan_request(request, store, rerun, add_outputs)
         summary.planned.append((request, planned))
         summary.changed += [name for name in changed(request, planned, store) if name not in summary.changed]
         units += todo
@@ -311,7 +317,7 @@ def changed_line(name: str) -> str:
 
 def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Executor | None = None,
               progress: bool = False, description: str = "sweep", rerun: bool = False,
-              notice: Callable[[str], None] | None = None) -> SweepSummary:
+              notice: Callable[[str], None] | None = None, add_outputs: bool = False) -> SweepSummary:
     """Plan every request, run the missing units on ``executor`` and store their rows; returns the counts and
     what was planned.
 
@@ -322,7 +328,9 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
     With ``rerun``, every unit runs, stored or not, and its new rows (results,
     fit diagnostics and outputs) replace the stored ones of the same keys in one
     transaction, written only once the unit has finished: an interrupted or
-    failed rerun keeps the rows it did not replace.
+    failed rerun keeps the rows it did not replace. With ``add_outputs``, the
+    units stored without per-instance outputs (run before the store kept them)
+    run again the same way, and the others are reused: rerun until none is left.
 
     Args:
         notice: Called, before any unit runs, with one line per plugin recognizer that changed since its stored
@@ -336,7 +344,8 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
     from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     executor = executor or SerialExecutor()
-    units, summary = plan_sweep(requests, store, executor.workers, rerun)
+    units, summary = plan_sweep(requests, store, executor.workers, rerun, add_outputs)
+    replace_rows = rerun or add_outputs
     for name in summary.changed:
         (notice or _stderr)(changed_line(name))
     origin = stamp()
@@ -351,7 +360,7 @@ def run_sweep(requests: Sequence[Request], store: ResultsStore, executor: Execut
         with bar or contextlib.nullcontext():
             for _, result in executor.map_unordered(run_unit, units):
                 stored = [r if isinstance(r, OUTPUT_ROWS) else replace(r, provenance=origin) for r in result.rows]
-                if rerun:  # the unit's rows replace the stored ones at once
+                if replace_rows:  # the unit's rows replace the stored ones at once
                     store.add(stored, replace=True)
                     summary.rows += sum(not isinstance(r, (FitRow, *OUTPUT_ROWS)) for r in stored)
                     summary.fits += sum(isinstance(r, FitRow) for r in stored)
