@@ -356,7 +356,8 @@ def shifts(curves: Sequence[Any]) -> Any:
             lines = [c for c in mine if c.method == method]
             for k, c in enumerate(lines):
                 x = [where[p.shift] for p in c.points]
-                ax.plot(x, [p.result.f1_mean for p in c.points], marker="o", color=f"C{k % 10}", label=c.label)
+                ax.plot(x, [p.result.f1_mean for p in c.points], marker="o", color=f"C{k % 10}", label=c.label,
+                        linestyle="-" if k < 10 else ":")  # a method's eleventh variant on: dotted
                 ax.fill_between(x, [p.result.f1_ci95_low for p in c.points],
                                 [p.result.f1_ci95_high for p in c.points], color=f"C{k % 10}", alpha=0.15)
             if len(ceiling) == len(shifts_in):

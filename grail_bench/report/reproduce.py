@@ -16,7 +16,9 @@ write ``BUDGETS.md`` and ``budgets.png`` instead of joining the paper's tables. 
 shift sweep (``vary = {shift = [{test_slip = 0.0}, {test_slip = 0.1}]}``, or the name of a list of the
 profile's ``[shifts]`` table, ``shift = "slip"``) runs its tasks under each table of test parameters in turn
 (docs/concepts/shifts.md) and joins the tables: each shifted task is a named variant of its own, and a table
-that shifts nothing is the task itself. A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
+that shifts nothing is the task itself; sections that set test parameters (a shift sweep, or fixed ones) also
+write ``SHIFTS.md`` and ``shifts.png`` (F1 against each shift of the dynamics) and ``REGIMES.md`` and
+``regimes.png`` (the cross-regime grid; :mod:`grail_bench.report.shifts`). A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
 its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant); its ``protocol`` and
 ``rounding`` (e.g. ``protocol = "prefix"``, ``rounding = "floor"``) replace each task's default, and its
 ``noise`` and ``channel`` set the observation model (``noise = 0.2``, ``channel = "actions"``). The grid runs
@@ -412,12 +414,13 @@ def _owned(rows: Sequence[Any], requests: Sequence[Request], plans: Plans = (), 
         found = next((p for r, p in plans if r == request), None)
         return found if found is not None else plan_request(request, ResultsStore(":memory:"))[0]
 
-    def scored(row: Any, planned: list[Planned]) -> bool:
-        return not scorers or any((row.recognizer, row.config_hash) == (p.name, p.config_hash)
-                                  and row.scorer in p.labels for p in planned)
-
-    owners = [(r, planned(r)) for r in requests]
-    return [row for row in rows if any(r.owns(row, p) and scored(row, p) for r, p in owners)]
+    owners: dict[tuple[str, str, str], list[tuple[Request, Planned]]] = {}
+    for request in requests:
+        for p in planned(request):
+            owners.setdefault((request.task_id, p.name, p.config_hash), []).append((request, p))
+    return [row for row in rows
+            if any(r.owns(row, [p]) and (not scorers or row.scorer in p.labels)
+                   for r, p in owners.get((row.task, row.recognizer, row.config_hash), ()))]
 
 
 def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[str, Any], only: Sequence[str] = (),
