@@ -134,3 +134,18 @@ observability = [0.2, 0.3]
     written = write_outputs(rows, load_profile(str(path)), tmp_path / "o", {}, site=False, ceiling_samples=50)
     assert (tmp_path / "o" / "TABLES.md") in written
     assert not any(p.name.startswith(("SHIFTS", "shifts", "REGIMES", "regimes")) for p in written)
+
+
+def test_a_family_puts_the_unshifted_task_first_and_keeps_the_profiles_order():
+    """A weaker actuator shifts more as its scale falls: the profile's order, not the values', is the shift's;
+    a section with fixed test parameters gets the unshifted task first; the regimes alone make the grid."""
+    from grail_bench.report.shifts import UNSHIFTED, family
+
+    scale = family("action-scale", [({"test_action_scale": v}, {} if v == 1.0 else {"test_action_scale": v})
+                                    for v in (1.0, 0.5, 0.25)], [])
+    assert [(s.label, s.x) for s in scale.shifts] == [("test_action_scale=1.0", 1.0), ("test_action_scale=0.5", 0.5),
+                                                      ("test_action_scale=0.25", 0.25)]
+    assert not scale.regimes
+    biased = family("test_regime", [({"test_regime": "biased"}, {"test_regime": "biased"})], [])
+    assert [s.label for s in biased.shifts] == [UNSHIFTED, 'test_regime="biased"'] and biased.regimes
+    assert biased.shifts[0].x is None

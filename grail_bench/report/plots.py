@@ -383,8 +383,8 @@ def shifts(curves: Sequence[Any]) -> Any:
 
 def regimes(cells: Sequence[Any]) -> Any:
     """The cross-regime grid: a heatmap of F1 (mean over levels) per canonical configuration (a row) and domain
-    and goal count (a column), training regime by test regime (a figure; ``cells`` are
-    :func:`grail_bench.report.shifts.regime_cells`)."""
+    and goal count (a column), training regime by test regime, the unshifted task's cell outlined (a figure;
+    ``cells`` are :func:`grail_bench.report.shifts.regime_cells`; all configurations where none is canonical)."""
     plt = pyplot()
     canonical = [c for c in cells if c.canonical] or list(cells)
     labels = sorted({c.label for c in canonical})
@@ -406,7 +406,11 @@ def regimes(cells: Sequence[Any]) -> Any:
                 continue
             _heat(ax, [[mine.get((task, col)) for col in columns] for _, task in tasks],
                   [names[task] for _, task in tasks], columns, vmax=1.0)
-            ax.set_title(f"{label}\n{group[0]}, {group[1]} goals", fontsize=8)
+            for row, (train, _) in enumerate(tasks):  # the unshifted task: its own regime
+                if train in columns:
+                    ax.add_patch(plt.Rectangle((columns.index(train) - 0.5, row - 0.5), 1, 1, fill=False,
+                                               edgecolor="black", linewidth=1.5))
+            ax.set_title(f"{label}\n{group[0]}, {group[1]} goals: F1 (mean over levels)", fontsize=8)
             ax.set_xlabel("test regime")
             ax.set_ylabel("trained on")
     return fig
