@@ -17,8 +17,10 @@ figures draw.
 
 from __future__ import annotations
 
+import json
 from collections import defaultdict
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
@@ -29,7 +31,7 @@ from grail_bench.report.boards import cell_of_record, domain_of, short_name
 from grail_bench.report.configs import ConfigKey, Configuration, config_key
 from grail_bench.stats.metrics import expected_calibration_error, summarize
 from grail_bench.task import find_task
-from grail_bench.task.model import TEST_DEFAULTS
+from grail_bench.task.model import TEST_DEFAULTS, test_defaults
 from grail_bench.task.overrides import TaskOverrides
 
 #: The label of a family's unshifted value where no table of the profile names it.
@@ -177,10 +179,21 @@ class ShiftCurve:
         return final.result.f1_mean - first.result.f1_mean
 
 
-def _test_params(record: OfflineRecord) -> TaskOverrides | None:
-    """The test parameters a record's runs used, as the task keeps them (None: its task is not known here)."""
-    task = find_task(record.task, record.task_params)
-    return None if task is None else TaskOverrides.of(task.test_params)
+def _reading(record: OfflineRecord) -> tuple[TaskOverrides, str] | None:
+    """How a record's runs read their task: its test parameters (as the task keeps them) and how its other
+    parameters differ from the task's defaults (``n_demos=6``; empty: the defaults); None when its task is not
+    known here."""
+    return _read(record.task, TaskOverrides.of(record.task_params).to_json())
+
+
+@lru_cache(maxsize=4096)
+def _read(task_id: str, params: str) -> tuple[TaskOverrides, str] | None:
+    task, base = find_task(task_id, json.loads(params)), find_task(task_id)
+    if task is None or base is None:
+        return None
+    test = test_defaults(task.spec)
+    others = {k: v for k, v in task.overrides_against(base).as_dict().items() if k not in test}
+    return TaskOverrides.of(task.test_params), TaskOverrides.of(others).label()
 
 
 def _shown(records: Iterable[OfflineRecord], configs: Mapping[ConfigKey, Configuration]) -> list[OfflineRecord]:
@@ -189,22 +202,26 @@ def _shown(records: Iterable[OfflineRecord], configs: Mapping[ConfigKey, Configu
 
 
 def _members(fam: Family | Sequence[Family], records: Sequence[OfflineRecord],
-             configs: Mapping[ConfigKey, Configuration]) -> list[tuple[OfflineRecord, TaskOverrides]]:
+             configs: Mapping[ConfigKey, Configuration]) -> list[tuple[OfflineRecord, TaskOverrides, str]]:
     """The records of a family's (or families') sections, with the unshifted task's records of the same
-    configurations (a section with fixed test parameters runs no unshifted task; another section may), each with
-    its test parameters."""
+    configurations read alike (a section with fixed test parameters runs no unshifted task; another section may),
+    each with its test parameters and the configuration's label (with the reading of the task's other parameters
+    where it is not the defaults: ``BC-GRAIL (n_demos=6)``)."""
     families = [fam] if isinstance(fam, Family) else list(fam)
     keys = frozenset().union(*(f.configs for f in families))
-    mine = [r for r in records if config_key(r) in keys]
-    named = {(r.task, configs[config_key(r)].label, r.protocol) for r in mine}
-    out: dict[tuple[Any, ...], tuple[OfflineRecord, TaskOverrides]] = {}
-    for r in mine:
-        params = _test_params(r)
-        if params is not None:
-            out[(config_key(r), r.protocol, r.observability)] = (r, params)
+    out: dict[tuple[Any, ...], tuple[OfflineRecord, TaskOverrides, str]] = {}
+    named = set()
     for r in records:
-        if (r.task, configs[config_key(r)].label, r.protocol) in named and _test_params(r) == TaskOverrides():
-            out.setdefault((config_key(r), r.protocol, r.observability), (r, TaskOverrides()))
+        if config_key(r) in keys and (reading := _reading(r)) is not None:
+            label = configs[config_key(r)].label + (f" ({reading[1]})" if reading[1] else "")
+            out[(config_key(r), r.protocol, r.observability)] = (r, reading[0], label)
+            named.add((r.task, label, r.protocol))
+    for r in records:
+        reading = _reading(r) if config_key(r) not in keys else None
+        if reading is not None and not reading[0]:
+            label = configs[config_key(r)].label + (f" ({reading[1]})" if reading[1] else "")
+            if (r.task, label, r.protocol) in named:
+                out.setdefault((config_key(r), r.protocol, r.observability), (r, TaskOverrides(), label))
     return list(out.values())
 
 
@@ -225,10 +242,10 @@ def shift_curves(records: Sequence[OfflineRecord], configs: Mapping[ConfigKey, C
         if fam.regimes:
             continue
         groups: dict[tuple[str, str, str], dict[int, list[OfflineRecord]]] = defaultdict(lambda: defaultdict(list))
-        for r, params in _members(fam, shown, configs):
+        for r, params, label in _members(fam, shown, configs):
             index = fam.index(params)
             if index is not None:
-                groups[(r.task, r.protocol, configs[config_key(r)].label)][index].append(r)
+                groups[(r.task, r.protocol, label)][index].append(r)
         for (task, protocol, label), by_shift in sorted(groups.items()):
             points = []
             for index, group in sorted(by_shift.items()):
@@ -281,9 +298,8 @@ def regime_cells(records: Sequence[OfflineRecord], configs: Mapping[ConfigKey, C
     if not grid:
         return []
     groups: dict[tuple[str, str, str, str], list[OfflineRecord]] = defaultdict(list)
-    for r, params in _members(grid, _shown(records, configs), configs):
-        if params.get("test_regime") is not None or not params:
-            groups[(r.task, r.protocol, configs[config_key(r)].label, params.to_json())].append(r)
+    for r, params, label in _members(grid, _shown(records, configs), configs):
+        groups[(r.task, r.protocol, label, params.to_json())].append(r)
     out = []
     for (task_id, protocol, label, params_json), group in groups.items():
         task, params = find_task(task_id), TaskOverrides.from_json(params_json)
