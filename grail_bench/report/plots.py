@@ -339,7 +339,7 @@ def _heat(ax: Any, matrix: Sequence[Sequence[float | None]], rows: Sequence[str]
 
 def shifts(curves: Sequence[Any]) -> Any:
     """F1 against a shift's size: a row of panels per family, task and protocol, a panel per method, one line per
-    configuration with its 95 % band, the Bayes ceiling dashed where every value has one (a figure; ``curves``
+    configuration with its 95 % band, the Bayes ceiling dashed at the values that have one (a figure; ``curves``
     are :func:`grail_bench.report.shifts.shift_curves`)."""
     plt = pyplot()
     rows = list(dict.fromkeys((c.family, c.task, c.protocol) for c in curves))
@@ -360,9 +360,10 @@ def shifts(curves: Sequence[Any]) -> Any:
                         linestyle="-" if k < 10 else ":")  # a method's eleventh variant on: dotted
                 ax.fill_between(x, [p.result.f1_ci95_low for p in c.points],
                                 [p.result.f1_ci95_high for p in c.points], color=f"C{k % 10}", alpha=0.15)
-            if len(ceiling) == len(shifts_in):
-                ax.plot([where[s] for s in shifts_in], [ceiling[s] for s in shifts_in], color="black",
-                        linestyle="--", linewidth=1, label="Bayes ceiling (accuracy)")
+            known = [s for s in shifts_in if s in ceiling]
+            if known:
+                ax.plot([where[s] for s in known], [ceiling[s] for s in known], color="black", linestyle="--",
+                        linewidth=1, marker="_", label="Bayes ceiling (accuracy)")
             ax.set_title(f"{key[0]}: {short_name(key[1])} ({key[2]}) · {method}", fontsize=8)
             ax.set_ylim(0, 1.05)
             if numeric:
