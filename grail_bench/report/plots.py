@@ -9,6 +9,7 @@
 * ``training_time``: training seconds per goal, per method (the efficiency section).
 * ``model_size``: kilobytes of one goal's stored model, per method (the storage table).
 * ``ablation``: F1 and scoring time per scorer; ``online``: accuracy against the observed fraction.
+* ``shifts``: F1 against a test-time shift's size; ``regimes``: the cross-regime grid as heatmaps.
 
 Figures are returned as matplotlib figures and written by :func:`save` (PNG
 and SVG) or embedded in the web page by :func:`svg` (text as text, stable IDs).
@@ -25,6 +26,7 @@ import numpy as np
 
 from grail_bench.core.atomic import write_files, write_with
 from grail_bench.report.boards import domain_of, own_scorer_records, short_name
+from grail_bench.report.shifts import regime_order, row_label
 from grail_bench.task.observation import level_text
 
 Records = Sequence[Any]
@@ -310,20 +312,108 @@ def heatmap(matrix: Sequence[Sequence[float | None]], labels: Sequence[str], tit
             digits: int = 2) -> Any:
     """A labelled heatmap of a square matrix, each cell annotated (a figure)."""
     plt = pyplot()
-    values = np.array([[np.nan if v is None else v for v in row] for row in matrix], dtype=float)
     size = 1.0 + 0.55 * len(labels)
     fig, ax = plt.subplots(figsize=(size + 1.2, size))
-    image = ax.imshow(values, cmap="Blues", vmin=0)
-    for (i, j), v in np.ndenumerate(values):
-        if not np.isnan(v):
-            ax.text(j, i, f"{v:.{digits}f}", ha="center", va="center", fontsize=7,
-                    color="white" if v > 0.6 * np.nanmax(values) else "black")
-    ax.set_xticks(range(len(labels)), labels, rotation=35, ha="right", fontsize=8)
-    ax.set_yticks(range(len(labels)), labels, fontsize=8)
+    image = _heat(ax, matrix, labels, labels, digits)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=9)
     fig.colorbar(image, ax=ax, shrink=0.8)
+    return fig
+
+
+def _heat(ax: Any, matrix: Sequence[Sequence[float | None]], rows: Sequence[str], columns: Sequence[str],
+          digits: int = 2, vmax: float | None = None) -> Any:
+    """Draw a matrix (None: an empty cell) on ``ax`` as an annotated heatmap; returns the image."""
+    values = np.array([[np.nan if v is None else v for v in row] for row in matrix], dtype=float)
+    image = ax.imshow(values, cmap="Blues", vmin=0, vmax=vmax)
+    top = vmax if vmax is not None else (np.nanmax(values) if np.isfinite(values).any() else 1.0)
+    for (i, j), v in np.ndenumerate(values):
+        if not np.isnan(v):
+            ax.text(j, i, f"{v:.{digits}f}", ha="center", va="center", fontsize=7,
+                    color="white" if v > 0.6 * top else "black")
+    ax.set_xticks(range(len(columns)), columns, rotation=35, ha="right", fontsize=8)
+    ax.set_yticks(range(len(rows)), rows, fontsize=8)
+    return image
+
+
+def shifts(curves: Sequence[Any]) -> Any:
+    """F1 against a shift's size: a row of panels per family, task and protocol, a panel per method, one line per
+    configuration with its 95 % band, the Bayes ceiling dashed at the values that have one (a figure; ``curves``
+    are :func:`grail_bench.report.shifts.shift_curves`)."""
+    plt = pyplot()
+    rows = list(dict.fromkeys((c.family, c.task, c.protocol) for c in curves))
+    methods = sorted({c.method for c in curves})
+    fig, axes = plt.subplots(len(rows), len(methods), figsize=(3.6 * len(methods), 3.0 * len(rows)), squeeze=False)
+    for i, key in enumerate(rows):
+        mine = [c for c in curves if (c.family, c.task, c.protocol) == key]
+        shifts_in = list(dict.fromkeys(p.shift for c in mine for p in c.points))
+        numeric = all(s.x is not None for s in shifts_in)
+        where = {s: (s.x if numeric else k) for k, s in enumerate(shifts_in)}
+        ceiling = {p.shift: p.result.ceiling for c in mine for p in c.points if p.result.ceiling is not None}
+        for j, method in enumerate(methods):
+            ax = axes[i, j]
+            lines = [c for c in mine if c.method == method]
+            for k, c in enumerate(lines):
+                x = [where[p.shift] for p in c.points]
+                ax.plot(x, [p.result.f1_mean for p in c.points], marker="o", color=f"C{k % 10}", label=c.label,
+                        linestyle="-" if k < 10 else ":")  # a method's eleventh variant on: dotted
+                ax.fill_between(x, [p.result.f1_ci95_low for p in c.points],
+                                [p.result.f1_ci95_high for p in c.points], color=f"C{k % 10}", alpha=0.15)
+            known = [s for s in shifts_in if s in ceiling]
+            if known:
+                ax.plot([where[s] for s in known], [ceiling[s] for s in known], color="black", linestyle="--",
+                        linewidth=1, marker="_", label="Bayes ceiling (accuracy)")
+            ax.set_title(f"{key[0]}: {short_name(key[1])} ({key[2]}) · {method}", fontsize=8)
+            ax.set_ylim(0, 1.05)
+            if numeric:
+                ax.set_xlabel(" / ".join(dict.fromkeys(s.label.split("=")[0] for s in shifts_in if s.params)))
+                if shifts_in[-1].x < shifts_in[0].x:
+                    ax.invert_xaxis()  # the shift grows to the right
+            else:
+                ax.set_xticks(range(len(shifts_in)), [s.label for s in shifts_in], rotation=30, ha="right",
+                              fontsize=7)
+            if j == 0:
+                ax.set_ylabel("F1 (mean over levels)")
+            if lines:
+                ax.legend(fontsize=6)
+            else:
+                ax.set_visible(False)
+    return fig
+
+
+def regimes(cells: Sequence[Any]) -> Any:
+    """The cross-regime grid: a heatmap of F1 (mean over levels) per canonical configuration (a row) and domain
+    and goal count (a column), training regime by test regime, the unshifted task's cell outlined (a figure;
+    ``cells`` are :func:`grail_bench.report.shifts.regime_cells`; all configurations where none is canonical)."""
+    plt = pyplot()
+    canonical = [c for c in cells if c.canonical] or list(cells)
+    labels = sorted({c.label for c in canonical})
+    groups = sorted({(c.domain, c.goals) for c in canonical})
+    fig, axes = plt.subplots(len(labels), len(groups), figsize=(3.6 * len(groups), 3.4 * len(labels)),
+                             squeeze=False)
+    for j, group in enumerate(groups):
+        every = [c for c in cells if (c.domain, c.goals) == group]
+        columns = regime_order(every)
+        tasks = list(dict.fromkeys((c.train, c.task) for c in sorted(every, key=lambda c: (c.train, c.task))))
+        one_each = len({train for train, _ in tasks}) == len(tasks)  # the regime names the row
+        names = {c.task: c.train if one_each else row_label(c) for c in every}
+        for i, label in enumerate(labels):
+            ax = axes[i, j]
+            mine = {(c.task, c.test): c.result.f1_mean for c in canonical
+                    if (c.domain, c.goals) == group and c.label == label}
+            if not mine:
+                ax.set_visible(False)
+                continue
+            _heat(ax, [[mine.get((task, col)) for col in columns] for _, task in tasks],
+                  [names[task] for _, task in tasks], columns, vmax=1.0)
+            for row, (train, _) in enumerate(tasks):  # the unshifted task: its own regime
+                if train in columns:
+                    ax.add_patch(plt.Rectangle((columns.index(train) - 0.5, row - 0.5), 1, 1, fill=False,
+                                               edgecolor="black", linewidth=1.5))
+            ax.set_title(f"{label}\n{group[0]}, {group[1]} goals: F1 (mean over levels)", fontsize=8)
+            ax.set_xlabel("test regime")
+            ax.set_ylabel("trained on")
     return fig
 
 

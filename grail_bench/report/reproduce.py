@@ -16,7 +16,9 @@ write ``BUDGETS.md`` and ``budgets.png`` instead of joining the paper's tables. 
 shift sweep (``vary = {shift = [{test_slip = 0.0}, {test_slip = 0.1}]}``, or the name of a list of the
 profile's ``[shifts]`` table, ``shift = "slip"``) runs its tasks under each table of test parameters in turn
 (docs/concepts/shifts.md) and joins the tables: each shifted task is a named variant of its own, and a table
-that shifts nothing is the task itself. A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
+that shifts nothing is the task itself; sections that set test parameters (a shift sweep, or fixed ones) also
+write ``SHIFTS.md`` and ``shifts.png`` (F1 against each shift of the dynamics) and ``REGIMES.md`` and
+``regimes.png`` (the cross-regime grid; :mod:`grail_bench.report.shifts`). A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
 its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant); its ``protocol`` and
 ``rounding`` (e.g. ``protocol = "prefix"``, ``rounding = "floor"``) replace each task's default, and its
 ``noise`` and ``channel`` set the observation model (``noise = 0.2``, ``channel = "actions"``). The grid runs
@@ -49,14 +51,18 @@ from grail_bench.harness.store import ResultsStore
 from grail_bench.harness.sweep import Request, SweepSummary, plan_request
 from grail_bench.report import leaderboard, plots
 from grail_bench.report.boards import own_scorer_records, short_name
+from grail_bench.report.configs import config_key
 from grail_bench.report.html import write_site
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.report.rows import BudgetCurve, BudgetPoint, calibration_rows
+from grail_bench.report.shifts import Family, family, regime_cells, shift_curves
 from grail_bench.report.summary import domain_summaries, profile_figure_data, profiles_markdown
-from grail_bench.report.tables import budgets_markdown, calibration_markdown, mode_markdown
+from grail_bench.report.tables import (budgets_markdown, calibration_markdown, mode_markdown, regimes_markdown,
+                                       shifts_markdown)
 from grail_bench.report.text import markdown
 from grail_bench.stats.verdict import plateau, scaling_exponent
 from grail_bench.task import find_task, make_task
+from grail_bench.task.model import test_defaults
 from grail_bench.task.observation import ObservationSpec, check_noise, parse_observability
 from grail_bench.task.versions import fingerprint
 
@@ -74,12 +80,14 @@ class Vary:
             are tables of test parameters).
         of: ``"recognizer"``, ``"task"``, ``"tasks"`` (the section's tasks are the values) or ``"test"``.
         test: With ``n_train``, the test demonstrations kept per goal (``n_demos = n_train + test``).
+        name: A shift sweep's family: the name of the profile's ``[shifts]`` list it takes (``slip``), else None.
     """
 
     param: str
     values: tuple[Any, ...]
     of: str = "recognizer"
     test: int = 3
+    name: str | None = None
 
     @classmethod
     def parse(cls, raw: Mapping[str, Any], where: str, shifts: Mapping[str, Any] | None = None) -> Vary:
@@ -98,7 +106,7 @@ class Vary:
             raise UserError(f"{where}: vary needs param (a recognizer's) or task_param (n_train), and values; "
                             "or tasks = \"n_goals\"; or shift (a list of tables of test parameters)")
         if "shift" in raw:
-            tables = raw["shift"]
+            tables = name = raw["shift"]
             if isinstance(tables, str):
                 if tables not in (shifts or {}):
                     raise UserError(f"{where}: vary names the shift list {tables!r}, which the profile's [shifts] "
@@ -107,7 +115,7 @@ class Vary:
             if not isinstance(tables, list) or len(tables) < 2 or not all(isinstance(t, Mapping) for t in tables):
                 raise UserError(f"{where}: vary's shift needs at least two tables of test parameters "
                                 "([{test_slip = 0.0}, {test_slip = 0.1}])")
-            return cls("shift", tuple(dict(t) for t in tables), "test")
+            return cls("shift", tuple(dict(t) for t in tables), "test", name=name if isinstance(name, str) else None)
         if "tasks" in raw:
             if raw["tasks"] != "n_goals":
                 raise UserError(f"{where}: vary's tasks must be \"n_goals\" (the section's tasks by goal count)")
@@ -158,6 +166,14 @@ class Section:
                 out.append(Request(task.id, specs, tuple(seed_list(self.seeds or seeds)), observation, params, self.mode,
                                    task=task))
         return out
+
+    def shift_family(self, requests: Sequence[Request]) -> str | None:
+        """The shift family of this section (its ``[shifts]`` list's name, else its test parameters' names), None
+        where it sets no test parameter (:mod:`grail_bench.report.shifts`)."""
+        if self.vary is not None and self.vary.of == "test" and self.vary.name:
+            return self.vary.name
+        names = sorted({k for r in requests for k in _test_overrides(r)})
+        return "+".join(names) if names else None
 
     @property
     def study(self) -> bool:
@@ -386,33 +402,43 @@ def manifest(argv: Sequence[str], profile: Profile, only: Sequence[str], executo
 Plans = Sequence[tuple[Request, list[Planned]]]
 
 
-def _owned(rows: Sequence[Any], requests: Sequence[Request], plans: Plans = ()) -> list[Any]:
+def _owned(rows: Sequence[Any], requests: Sequence[Request], plans: Plans = (), scorers: bool = False) -> list[Any]:
     """The rows that belong to the requests (their tasks, protocols, modes, recognizers and configurations).
 
     Args:
         plans: What a sweep planned (``run_sweep(...).planned``); a request it lacks is planned here.
+        scorers: Only the rows of the scorers the requests ask for (a configuration another section scores
+            under more scorers shares its rows).
     """
     def planned(request: Request) -> list[Planned]:
         found = next((p for r, p in plans if r == request), None)
         return found if found is not None else plan_request(request, ResultsStore(":memory:"))[0]
 
-    owners = [(r, planned(r)) for r in requests]
-    return [row for row in rows if any(r.owns(row, p) for r, p in owners)]
+    owners: dict[tuple[str, str, str], list[tuple[Request, Planned]]] = {}
+    for request in requests:
+        for p in planned(request):
+            owners.setdefault((request.task_id, p.name, p.config_hash), []).append((request, p))
+    return [row for row in rows
+            if any(r.owns(row, [p]) and (not scorers or row.scorer in p.labels)
+                   for r, p in owners.get((row.task, row.recognizer, row.config_hash), ()))]
 
 
 def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[str, Any], only: Sequence[str] = (),
                   site: bool = True, progress: bool = False, fits: Sequence[FitRow] = (),
-                  executor: Executor | None = None, plans: Plans = ()) -> list[Path]:
+                  executor: Executor | None = None, plans: Plans = (), ceiling_samples: int = 2000) -> list[Path]:
     """Tables, figures, the web page (``site/``, unless ``site`` is False) and the manifest into ``out``.
 
     The paper's tables and figures come from the offline rows of the grid's sections (``TABLES.md``: the main
     boards of canonical configurations, then the named variants, such as a profile's reduced budgets, and the
     archived configurations, every cell with its 95 % bootstrap interval); every other mode with
     rows adds its table (``ONLINE.md``, ``OPEN_SET.md``) and the online runs their figure (``online.png``);
-    budget studies write ``BUDGETS.md`` and ``budgets.png``. Only the rows the profile's requests own count
+    budget studies write ``BUDGETS.md`` and ``budgets.png``; sections that set test parameters write
+    ``SHIFTS.md`` and ``shifts.png`` (shifted dynamics) and ``REGIMES.md`` and ``regimes.png`` (the cross-regime
+    grid, :func:`write_shifts`). Only the rows the profile's requests own count
     (other configurations in a shared store do not); ``fits`` are the stored fit diagnostics. Ceilings missing
     from the cache are computed on ``executor`` (default: in this process); ``plans`` are what the sweep
-    planned (``run_sweep(...).planned``), so the requests are not planned again. Returns the files written.
+    planned (``run_sweep(...).planned``), so the requests are not planned again; ``ceiling_samples`` are the Monte
+    Carlo samples of a ceiling not computed exactly. Returns the files written.
     """
     grid = _owned(rows, profile.grid_requests(only), plans)
     by_mode = {name: [r for r in grid if type(r) is mode.row] for name, mode in MODES.items()}
@@ -420,8 +446,8 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     reference = read_reference(paper_reference_path())
     owned_fits = [f for f in fits if any((f.task, f.recognizer, f.config_hash) == (r.task, r.recognizer, r.config_hash)
                                          for r in offline)]
-    board = leaderboard.build(offline, reference, studies=by_mode, progress=progress, fits=owned_fits,
-                              executor=executor)
+    board = leaderboard.build(offline, reference, ceiling_samples, studies=by_mode, progress=progress,
+                              fits=owned_fits, executor=executor)
     title = f"grail-bench reproduce: {profile.name}"
     written: list[Path] = []
     if offline:
@@ -430,6 +456,7 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
                                          variants=board.variants, archive=board.archive))
         written += plots.write_all(board.records, out, models=model_sizes(board.records))
         written += write_robust(board, out)
+        written += write_shifts(board, shift_families(rows, profile, only, plans), out, title)
     written += write_studies(board, out)
     written += write_budgets(rows, profile.studies(only), out, title, plans)
     if site:
@@ -483,6 +510,47 @@ def write_budgets(rows: Sequence[Any], studies: Sequence[tuple[Section, list[Req
     write_text(written[0], budgets_markdown(curves, title))
     write_text(written[1], json.dumps([c.to_dict() for c in curves], indent=1) + "\n")
     return written + plots.save(plots.budgets(curves), out, "budgets")
+
+
+def shift_families(rows: Sequence[Any], profile: Profile, only: Sequence[str] = (),
+                   plans: Plans = ()) -> list[Family]:
+    """The families of the profile's sections that set test parameters (:mod:`grail_bench.report.shifts`): each
+    with its tables in the profile's order and the configurations its sections' rows are of (``plans``: what the
+    sweep planned, see :func:`_owned`)."""
+    tables: dict[str, list[tuple[dict[str, Any], dict[str, Any]]]] = {}
+    configs: dict[str, set[Any]] = {}
+    for section in profile.sections:
+        if section.study or (only and section.name not in only):
+            continue
+        requests = section.requests(profile.seeds, profile.config)
+        name = section.shift_family(requests)
+        if name is None:
+            continue
+        tables.setdefault(name, []).extend((_test_overrides(r), r.task.test_params) for r in requests)
+        owned = _owned(rows, requests, plans, scorers=True)
+        configs.setdefault(name, set()).update(config_key(row) for row in owned)
+    return [family(name, tables[name], configs[name]) for name in tables]
+
+
+def _test_overrides(request: Request) -> dict[str, Any]:
+    """The test parameters a request sets, as the profile wrote them (an unshifted table's too)."""
+    test = test_defaults(request.task.spec)
+    return {k: v for k, v in request.overrides.as_dict().items() if k in test}
+
+
+def write_shifts(board: leaderboard.Leaderboard, families: Sequence[Family], out: Path, title: str) -> list[Path]:
+    """``SHIFTS.md``, ``shifts.png`` and ``.svg`` (F1 against each shift of the dynamics) and ``REGIMES.md``,
+    ``regimes.png`` and ``.svg`` (the cross-regime grid), where the families have rows; nothing otherwise."""
+    written: list[Path] = []
+    curves = shift_curves(board.records, board.configs, board.ceilings, families)
+    if curves:
+        written.append(write_text(out / "SHIFTS.md", shifts_markdown(curves, title)))
+        written += plots.save(plots.shifts(curves), out, "shifts")
+    cells = regime_cells(board.records, board.configs, board.ceilings, families)
+    if cells:
+        written.append(write_text(out / "REGIMES.md", regimes_markdown(cells, title)))
+        written += plots.save(plots.regimes(cells), out, "regimes")
+    return written
 
 
 def write_robust(board: leaderboard.Leaderboard, out: Path, reps: int = 2000) -> list[Path]:

@@ -20,6 +20,7 @@ from grail_bench.harness.modes import Mode
 from grail_bench.report.escape import md
 from grail_bench.report.layout import Fitted, grid_table, stacked
 from grail_bench.report.rows import AblationRow, BudgetCurve, CalibrationRow, timing_rows
+from grail_bench.report.shifts import RegimeCell, ShiftCurve, regime_order, row_label
 from grail_bench.task.observation import level_text
 
 TASK_PREFIX = "GRAIL/"
@@ -232,6 +233,103 @@ def calibration_markdown(rows: Sequence[CalibrationRow]) -> str:
              "| domain | recognizer/scorer | records | Brier | NLL | ECE |", "|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {md(r.domain)} | {md(r.column)} | {r.records} | {_num(r.brier)} | {_num(r.nll)} | {_num(r.ece)} |")
+    return "\n".join(lines) + "\n"
+
+
+#: How SHIFTS.md and REGIMES.md pool a configuration's levels (:mod:`grail_bench.report.shifts`).
+POOLED = ("F1 is pooled over the observability levels: the mean over seeds of each seed's mean F1 over the levels, "
+          "with the 95 % interval of that mean (a seeded percentile bootstrap of the seeds, inside the seeds' values; "
+          "with one seed the value itself), beside the mean F1 at each level. The ceiling is the Bayes ceiling of the "
+          "shifted task (the best expected accuracy any recognizer can reach under the test demonstrations' own "
+          "demonstrator and dynamics), the mean over the levels; – where a level has none. It bounds accuracy, not F1. "
+          "NLL (mean over levels) and ECE (10 equal confidence bins, every level and seed pooled) are those of the "
+          "posterior over goals (the `loglik` scorer; – without one).")
+
+
+def _signed(value: float | None) -> str:
+    return "–" if value is None else f"{value:+.2f}"
+
+
+def shifts_markdown(curves: Sequence[ShiftCurve], title: str) -> str:
+    """:func:`grail_bench.report.shifts.shift_curves` as Markdown: per family, task and protocol, each
+    configuration's F1 at each value of the shift, then its drop from the unshifted task."""
+    lines = [f"# {title}: test-time shifts", "",
+             "Each configuration (recognizer, scorer and settings, as the leaderboard names them) against the size",
+             "of a shift of the test demonstrations' dynamics, in the profile's order from the unshifted task to the",
+             "largest shift (`shifts.png` draws F1, the ceiling dashed). " + POOLED, "",
+             "Drop: F1 at the largest shift minus F1 unshifted (negative: F1 falls under the shift; – unless both",
+             "have rows).", ""]
+    panels: dict[tuple[str, str, str], list[ShiftCurve]] = {}
+    for c in curves:
+        panels.setdefault((c.family, c.task, c.protocol), []).append(c)
+    for (family, task, protocol), mine in panels.items():
+        levels = sorted({lv for c in mine for lv in c.levels})
+        lines += [f"## {md(family)}: {md(task.removeprefix(TASK_PREFIX))} ({md(protocol)}, "
+                  f"{', '.join(level_text(lv) for lv in levels)} observed)", ""]
+        header = ["method", "shift", "seeds", "F1", "95 % interval", *[f"F1 @ {level_text(lv)}" for lv in levels],
+                  "ceiling", "NLL", "ECE"]
+        lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        for c in mine:
+            for p in c.points:
+                r = p.result
+                at = [_num(r.by_level.get(lv)) for lv in levels]
+                lines.append(f"| {md(c.label)} | {md(p.shift.label)} | {r.n_seeds} | {r.f1_mean:.2f} | "
+                             f"[{r.f1_ci95_low:.2f}, {r.f1_ci95_high:.2f}] | " + " | ".join(at)
+                             + f" | {_num(r.ceiling)} | {_num(r.nll)} | {_num(r.ece)} |")
+        last = md(mine[0].last.label)
+        lines += ["", f"| method | F1 unshifted | F1 at {last} | drop |", "|---|---|---|---|"]
+        for c in mine:
+            first = c.points[0].result.f1_mean if not c.points[0].shift.params else None
+            final = c.points[-1].result.f1_mean if c.points[-1].shift == c.last else None
+            lines.append(f"| {md(c.label)} | {_num(first)} | {_num(final)} | {_signed(c.drop)} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def regimes_markdown(cells: Sequence[RegimeCell], title: str) -> str:
+    """:func:`grail_bench.report.shifts.regime_cells` as Markdown: per domain and goal count the ceilings' matrix
+    and each configuration's F1 matrix (training regime by test regime), then every cell in full."""
+    lines = [f"# {title}: cross-regime grid", "",
+             "Each configuration fitted on one regime's training demonstrations (a row: the task's own regime) and",
+             "tested on another regime's demonstrations (a column: `test_regime`); the diagonal, in bold, is the",
+             "unshifted task. Matrices per domain and goal count; `regimes.png` draws those of the canonical",
+             "configurations. " + POOLED, ""]
+    groups: dict[tuple[str, int], list[RegimeCell]] = {}
+    for c in cells:
+        groups.setdefault((c.domain, c.goals), []).append(c)
+    for (domain, goals), group in groups.items():
+        columns = regime_order(group)
+        rows = list(dict.fromkeys(row_label(c) for c in sorted(group, key=lambda c: (c.train, c.task))))
+        lines += [f"## {md(domain)}, {goals} goals", ""]
+        notes = sorted({f"{c.test}: {c.test_params}" for c in group if c.test_params})
+        if notes:
+            lines += ["Test regimes' parameters: " + "; ".join(md(n) for n in notes) + ".", ""]
+
+        def matrix(value: Any, mine: Sequence[RegimeCell]) -> list[str]:
+            at = {(row_label(c), c.test): c for c in mine}
+            out = ["| train \\ test | " + " | ".join(map(md, columns)) + " |", "|" + "---|" * (len(columns) + 1)]
+            for row in rows:
+                texts = []
+                for col in columns:
+                    c = at.get((row, col))
+                    text = "–" if c is None else value(c)
+                    texts.append(f"**{text}**" if c is not None and c.train == c.test and text != "–" else text)
+                out.append(f"| {md(row)} | " + " | ".join(texts) + " |")
+            return out + [""]
+
+        lines += ["### Bayes ceiling (accuracy, mean over levels)", ""]
+        lines += matrix(lambda c: _num(c.result.ceiling), group)
+        for label in dict.fromkeys(c.label for c in group):
+            lines += [f"### {md(label)}: F1", ""]
+            lines += matrix(lambda c: f"{c.result.f1_mean:.2f}", [c for c in group if c.label == label])
+    header = ["domain", "goals", "method", "train", "test", "protocol", "seeds", "F1", "95 % interval", "ceiling",
+              "NLL", "ECE"]
+    lines += ["## Every cell", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for c in cells:
+        r = c.result
+        lines.append(f"| {md(c.domain)} | {c.goals} | {md(c.label)} | {md(row_label(c))} | {md(c.test)} | "
+                     f"{md(c.protocol)} | {r.n_seeds} | {r.f1_mean:.2f} | [{r.f1_ci95_low:.2f}, {r.f1_ci95_high:.2f}] "
+                     f"| {_num(r.ceiling)} | {_num(r.nll)} | {_num(r.ece)} |")
     return "\n".join(lines) + "\n"
 
 
