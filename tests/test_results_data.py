@@ -13,7 +13,8 @@ from typer.testing import CliRunner
 
 from grail_bench.cli import app
 from grail_bench.harness import published
-from grail_bench.harness.store import ResultsStore, _tables
+from grail_bench.harness.schema import _tables
+from grail_bench.harness.store import ResultsStore
 from grail_bench.report import leaderboard
 from grail_bench.report.html import write_site
 from grail_bench.report.text import markdown
