@@ -13,7 +13,7 @@ import sqlite3
 from pathlib import Path
 from typing import Iterable
 
-from grail_bench.harness.store import StoreError, _connect_read_only
+from grail_bench.harness.store import StoreError, connect_read_only
 
 __all__ = ["CeilingCache"]
 
@@ -38,7 +38,7 @@ class CeilingCache:
         if not wanted or not self.path.is_file():
             return {}
         try:
-            conn = _connect_read_only(self.path)
+            conn = connect_read_only(self.path)
             try:
                 if not conn.execute("SELECT 1 FROM sqlite_master WHERE name = 'ceilings'").fetchone():
                     return {}

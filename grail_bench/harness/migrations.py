@@ -20,15 +20,15 @@ from dataclasses import fields
 from grail_bench.harness import outputs
 from grail_bench.harness.outputs import KINDS as OUTPUT_KINDS
 from grail_bench.harness.schema import (
+    COLUMN_TYPES,
     MODE_OUTPUTS,
     NORMALISED,
     SCHEMA_VERSION,
     SHARED,
-    _TYPES,
-    _column,
-    _create,
-    _tables,
+    column_of,
+    create_statement,
     ref,
+    row_tables,
 )
 
 __all__ = ["migrate"]
@@ -67,8 +67,8 @@ def migrate(conn: sqlite3.Connection, tables: set[str], version: int, normalise:
             normalised = _normalise(conn)
         if tables and version < MODE_OUTPUTS:
             _add_mode_outputs(conn)
-        for kind, (table, key) in _tables().items():
-            conn.execute(_create(kind, table, key))
+        for kind, (table, key) in row_tables().items():
+            conn.execute(create_statement(kind, table, key))
         conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
     if normalised and conn.execute("PRAGMA database_list").fetchone()[2]:  # a file, not memory
         conn.execute("VACUUM")
@@ -84,7 +84,7 @@ def _normalise(conn: sqlite3.Connection) -> bool:
     """
     conn.create_function("grail_ref", 1, ref, deterministic=True)
     changed = False
-    for kind, (table, key) in _tables().items():
+    for kind, (table, key) in row_tables().items():
         columns = [r[1] for r in conn.execute(f"PRAGMA table_info({table})")]
         inline = [c for c in columns if c in SHARED]
         if not inline:
@@ -93,10 +93,10 @@ def _normalise(conn: sqlite3.Connection) -> bool:
             conn.execute(f"INSERT OR IGNORE INTO {SHARED[name]} (hash, json) SELECT grail_ref(v), v FROM "
                          f"(SELECT DISTINCT {name} AS v FROM {table} WHERE {name} IS NOT NULL)")
         conn.execute(f"ALTER TABLE {table} RENAME TO {table}__inline")
-        conn.execute(_create(kind, table, key))
+        conn.execute(create_statement(kind, table, key))
         target = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
-        kept = [c for c in columns if _column(c) in target]
-        conn.execute(f"INSERT INTO {table} ({', '.join(_column(c) for c in kept)}) SELECT "
+        kept = [c for c in columns if column_of(c) in target]
+        conn.execute(f"INSERT INTO {table} ({', '.join(column_of(c) for c in kept)}) SELECT "
                      f"{', '.join(f'grail_ref({c})' if c in SHARED else c for c in kept)} FROM {table}__inline")
         conn.execute(f"DROP TABLE {table}__inline")
         changed = True
@@ -108,7 +108,7 @@ def _add_mode_outputs(conn: sqlite3.Connection) -> None:
     outputs, empty (rows stored before have none); every row is kept as it is."""
     for kind in OUTPUT_KINDS.values():
         if kind.name != outputs.TABLE:
-            conn.execute(_create(kind.row, kind.name, kind.key))
+            conn.execute(create_statement(kind.row, kind.name, kind.key))
 
 
 def _migrate_v1(conn: sqlite3.Connection) -> None:
@@ -131,12 +131,12 @@ def _add_missing_columns(conn: sqlite3.Connection) -> None:
     table's ``adapt_seconds_per_goal`` and ``score_us_per_observation``; schema 10 ``task_fingerprint`` in every
     mode's table; schema 11 ``source`` in every mode's table. (Schema 5 added tables, and schema 6
     the ``fits`` table too.)"""
-    for kind, (table, _) in _tables().items():
+    for kind, (table, _) in row_tables().items():
         columns = {r[1] for r in conn.execute(f"PRAGMA table_info({table})")}
         if not columns:  # not there yet: created whole
             continue
-        normalised = any(_column(name) in columns for name in SHARED)
+        normalised = any(column_of(name) in columns for name in SHARED)
         for f in fields(kind):
-            column = _column(f.name) if normalised else f.name
+            column = column_of(f.name) if normalised else f.name
             if column not in columns:
-                conn.execute(f"ALTER TABLE {table} ADD COLUMN {column} {_TYPES.get(f.name, 'REAL')}")
+                conn.execute(f"ALTER TABLE {table} ADD COLUMN {column} {COLUMN_TYPES.get(f.name, 'REAL')}")

@@ -13,7 +13,7 @@ fitted), one :class:`~grail_bench.harness.modes.ZeroShotRow` per the same key; a
 of the rows (:mod:`grail_bench.harness.outputs`), one output row per row run
 since, keyed like it: ``outputs`` (offline, schema 11), ``online_outputs``,
 ``open_set_outputs`` and ``zero_shot_outputs`` (schema 12, :data:`MODE_OUTPUTS`). A row
-already stored is kept (the first write wins, :func:`_insert`) unless it is stale.
+already stored is kept (the first write wins, :func:`insert_statement`) unless it is stale.
 
 Stale rows. Rows of every mode record how ties between goals of equal best
 score were broken (``ties``: ``"uniform"``, the expectation under uniform
@@ -51,7 +51,8 @@ from grail_bench.harness.diagnostics import FitRow
 from grail_bench.harness.modes import MODES, Row
 from grail_bench.harness.outputs import KINDS as OUTPUT_KINDS
 
-__all__ = ["MODE_OUTPUTS", "NORMALISED", "SCHEMA_VERSION", "SHARED", "ref", "stale"]
+__all__ = ["COLUMN_TYPES", "MODE_OUTPUTS", "NORMALISED", "SCHEMA_VERSION", "SHARED", "column_of", "create_statement",
+           "insert_statement", "ref", "row_checker", "row_tables", "stale"]
 
 #: The schema this version writes (the store's ``PRAGMA user_version``).
 SCHEMA_VERSION = 12
@@ -60,11 +61,12 @@ NORMALISED = 11
 #: The first schema keeping the per-instance outputs of the online, open-set and zero-shot rows (their tables).
 MODE_OUTPUTS = 12
 
-_TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash": "TEXT", "seed": "INTEGER",
-          "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
-          "config": "TEXT", "versions": "TEXT", "provenance": "TEXT", "n_trajectories": "INTEGER",
-          "curve": "TEXT", "held_out": "TEXT", "confusion": "TEXT", "mode": "TEXT", "diagnostics": "TEXT",
-          "ties": "TEXT", "task_fingerprint": "TEXT", "posterior": "INTEGER", "data": "BLOB"}
+#: Row field -> the SQL type of its column (REAL unless named here).
+COLUMN_TYPES = {"task": "TEXT", "recognizer": "TEXT", "scorer": "TEXT", "config_hash": "TEXT", "seed": "INTEGER",
+                "observability": "REAL", "protocol": "TEXT", "n_observations": "INTEGER", "n_ties": "INTEGER",
+                "config": "TEXT", "versions": "TEXT", "provenance": "TEXT", "n_trajectories": "INTEGER",
+                "curve": "TEXT", "held_out": "TEXT", "confusion": "TEXT", "mode": "TEXT", "diagnostics": "TEXT",
+                "ties": "TEXT", "task_fingerprint": "TEXT", "posterior": "INTEGER", "data": "BLOB"}
 #: Row field -> the shared table holding its JSON once; the row's column is ``{field}_ref``, the table's key its hash.
 SHARED = {"config": "configs", "versions": "versions", "provenance": "provenance", "source": "sources"}
 #: SQL condition of a stale row (see the module docstring): stored under the old tie rule, and it may have tied.
@@ -82,12 +84,12 @@ def ref(text: str | None) -> str | None:
     return None if text is None else hashlib.sha256(text.encode()).hexdigest()
 
 
-def _column(name: str) -> str:
+def column_of(name: str) -> str:
     """The column of a row field in a normalised table."""
     return f"{name}_ref" if name in SHARED else name
 
 
-def _tables() -> dict[type, tuple[str, tuple[str, ...]]]:
+def row_tables() -> dict[type, tuple[str, tuple[str, ...]]]:
     """Row type -> (table, primary key): every mode's, and the fit diagnostics'."""
     out = {mode.row: (mode.table, mode.key) for mode in MODES.values()}
     out[FitRow] = (diagnostics.TABLE, diagnostics.KEY)
@@ -95,11 +97,11 @@ def _tables() -> dict[type, tuple[str, tuple[str, ...]]]:
     return out
 
 
-def _create(kind: type, table: str, key: tuple[str, ...]) -> str:
+def create_statement(kind: type, table: str, key: tuple[str, ...]) -> str:
     """The statement creating a (normalised) row table of ``kind``."""
     return (f"CREATE TABLE IF NOT EXISTS {table} ("
-            + ", ".join(f"{_column(f.name)} {_TYPES.get(f.name, 'REAL')}" + (" NOT NULL" if f.name in key else "")
-                        for f in fields(kind))
+            + ", ".join(f"{column_of(f.name)} {COLUMN_TYPES.get(f.name, 'REAL')}"
+                        + (" NOT NULL" if f.name in key else "") for f in fields(kind))
             + ", created_at TEXT NOT NULL DEFAULT (datetime('now'))"
             + f", PRIMARY KEY ({', '.join(key)}))")
 
@@ -111,7 +113,7 @@ _JSON_WHOLE = frozenset({"config", "versions", "provenance", "reliability", "dia
 
 
 @lru_cache(maxsize=None)
-def _row_checker(kind: type) -> Callable[[tuple], str | None]:
+def row_checker(kind: type) -> Callable[[tuple], str | None]:
     """A check of one stored row of ``kind`` as read (a tuple in field order): None, or what is wrong with it
     (a value of the wrong type, a NULL where a value is required, malformed JSON, a
     confusion matrix that is not square). Rows are written by grail-bench; this finds hand-edited ones."""
@@ -161,10 +163,10 @@ def _square(matrix: Any) -> bool:
 _NUMBERS = frozenset({int, float})  # JSON's numbers (a bool is neither)
 
 
-def _insert(kind: type, table: str, key: tuple[str, ...], replace: bool = False) -> str:
+def insert_statement(kind: type, table: str, key: tuple[str, ...], replace: bool = False) -> str:
     """The statement storing one row of ``kind``: ignored if its key is stored, unless the stored row is stale
     (``replace``: it replaces the stored row of its key)."""
-    names = [_column(f.name) for f in fields(kind)]
+    names = [column_of(f.name) for f in fields(kind)]
     head = f"INTO {table} ({', '.join(names)}) VALUES ({', '.join('?' * len(names))})"
     if replace:
         return f"INSERT OR REPLACE {head}"

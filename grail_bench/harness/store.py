@@ -65,11 +65,11 @@ from grail_bench.harness.schema import (
     NORMALISED,
     SCHEMA_VERSION,
     SHARED,
-    _column,
-    _insert,
-    _row_checker,
-    _tables,
+    column_of,
+    insert_statement,
     ref,
+    row_checker,
+    row_tables,
     stale,
 )
 from grail_bench.task import versions
@@ -125,7 +125,7 @@ class ResultsStore:
                 migrate(self._conn, set(), 0)
                 self._layout()
             elif read_only:
-                self._conn = _connect_read_only(Path(self.path).expanduser())
+                self._conn = connect_read_only(Path(self.path).expanduser())
                 self._checked(read_only=True, fresh=False)
             else:
                 file = _check_writable_path(Path(self.path).expanduser())
@@ -164,7 +164,7 @@ class ResultsStore:
             raise StoreError(f"{self.path} is {what}not a grail-bench results store")
         if version > SCHEMA_VERSION:
             raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
-        missing = {table for table, _ in _tables().values()} - tables
+        missing = {table for table, _ in row_tables().values()} - tables
         current = version >= SCHEMA_VERSION and not missing
         if not read_only:  # a run must learn now if it can write, though the file is changed only by add
             self._conn.execute("BEGIN IMMEDIATE")
@@ -220,7 +220,7 @@ class ResultsStore:
                 raise StoreError(f"{self.path} is not a grail-bench results store")
             if version > SCHEMA_VERSION:
                 raise StoreError(f"{self.path} was written by a newer grail-bench (schema {version})")
-            if version < SCHEMA_VERSION or {table for table, _ in _tables().values()} - tables:
+            if version < SCHEMA_VERSION or {table for table, _ in row_tables().values()} - tables:
                 migrate(conn, tables, version)
             conn.execute("PRAGMA journal_mode=WAL")
         except BaseException:
@@ -234,9 +234,9 @@ class ResultsStore:
         """Learn which shared fields each row table references (normalised) rather than holds."""
         self._refs: dict[str, set[str]] = {}
         self._columns: dict[str, set[str]] = {}
-        for table, _ in _tables().values():
+        for table, _ in row_tables().values():
             columns = {r[1] for r in self._conn.execute(f"PRAGMA table_info({table})")}
-            self._refs[table] = {name for name in SHARED if _column(name) in columns}
+            self._refs[table] = {name for name in SHARED if column_of(name) in columns}
             self._columns[table] = columns
 
     def close(self) -> None:
@@ -280,9 +280,9 @@ class ResultsStore:
                     self._conn.executemany(f"INSERT OR IGNORE INTO {table} (hash, json) VALUES (?, ?)",
                                            sorted(texts.items()))
                 before = self._conn.total_changes
-                tables = _tables()
+                tables = row_tables()
                 for kind, values in by_kind.items():
-                    self._conn.executemany(_insert(kind, *tables[kind], replace=replace), values)
+                    self._conn.executemany(insert_statement(kind, *tables[kind], replace=replace), values)
                 return self._conn.total_changes - before
         except sqlite3.Error as exc:
             raise StoreError(_sqlite_message("write to", self.path, exc)) from None
@@ -297,14 +297,14 @@ class ResultsStore:
         """Stored rows of one mode (or of a row type, :class:`FitRow` included), optionally filtered by column
         equality (a list means any of)."""
         kind = kind.row if isinstance(kind, Mode) else kind
-        table = _tables()[kind][0]
+        table = row_tables()[kind][0]
         columns = [f.name for f in fields(kind)]
         refs, present = self._refs[table], self._columns[table]
         if not present:  # a table added since the store was written (read as it is): no rows
             return []
         # A field the file has no column for (a store of an older schema, read as it is) reads as NULL.
         expression = {c: f"{SHARED[c]}.json" if c in refs else f"t.{c}" if c in present else "NULL" for c in columns}
-        joins = "".join(f" LEFT JOIN {SHARED[c]} ON {SHARED[c]}.hash = t.{_column(c)}" for c in columns if c in refs)
+        joins = "".join(f" LEFT JOIN {SHARED[c]} ON {SHARED[c]}.hash = t.{column_of(c)}" for c in columns if c in refs)
         versioned = "config" in columns  # rows whose task ID is read through grail_bench.task.versions
         wanted = None
         clauses, params = [], []
@@ -325,7 +325,7 @@ class ResultsStore:
             found = self._conn.execute(sql, params).fetchall()
         except sqlite3.Error as exc:
             raise StoreError(f"cannot read results store {self.path}: {exc}") from None
-        check = _row_checker(kind)
+        check = row_checker(kind)
         out = []
         for values in found:
             problem = check(values)
@@ -480,7 +480,7 @@ def _check_header(file: Path) -> None:
             raise StoreError(f"{file} is not a grail-bench results store")
 
 
-def _connect_read_only(file: Path) -> sqlite3.Connection:
+def connect_read_only(file: Path) -> sqlite3.Connection:
     """A connection that can only read ``file`` and creates no file beside it.
 
     While another connection has the store open (or after a crash) its
