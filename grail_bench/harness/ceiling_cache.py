@@ -1,11 +1,5 @@
-"""The Bayes ceilings a results store's rows need, cached in the store file's ``ceilings`` table.
-
-:class:`CeilingCache` is read and written by
-:func:`grail_bench.harness.ceiling.ceilings_for` (the leaderboard's ceilings).
-The table sits beside the tables of the store's schema
-(:mod:`grail_bench.harness.schema`) without being one of them: no migration
-(:mod:`grail_bench.harness.migrations`) creates or changes it.
-"""
+"""The Bayes ceilings a results store's rows need, cached in the store file (:class:`CeilingCache`, read and
+written by :func:`grail_bench.harness.ceiling.ceilings_for`)."""
 
 from __future__ import annotations
 

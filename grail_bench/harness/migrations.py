@@ -2,8 +2,8 @@
 
 :func:`migrate` is the one place a store's file is changed for its schema, in
 one transaction, keeping every row: schema 1 -> 2 renames a column
-(:func:`_migrate_v1`); schema 2 -> ... -> 10 add columns, NULL for the rows
-already stored (:func:`_add_missing_columns`); schema 10 -> 11 moves the JSON
+(:func:`_migrate_v1`); later schemas add columns, NULL for the rows already
+stored (:func:`_add_missing_columns`); schema 10 -> 11 moves the JSON
 many rows share into the shared tables (:func:`_normalise`); schema 11 -> 12
 adds the tables of the online, open-set and zero-shot rows' per-instance
 outputs (:func:`_add_mode_outputs`). The store
