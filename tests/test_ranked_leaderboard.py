@@ -13,7 +13,8 @@ import grail_bench
 from grail_bench.cli import app
 from grail_bench.harness import ceiling as ceiling_module
 from grail_bench.harness.ceiling import Cell, ceilings_for
-from grail_bench.harness.store import CeilingCache, ResultRow, ResultsStore
+from grail_bench.harness.ceiling_cache import CeilingCache
+from grail_bench.harness.store import ResultRow, ResultsStore
 from grail_bench.report.claims import claim_tasks
 from grail_bench.report.configs import method_of
 from grail_bench.task.overrides import TaskOverrides

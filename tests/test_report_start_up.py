@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from grail_bench.harness.store import CeilingCache, ResultsStore
+from grail_bench.harness.ceiling_cache import CeilingCache
+from grail_bench.harness.store import ResultsStore
 from grail_bench.recognizers import descriptions
 from grail_bench.recognizers.registry import build, recognizer_info, register_recognizer, unregister_recognizer
 

@@ -13,7 +13,8 @@ from typer.testing import CliRunner
 
 from grail_bench.cli import app
 from grail_bench.harness import published
-from grail_bench.harness.store import ResultsStore, _tables
+from grail_bench.harness.schema import row_tables
+from grail_bench.harness.store import ResultsStore
 from grail_bench.report import leaderboard
 from grail_bench.report.html import write_site
 from grail_bench.report.text import markdown
@@ -23,7 +24,7 @@ runner = CliRunner()
 
 def all_rows(path: Path) -> dict[str, list]:
     with ResultsStore(path, read_only=True) as store:
-        return {kind.__name__: store.select(kind) for kind in _tables()}
+        return {kind.__name__: store.select(kind) for kind in row_tables()}
 
 
 @pytest.fixture()

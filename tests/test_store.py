@@ -509,3 +509,17 @@ def test_shared_json_is_stored_once_however_many_rows_carry_it(tmp_path):
     conn = sqlite3.connect(path)
     assert [conn.execute(f"SELECT COUNT(*) FROM {t}").fetchone()[0] for t in ("configs", "versions", "provenance")] \
         == [1, 1, 1]
+
+
+def test_what_moved_out_of_the_store_module_is_still_importable_from_it():
+    from grail_bench.harness import ceiling_cache, migrations, schema, store
+
+    assert store.migrate is migrations.migrate
+    assert store.CeilingCache is ceiling_cache.CeilingCache
+    for name in ("MODE_OUTPUTS", "NORMALISED", "SCHEMA_VERSION", "SHARED", "ref", "stale"):
+        assert getattr(store, name) is getattr(schema, name)
+    namespace: dict = {}
+    exec("from grail_bench.harness.store import *", namespace)
+    assert set(store.__all__) <= namespace.keys()
+    with pytest.raises(AttributeError):
+        store.no_such_name

@@ -295,7 +295,7 @@ def _show(records: list, mode, executor, store: str = ":memory:") -> None:  # no
     """A run's tables: offline, the paper-style F1 tables of its canonical configurations and of its named
     variants (with Bayes ceilings, those not cached yet computed on the run's executor and kept in the run's
     store) and the timings."""
-    from grail_bench.harness.store import CeilingCache
+    from grail_bench.harness.ceiling_cache import CeilingCache
     from grail_bench.report import leaderboard
     from grail_bench.report.tables import mode_table, timing_table
     from grail_bench.report.text import rich_tables
@@ -356,7 +356,7 @@ def leaderboard_(
     from grail_bench.harness.ceiling import SAMPLES
     from grail_bench.harness.diagnostics import FitRow
     from grail_bench.harness.modes import MODES
-    from grail_bench.harness.store import CeilingCache
+    from grail_bench.harness.ceiling_cache import CeilingCache
     from grail_bench.report import leaderboard, plots
     from grail_bench.report.filters import Filters
     from grail_bench.report.reference import read_reference

@@ -533,7 +533,7 @@ def ceilings_for(cells: Iterable[Sequence[Any]], samples: int = 2000, on_cell: C
     that has one.
 
     Cached cells are read here, from ``store`` (a results store's
-    :class:`~grail_bench.harness.store.CeilingCache`) first, then from the user's cache folder; the others are
+    :class:`~grail_bench.harness.ceiling_cache.CeilingCache`) first, then from the user's cache folder; the others are
     computed on ``executor`` (default: in this process, in order) and cached by this process in both. Each entry is
     keyed by what determines the ceiling (the task's goals, regime and env parameters, the demonstrator's version,
     the protocol, level, samples and seed), so a changed task gets its ceiling computed again. ``on_cell`` is

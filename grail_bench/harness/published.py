@@ -4,7 +4,7 @@ A published folder holds
 
 * ``format.json``: ``{"format": "grail-bench results", "version": 1}``;
 * the shared tables, one JSON object a line, ``{"hash": ..., "json": ...}`` (the exact JSON text and the hex
-  SHA-256 of its UTF-8 bytes, :func:`grail_bench.harness.store.ref`): ``configs.jsonl`` (recognizer
+  SHA-256 of its UTF-8 bytes, :func:`grail_bench.harness.schema.ref`): ``configs.jsonl`` (recognizer
   configurations), ``versions.jsonl`` (package versions), ``provenance.jsonl`` and ``sources.jsonl`` (the
   submissions merged rows came from; :data:`SHARED_FILES`);
 * the rows, one file per domain and kind (``minigrid/offline.jsonl``, ``minigrid/online.jsonl``,
@@ -40,7 +40,8 @@ from grail_bench.harness.modes import MODES, OnlineRow, OpenSetRow, ResultRow, Z
 from grail_bench.harness.outputs import KINDS as OUTPUT_KINDS
 from grail_bench.harness.outputs import ROW_TYPES as OUTPUT_ROWS
 from grail_bench.harness.outputs import OutputRow, arrays_of, pack_arrays
-from grail_bench.harness.store import SHARED, ResultsStore, ref
+from grail_bench.harness.schema import SHARED, ref
+from grail_bench.harness.store import ResultsStore
 
 FORMAT = {"format": "grail-bench results", "version": 1}
 #: Row kind (a file's stem) -> its row type.

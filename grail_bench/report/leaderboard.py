@@ -92,7 +92,7 @@ def build(rows: Sequence[ResultRow], reference: dict[tuple[str, str, float], Rep
         progress: Show a progress bar while ceilings are computed.
         fits: Stored fit diagnostics (:class:`~grail_bench.harness.diagnostics.FitRow`).
         executor: Where ceilings missing from the cache are computed (default: in this process).
-        cache: The store's ceiling cache (:class:`~grail_bench.harness.store.CeilingCache`), read and written
+        cache: The store's ceiling cache (:class:`~grail_bench.harness.ceiling_cache.CeilingCache`), read and written
             beside the user's cache folder.
     """
     rows = list(rows)

@@ -7,7 +7,7 @@ recognizer, configuration hash (the recognizer's settings and the task's paramet
 protocol and observability level; its rows are its seeds. Only the rerun's cells are compared: per row of the
 same seed, whether the headline metric (F1; online: the F1 area) is identical; per cell, a Welch t-test of the
 rerun's per-seed values against the published ones. Stale rows (the old tie rule, see
-:mod:`grail_bench.harness.store`) are left out on both sides.
+:mod:`grail_bench.harness.schema`) are left out on both sides.
 """
 
 from __future__ import annotations
@@ -29,7 +29,8 @@ from scipy import stats
 from grail_bench.core.errors import UserError
 from grail_bench.harness.modes import MODES, Mode
 from grail_bench.harness.planning import recognizer_config, task_params
-from grail_bench.harness.store import ResultsStore, stale
+from grail_bench.harness.schema import stale
+from grail_bench.harness.store import ResultsStore
 
 ALPHA = 0.05
 MAX_LISTED = 40  # most lines listed per section of the report
