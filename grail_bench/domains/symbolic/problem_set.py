@@ -12,8 +12,7 @@ Reading is bounded: at most :data:`MAX_PROBLEMS` problems per set (:mod:`grail_b
 the bounded reader of :mod:`.dataset`.
 
 A set's task is no gymnasium ID: ``gym.make("symbolic:<name>")`` reads the ID as ``module:env`` and imports a module
-``symbolic``. Once a set is read, that import fails saying so (:class:`_GymIdHint`); the env is the task's own,
-``task.make_env(goal)``.
+``symbolic``. Once a set is read, that import fails saying so; the env is the task's own, ``task.make_env(goal)``.
 """
 
 from __future__ import annotations
