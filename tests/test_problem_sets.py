@@ -3,6 +3,7 @@ of its own, and the ``dataset`` protocol scores each problem's own obs.dat again
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
 import re
@@ -12,9 +13,10 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
-from test_cli_inputs import refused
+from test_cli_inputs import invoke, refused
 from typer.testing import CliRunner
 
 import grail_bench
@@ -204,3 +206,65 @@ def test_a_problem_sets_rows_read_elsewhere_are_named_by_their_settings_and_chec
     write_problem(replace(star(), observations=(("move", "c", "a01"),)), folder / "star_hyp-0_100.tar.bz2")
     edited = leaderboard(store.path, "--task", str(folder))  # another set under its name: run by an earlier one
     assert edited.returncode == 0 and "0 named variants and 2 archived configurations" in edited.stdout
+
+
+# --- the other commands taking --task ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory) -> Path:
+    """A folder of two tasks: problems of the grid and of blocks."""
+    folder = write_set(tmp_path_factory.mktemp("sets") / "mixed", builtin_problem("grid"), 100, name="grid")
+    return write_set(folder, builtin_problem("blocks"), 100, name="blocks")
+
+
+def test_tasks_and_list_show_a_problem_sets_tasks_given_its_path(whole, mixed, tmp_path):
+    code, output = invoke(["tasks", "--task", str(whole)], tmp_path / "r.sqlite")
+    assert code == 0 and "symbolic:star" in output and "GRAIL/" not in output, output  # its tasks only
+    code, output = invoke(["list", "tasks", "-t", str(mixed), "-t", "GRAIL/Symbolic-Grid-Optimal-v0", "-d", "symbolic"],
+                          tmp_path / "r.sqlite")
+    assert code == 0, output
+    assert {"symbolic:mixed/blocks", "symbolic:mixed/grid", "GRAIL/Symbolic-Grid-Optimal-v0"} <= set(output.split())
+    assert "GRAIL/Symbolic-Blocks-Optimal-v0" not in output
+
+
+def test_inspect_and_ceiling_take_a_problem_sets_path(whole, tmp_path):
+    code, output = invoke(["inspect", "--task", str(whole), "-r", "landmarks"], tmp_path / "r.sqlite")
+    assert code == 0 and "dataset+actions: 100% F1 1.00" in output, output  # each problem's own obs.dat
+    code, output = invoke(["ceiling", "--task", str(whole), "-p", "subset", "-o", "0.5", "--json",
+                           str(tmp_path / "c.json")], tmp_path / "r.sqlite")
+    assert code == 0 and "symbolic:star" in output, output
+    (ceiling,) = json.loads((tmp_path / "c.json").read_text())
+    assert ceiling["task"] == "symbolic:star" and ceiling["chance"] == pytest.approx(1 / ARMS)
+    assert ceiling["accuracy"] == 1.0  # half of a corridor's only plan names its end
+
+
+@pytest.mark.parametrize("args, message", [
+    (["export", "-t", "{set}", "--out", "{tmp}/out"], "the problem set {set} has no such ID"),
+    (["study", "off-route", "-t", "{set}"], "study off-route takes task IDs, not a problem set's path ({set})"),
+    (["ceiling", "-t", "{set}"], "the dataset protocol of symbolic:star (each problem's own obs.dat) has no Bayes "
+                                 "ceiling; give --protocol subset or prefix"),
+    (["inspect", "-t", "{mixed}", "-r", "landmarks"],
+     "the problem set {mixed} holds 2 tasks (symbolic:mixed/blocks, symbolic:mixed/grid); inspect takes one"),
+    (["ceiling", "-t", "{tmp}/nowhere"], "problem set {tmp}/nowhere does not exist"),
+    (["tasks", "-t", "{tmp}/nowhere.tar.bz2"], "problem set {tmp}/nowhere.tar.bz2 does not exist"),
+], ids=["export", "study", "ceiling-dataset", "inspect-several", "ceiling-missing", "tasks-missing"])
+def test_a_problem_sets_path_where_a_command_cannot_take_it_is_one_line(whole, mixed, tmp_path, args, message):
+    names = {"set": whole, "mixed": mixed, "tmp": tmp_path}
+    refused([a.format(**names) for a in args], tmp_path / "r.sqlite", message.format(**names))
+    assert not (tmp_path / "out").exists() and not (tmp_path / "r.sqlite").exists()
+
+
+def test_gym_make_on_a_problem_sets_id_says_how_its_env_is_made(whole):
+    """gymnasium reads ``symbolic:star`` as ``module:env`` and imports ``symbolic``: once a set is read, the
+    failure names the problem set and the task's own ``make_env``, which works; other imports are unchanged."""
+    (task,) = problem_set_tasks(whole)
+    with pytest.raises(ModuleNotFoundError, match=r"'symbolic:<name>' is a grail-bench problem set's task, not a "
+                                                  r"gymnasium ID .*problem_set_tasks\(PATH\)\[i\]\.make_env\(goal\)"):
+        gym.make(task.id)
+    with pytest.raises(ImportError):
+        importlib.import_module("symbolic")
+    env = task.make_env(task.goals[2])
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs) and env.unwrapped.task is task
+    env.close()

@@ -17,12 +17,17 @@ from grail_bench.cli.inputs import (
     err_console,
     errors,
     fail,
+    is_task_path,
     mode_name,
+    named_tasks,
     one_line_warnings,
+    one_task,
     open_store,
     outputs,
     refuse_repeated_options,
     say,
+    task_filters,
+    task_object,
     use_cards,
     write_text,
 )
@@ -67,16 +72,23 @@ def _root() -> None:
     """grail-bench: goal-recognition benchmarks on gymnasium."""
 
 
-TASK_FILTER_HELP = ("Only these tasks: full IDs or globs, e.g. 'GRAIL/MiniGrid-*' (quote globs); repeat for "
-                    "several.")
+TASK_FILTER_HELP = ("Only these tasks: full IDs or globs, e.g. 'GRAIL/MiniGrid-*' (quote globs), or a symbolic "
+                    "problem set's path as `run` takes it (its tasks); repeat for several.")
+ONE_TASK_HELP = ("A task ID (GRAIL/... or one of --cards'), or a symbolic problem set's path as `run` takes it "
+                 "(one holding a single task).")
 DOMAIN_FILTER_HELP = "Only this domain's tasks (e.g. minigrid, point_maze); repeat for several."
 METHOD_FILTER_HELP = "Only this method: a recognizer (bc), its published name (BC-GRAIL) or recognizer/scorer; globs."
 
 
-def _all_tasks(filters=None) -> list:  # noqa: ANN001 - a report.filters.Filters
+def _all_tasks(task: Optional[List[str]] = None, domain: Optional[List[str]] = None) -> list:
+    """The tasks `tasks` and `list` show: every registered one, or those ``--task`` and ``--domain`` select (a
+    problem set's path, its tasks)."""
+    from grail_bench.report.filters import Filters
     from grail_bench.task import make_task, task_ids
 
-    ids = task_ids()
+    names, own = task_filters(task)
+    filters = Filters.of(names, domain)
+    ids = list(dict.fromkeys([*task_ids(), *(t.id for t in own)]))
     if filters:
         filters.check_tasks(ids)
         ids = [t for t in ids if filters.task(t)]
@@ -91,12 +103,11 @@ def tasks(
 ) -> None:
     """List every registered task, GRAIL/ and your cards' (full IDs, as --task takes them) with its domain, regime, goals and demo
     counts."""
-    from grail_bench.report.filters import Filters
     from grail_bench.report.tables import tasks_table
 
     with errors():
         use_cards(cards)
-        console.print(tasks_table(_all_tasks(Filters.of(task, domain))))
+        console.print(tasks_table(_all_tasks(task, domain)))
     _say_skipped_cards()
 
 
@@ -150,7 +161,7 @@ def list_(
     with errors():
         use_cards(cards)
         if what in ("all", "tasks"):
-            console.print(tasks_table(_all_tasks(Filters.of(task, domain))))
+            console.print(tasks_table(_all_tasks(task, domain)))
             _say_skipped_cards()
         if what in ("all", "recognizers"):
             console.print(names_table("recognizers (entry-point group grail_bench.recognizers)",
@@ -228,7 +239,7 @@ def run(
         scorers = tuple(dict.fromkeys(scorer or []))
         setups = _observations(observation, observability, canonical_name(sampling) if sampling else protocol,
                                rounding)
-        tasks = _run_tasks(list(dict.fromkeys(task or [DEFAULT_TASK])))
+        tasks = named_tasks(task or [DEFAULT_TASK])
         reqs = [request(t, [RecognizerSpec(n, config[n], scorers) for n in names], seeds=seeds,
                         observability=levels, protocol=chosen_protocol, rounding=chosen_rounding,
                         task_params=parse_params(params or []) | ({"demos": demos} if demos else {}), mode=mode,
@@ -245,34 +256,6 @@ def run(
         say(f"results stored in {where}")
         if json_path is not None:
             write_text(json_path, json.dumps([r.to_dict() for r in records], indent=2) + "\n", "records")
-
-
-def _run_tasks(names: list[str]) -> list:
-    """The tasks a run's ``--task`` values name: an ID as given, a path as its problem set's tasks (one per group
-    of problems sharing domain, template and hypotheses: :mod:`grail_bench.domains.symbolic.problem_set`)."""
-    from grail_bench.domains.symbolic.dataset import ARCHIVE_SUFFIXES
-    from grail_bench.domains.symbolic.problem_set import problem_set_tasks
-
-    def is_path(name: str) -> bool:  # an existing one, or one written as a path (a missing one is said so)
-        return Path(name).exists() or name.startswith(("/", "./", "../", "~")) or name.endswith(ARCHIVE_SUFFIXES)
-
-    return [t for name in names for t in (problem_set_tasks(Path(name).expanduser()) if is_path(name) else [name])]
-
-
-def _read_tasks(names: Optional[List[str]]) -> Optional[List[str]]:
-    """The reading commands' ``--task`` values as filters: an ID or glob as given, a problem set's path (as `run`
-    takes it) as its tasks' IDs, each made known here so that its rows are checked as `run` plans them."""
-    from grail_bench.task.registration import remember
-
-    if not names:
-        return names
-    out = []
-    for task in _run_tasks(list(dict.fromkeys(names))):
-        if not isinstance(task, str):
-            remember(task)
-            task = task.id
-        out.append(task)
-    return out
 
 
 def _observations(profile: Optional[str], observability: Optional[str], protocol: Optional[str],
@@ -319,8 +302,7 @@ def leaderboard_(
                                              help="CSV of reported values (columns task, recognizer, observability, f1) to show beside "
                                                   "ours."),
     task: Optional[List[str]] = typer.Option(
-        None, "--task", "-t", help=TASK_FILTER_HELP[:-1] + ", or a symbolic problem set's path as `run` takes it "
-                                   "(its tasks, checked against today's code)."),
+        None, "--task", "-t", help=TASK_FILTER_HELP[:-1] + " (a set's rows are then checked against today's code)."),
     domain: Optional[List[str]] = typer.Option(None, "--domain", "-d", help=DOMAIN_FILTER_HELP),
     method: Optional[List[str]] = typer.Option(None, "--method", help=METHOD_FILTER_HELP),
     boards: bool = typer.Option(False, "--boards", help="Also print the paper-style F1 tables, a row per task and "
@@ -378,7 +360,7 @@ def leaderboard_(
             SAMPLES.check("samples", samples)
         outputs(files=[markdown_path, plot], folders=[html, profiles])
         ref = read_reference(reference) if reference else None
-        filters = Filters.of(_read_tasks(task), domain, method)
+        filters = Filters.of(task_filters(task)[0], domain, method)
         with open_store(store_path, must_exist=True) as store:
             selected = {name: _select(store, m, filters, scorer, protocol) for name, m in MODES.items()
                         if name == mode.name or (html is not None)}
@@ -564,7 +546,7 @@ def reproduce(
 
 @app.command()
 def inspect(
-    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A task ID (GRAIL/... or one of --cards')."),
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help=ONE_TASK_HELP),
     recognizer: str = typer.Option("bc", "--recognizer", "-r", help="The recognizer to inspect."),
     seed: int = typer.Option(0, "--seed", "-s", min=0, help="The seed whose fit to inspect."),
     settings: Optional[List[str]] = typer.Option(None, "--set", help="Recognizer hyperparameter, e.g. bc.n_epochs=50."),
@@ -584,8 +566,10 @@ def inspect(
         use_cards(cards)
         outputs(folders=[out])
         config = parse_settings(settings or [], [recognizer])[recognizer]
-        with console.status(f"fitting {recognizer} on {task}, seed {seed} (or reading it from the model cache)"):
-            seen = inspect_fit(task, recognizer, seed, config, parse_params(params or []), protocol)
+        chosen = one_task(task, "inspect")
+        with console.status(f"fitting {recognizer} on {getattr(chosen, 'id', chosen)}, seed {seed} (or reading it "
+                            "from the model cache)"):
+            seen = inspect_fit(chosen, recognizer, seed, config, parse_params(params or []), protocol)
         labels = [goal_label(g) for g in seen.task.goals]
         if seen.diagnostics is None:
             say(f"recognizer {recognizer!r} offers no fit diagnostics")
@@ -622,6 +606,9 @@ def export(
 
     with errors():
         use_cards(cards)
+        if is_task_path(task):
+            raise fail(f"export writes datasets of registered tasks, whose env gymnasium rebuilds by ID; the problem "
+                       f"set {task} has no such ID (run it with `run --task PATH`)")
         gr_task = make_task(task, **parse_params(params or []))  # checked before the folder is made
         outputs(folders=[out])
         with console.status(f"exporting {gr_task.id}"):
@@ -649,7 +636,7 @@ def protocols() -> None:
 
 @app.command()
 def ceiling(
-    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help="A task ID (GRAIL/... or one of --cards')."),
+    task: str = typer.Option(DEFAULT_TASK, "--task", "-t", help=ONE_TASK_HELP),
     protocol: Optional[str] = typer.Option(None, "--protocol", "-p", help="Observation protocol (default: the task's)."),
     observability: Optional[str] = typer.Option(None, "--observability", "-o",
                                                 help="Comma-separated fractions (default: the task's)."),
@@ -669,21 +656,24 @@ def ceiling(
     """The Bayes ceiling: the best accuracy any recognizer can reach under a protocol and level."""
     from grail_bench.harness.ceiling import bayes_ceiling
     from grail_bench.report.tables import ceiling_table
-    from grail_bench.task import make_task
-    from grail_bench.task.observation import ObservationSpec
+    from grail_bench.task.observation import DATASET, ObservationSpec
 
     with errors():
         use_cards(cards)
         outputs(files=[json_path])
-        gr_task = make_task(task, **parse_params(params or []))
+        chosen = one_task(task, "ceiling")
+        gr_task = task_object(chosen, parse_params(params or []))
+        if (protocol or gr_task.protocol) == DATASET:
+            raise fail(f"the {DATASET} protocol of {gr_task.id} (each problem's own obs.dat) has no Bayes ceiling; "
+                       "give --protocol subset or prefix (the task's optimal plans)")
         spec = ObservationSpec.resolve(protocol or gr_task.protocol, rounding or gr_task.rounding,
                                        observability or gr_task.observability)
         with console.status("computing the Bayes ceiling"):
             results = [bayes_ceiling(gr_task, spec.protocol, level, rounding=spec.rounding, method=method,
                                      samples=samples, seed=seed, pairs_only=pairs_only, noise=noise, channel=channel)
                        for level in spec.levels]
-        variant = gr_task.overrides_against(make_task(task)).label()  # e.g. test_slip=0.1
-        console.print(ceiling_table(f"{task} ({variant})" if variant else task, results))
+        variant = gr_task.overrides_against(task_object(chosen, {})).label()  # e.g. test_slip=0.1
+        console.print(ceiling_table(f"{gr_task.id} ({variant})" if variant else gr_task.id, results))
         if json_path is not None:
             write_text(json_path, json.dumps([c.as_dict() for c in results], indent=2) + "\n", "ceilings")
 
@@ -715,6 +705,10 @@ def study(
     flags = {"store": "--store", "tasks": "--task", "params": "--param", "seeds": "--seeds", "samples": "--samples"}
     with errors():
         use_cards(cards)
+        paths = [t for t in task or () if is_task_path(t)]
+        if paths:
+            raise fail(f"study {name} takes task IDs, not a problem set's path ({paths[0]}); a problem set runs as a "
+                       "task of its own with `run --task PATH`")
         given = {"store": store_path, "tasks": tuple(task) if task else None,
                  "params": parse_params(params) if params else None, "seeds": seeds, "samples": samples}
         takes = study_options(name)  # argument -> whether required

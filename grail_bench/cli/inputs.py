@@ -247,6 +247,66 @@ def use_cards(paths: Optional[Sequence[Path]]) -> None:
     load_cards(*(paths or ()))
 
 
+def is_task_path(name: str) -> bool:
+    """Whether a ``--task`` value names a problem set's path rather than a task ID: an existing path, or one
+    written as a path (a missing one is then said so, not taken for an unknown ID)."""
+    from grail_bench.domains.symbolic.dataset import ARCHIVE_SUFFIXES
+
+    return Path(name).exists() or name.startswith(("/", "./", "../", "~")) or name.endswith(ARCHIVE_SUFFIXES)
+
+
+def named_tasks(names: Sequence[str]) -> list[Any]:
+    """The tasks ``--task`` values name: an ID (or a reading command's glob) as given, a path as its problem set's
+    tasks, one :class:`~grail_bench.task.GRTask` per group of problems sharing domain, template and hypotheses
+    (:mod:`grail_bench.domains.symbolic.problem_set`).
+
+    Raises:
+        UserError: For a path that holds no well-formed problem set.
+    """
+    from grail_bench.domains.symbolic.problem_set import problem_set_tasks
+
+    names = list(dict.fromkeys(names))
+    return [t for name in names for t in (problem_set_tasks(Path(name).expanduser()) if is_task_path(name)
+                                          else [name])]
+
+
+def task_filters(names: Optional[Sequence[str]]) -> tuple[Optional[list[str]], list[Any]]:
+    """A reading command's ``--task`` values as filters (IDs and globs as given, a problem set's path as its
+    tasks' IDs) and the problem sets' tasks, each made known in this process (so that its rows are checked as
+    `run` plans them)."""
+    from grail_bench.task.registration import remember
+
+    if not names:
+        return None, []
+    found = named_tasks(names)
+    own = [t for t in found if not isinstance(t, str)]
+    for task in own:
+        remember(task)
+    return [t if isinstance(t, str) else t.id for t in found], own
+
+
+def one_task(name: str, command: str) -> Any:
+    """The one task a command taking a single ``--task`` is given: an ID as given, or a problem set's path
+    holding one task.
+
+    Raises:
+        UserError: For a path that holds no problem set, or one of several tasks.
+    """
+    found = named_tasks([name])
+    if len(found) > 1:
+        ids = ", ".join(t.id for t in found)
+        raise UserError(f"the problem set {name} holds {len(found)} tasks ({ids}); {command} takes one: give "
+                        "the path of one group's problems")
+    return found[0]
+
+
+def task_object(task: Any, task_params: dict[str, Any]) -> Any:
+    """The :class:`~grail_bench.task.GRTask` of :func:`one_task`'s answer with ``--param`` overrides applied."""
+    from grail_bench.task import make_task
+
+    return make_task(task, **task_params) if isinstance(task, str) else task.with_overrides(**task_params)
+
+
 def one_line_warnings() -> None:
     """Show grail-bench's own warnings (e.g. a cached model being retrained) as one line on stderr."""
     import warnings

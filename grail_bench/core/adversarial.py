@@ -27,7 +27,6 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 import gymnasium as gym
 import numpy as np
 import torch
-from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.preprocessing import get_flattened_obs_dim, preprocess_obs
@@ -36,6 +35,7 @@ from torch import nn
 from torch.nn import functional as F
 from torch.utils import data as th_data
 
+from grail_bench.core.rl import silenced
 from grail_bench.core.trajectory import Trajectory
 
 #: ``reward_fn(obs, acts, next_obs, dones)``: one reward per transition.
@@ -527,7 +527,7 @@ class AdversarialTrainer(abc.ABC):
         self.venv_buffering = BufferingWrapper(venv)
         self.venv_wrapped = RewardVecEnvWrapper(self.venv_buffering, reward_fn=self.reward_train.predict)
         gen_algo.set_env(self.venv_wrapped)
-        gen_algo.set_logger(Logger(folder=None, output_formats=[]))  # silent: the caller reads what it needs
+        silenced(gen_algo)  # the caller reads what it needs
         self.gen_train_timesteps = gen_algo.get_env().num_envs * gen_algo.n_steps
         self._gen_replay_buffer = ReplayBuffer(gen_replay_buffer_capacity or self.gen_train_timesteps, venv)
 

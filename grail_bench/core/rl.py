@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sys
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Sequence, TypeVar
 
 import gymnasium as gym
 import numpy as np
@@ -19,11 +19,23 @@ from grail_bench.core.ppo_update import NumpyPPO
 
 SAC_DEFAULTS = {"learning_starts": 500, "batch_size": 128}
 
+Algorithm = TypeVar("Algorithm", bound=BaseAlgorithm)
+
+
+def silenced(model: Algorithm) -> Algorithm:
+    """``model`` with a logger writing nowhere.
+
+    An SB3 model that ``learn``s without a logger of its own configures SB3's default one, which creates an
+    ``SB3-<date>`` folder in ``$TMPDIR`` (unless ``SB3_LOGDIR`` is set) and leaves it there.
+    """
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
+
 
 def make_sac(env: gym.Env, net_arch: Sequence[int], seed: int = 0) -> SAC:
-    """SB3 SAC with a small MLP, as the suite trains it."""
-    return SAC("MlpPolicy", env, policy_kwargs={"net_arch": list(net_arch)}, seed=seed, verbose=0, device="cpu",
-               **SAC_DEFAULTS)
+    """SB3 SAC with a small MLP, as the suite trains it (silenced: it leaves no log folder)."""
+    return silenced(SAC("MlpPolicy", env, policy_kwargs={"net_arch": list(net_arch)}, seed=seed, verbose=0,
+                        device="cpu", **SAC_DEFAULTS))
 
 
 def vec_env(env_fn: Callable[[], gym.Env], n_envs: int, seed: int = 0) -> VecEnv:
@@ -45,10 +57,10 @@ def make_ppo(env_fn: Callable[[], gym.Env], net_arch: Sequence[int], seed: int =
     """SB3 PPO on ``n_envs`` copies of an env (:func:`vec_env`), its update run in numpy
     (:class:`~grail_bench.core.ppo_update.NumpyPPO`, discrete and continuous actions alike: the same rule at a
     fraction of torch's overhead) wherever it can be mirrored, by SB3 otherwise. ``kwargs`` go to ``PPO`` (e.g.
-    ``learning_rate``)."""
+    ``learning_rate``). Silenced (:func:`silenced`): it leaves no log folder."""
     venv = vec_env(env_fn, n_envs, seed)
-    return NumpyPPO("MlpPolicy", venv, policy_kwargs={"net_arch": list(net_arch)}, n_steps=128, batch_size=64,
-                    seed=seed, verbose=0, device="cpu", gaussian=True, **kwargs)
+    return silenced(NumpyPPO("MlpPolicy", venv, policy_kwargs={"net_arch": list(net_arch)}, n_steps=128,
+                             batch_size=64, seed=seed, verbose=0, device="cpu", gaussian=True, **kwargs))
 
 
 def empty_policy(algorithm: str, observation_space: gym.Space, action_space: gym.Space,
@@ -91,10 +103,9 @@ class ReturnCurve(BaseCallback):
 def learn(model: BaseAlgorithm, steps: int) -> tuple[dict[str, Any], list[float]]:
     """Train (with a progress bar on a terminal); the policy's ``state_dict`` and its return curve.
 
-    SB3's logger is replaced by one writing nowhere, so no log folder appears in ``$TMPDIR``.
+    The model is :func:`silenced` first, so no log folder appears in ``$TMPDIR``.
     """
     curve = ReturnCurve(steps)
-    model.set_logger(Logger(folder=None, output_formats=[]))
-    model.learn(steps, progress_bar=sys.stderr.isatty(), callback=curve)
+    silenced(model).learn(steps, progress_bar=sys.stderr.isatty(), callback=curve)
     return model.policy.state_dict(), curve.values
 

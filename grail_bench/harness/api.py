@@ -193,9 +193,10 @@ class Inspection:
         return metrics.plain_matrix(np.sum([json.loads(r.confusion) for r in self.rows], axis=0))
 
 
-def inspect_fit(task_id: str, recognizer: str, seed: int = 0, config: Mapping[str, Any] | None = None,
+def inspect_fit(task_id: str | GRTask, recognizer: str, seed: int = 0, config: Mapping[str, Any] | None = None,
                 task_params: Mapping[str, Any] | None = None, protocol: str | None = None) -> Inspection:
-    """Fit (or reload from the model cache) one recognizer on one seed of a task, score it offline at the task's
+    """Fit (or reload from the model cache) one recognizer on one seed of a task (an ID or a
+    :class:`~grail_bench.task.GRTask`, e.g. a problem set's), score it offline at the task's
     levels, and return its diagnostics and rows; nothing is stored.
 
     Raises:
