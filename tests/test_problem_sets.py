@@ -3,7 +3,6 @@ of its own, and the ``dataset`` protocol scores each problem's own obs.dat again
 
 from __future__ import annotations
 
-import importlib
 import json
 import os
 import re
@@ -13,7 +12,6 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 import pytest
 from test_cli_inputs import invoke, refused
@@ -255,15 +253,9 @@ def test_a_problem_sets_path_where_a_command_cannot_take_it_is_one_line(whole, m
     assert not (tmp_path / "out").exists() and not (tmp_path / "r.sqlite").exists()
 
 
-def test_gym_make_on_a_problem_sets_id_says_how_its_env_is_made(whole):
-    """gymnasium reads ``symbolic:star`` as ``module:env`` and imports ``symbolic``: once a set is read, the
-    failure names the problem set and the task's own ``make_env``, which works; other imports are unchanged."""
+def test_a_problem_sets_env_is_the_tasks_own(whole):
+    """A set's task is no gymnasium ID; its env is made from the task."""
     (task,) = problem_set_tasks(whole)
-    with pytest.raises(ModuleNotFoundError, match=r"'symbolic:<name>' is a grail-bench problem set's task, not a "
-                                                  r"gymnasium ID .*problem_set_tasks\(PATH\)\[i\]\.make_env\(goal\)"):
-        gym.make(task.id)
-    with pytest.raises(ImportError):
-        importlib.import_module("symbolic")
     env = task.make_env(task.goals[2])
     obs, _ = env.reset(seed=0)
     assert env.observation_space.contains(obs) and env.unwrapped.task is task

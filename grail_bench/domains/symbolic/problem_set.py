@@ -12,16 +12,14 @@ Reading is bounded: at most :data:`MAX_PROBLEMS` problems per set (:mod:`grail_b
 the bounded reader of :mod:`.dataset`.
 
 A set's task is no gymnasium ID: ``gym.make("symbolic:<name>")`` reads the ID as ``module:env`` and imports a module
-``symbolic``. Once a set is read, that import fails saying so; the env is the task's own, ``task.make_env(goal)``.
+``symbolic``, which fails; the env is the task's own, ``task.make_env(goal)``.
 """
 
 from __future__ import annotations
 
 import hashlib
-import importlib.abc
 import os
 import re
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,29 +55,6 @@ class ProblemSetTask(GRTask):
     digest: str = ""
 
     __hash__ = GRTask.__hash__
-
-
-class _GymIdHint(importlib.abc.MetaPathFinder):
-    """The last finder of ``sys.meta_path``, so consulted only when no installed module is named ``symbolic``:
-    the import ``gym.make("symbolic:<name>")`` makes fails, as it would anyway, saying what the ID is and how its
-    env is made."""
-
-    module = PREFIX.rstrip(":")
-
-    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> None:
-        if fullname == self.module:
-            raise ModuleNotFoundError(
-                f"no module named {self.module!r}: '{PREFIX}<name>' is a grail-bench problem set's task, not a "
-                f"gymnasium ID (gymnasium.make reads '{PREFIX}' as a module to import); make its env from the "
-                "task: grail_bench.domains.symbolic.problem_set.problem_set_tasks(PATH)[i].make_env(goal)",
-                name=fullname)
-        return None
-
-
-def _hint_gym_make() -> None:
-    """Install :class:`_GymIdHint` (once)."""
-    if not any(isinstance(finder, _GymIdHint) for finder in sys.meta_path):
-        sys.meta_path.append(_GymIdHint())
 
 
 def _is_problem_folder(path: Path) -> bool:
@@ -142,7 +117,6 @@ def problem_set_tasks(path: str | Path, max_steps: int = 50) -> list[GRTask]:
             and :func:`~.dataset.read_files`), an ``obs.dat`` action that is no operator of the problem, or a
             ``real_hyp.dat`` that is none of the hypotheses.
     """
-    _hint_gym_make()
     name = set_name(path)
     groups: dict[tuple[str, ...], list[tuple[Path, dict[str, str]]]] = {}
     for problem in problem_paths(path):
