@@ -328,6 +328,32 @@ def test_verify_runs_units_again_and_reports_agreement(submission):
     assert "agreement: 0/1 units" in result.stdout
 
 
+def test_verify_runs_units_of_every_mode_again_and_compares_every_recomputable_metric(modes_run, tmp_path):
+    out = tmp_path / "submission"
+    with ResultsStore(modes_run, read_only=True) as s:
+        published.export(s, out)
+    result = runner.invoke(app, ["results", "verify", str(out), "--sample", "4"])
+    assert result.exit_code == 0, result.output
+    task = "GRAIL/MiniGrid-Optimal-4Goals-v0"
+    for line in (f"{task} bc seed 0 subset (online): 2/2 rows agree", f"{task} bc seed 1 subset (open-set): 4/4",
+                 f"{task} gc-bc seed 0 prefix (zero-shot): 1/1"):
+        assert line in result.stdout
+    assert "agreement: 4/4 units, 11/11 rows" in result.stdout
+    edit_lines(out / "minigrid" / "online.jsonl",  # one of the two rows
+               lambda lines: [dict(lines[0], never=lines[0]["never"] + 0.25), *lines[1:]])
+    edit_lines(out / "minigrid" / "open_set.jsonl",
+               lambda lines: [dict(line, threshold=line["threshold"] + 1e-9) if line["seed"] == 1 else line
+                              for line in lines])
+    result = runner.invoke(app, ["results", "verify", str(out), "--sample", "4"])
+    assert result.exit_code == 0, result.output
+    assert "(online): 1/2 rows agree" in result.stdout and f"{task} bc seed 1 subset (open-set): 0/4" in result.stdout
+    assert "agreement: 2/4 units, 6/11 rows" in result.stdout
+    for name in ("online", "open_set", "zero_shot"):
+        (out / "minigrid" / f"{name}.jsonl").unlink()
+    result = runner.invoke(app, ["results", "verify", str(out)])
+    assert result.exit_code == 2 and "has no rows (offline, online, open-set, zero-shot) to run again" in result.stderr
+
+
 @pytest.mark.parametrize("kind", ["offline", "online", "open_set", "zero_shot", "fits", "shared"])
 def test_the_quick_line_check_agrees_with_the_schema_validator(kind):
     from hypothesis import given, settings

@@ -102,12 +102,14 @@ def merge(
 @app.command()
 def verify(
     path: Path = typer.Argument(..., help="A submission folder (or one row file in one)."),
-    sample: int = typer.Option(3, "--sample", "-n", min=1, max=1000, help="Offline units to run again here."),
+    sample: int = typer.Option(3, "--sample", "-n", min=1, max=1000,
+                               help="Units to run again here, drawn over the rows of every mode (a unit: task, "
+                                    "recognizer, configuration, seed, protocol and mode)."),
     seed: int = typer.Option(0, "--seed", help="Seed of the draw of units."),
     cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
 ) -> None:
-    """Run a sample of a submission's units again from its recognizer's entry point (installed here) and report
-    how many rows agree exactly."""
+    """Run a sample of a submission's units (offline, online, open-set or zero-shot) again from its recognizer's
+    entry point (installed here) and report how many rows agree exactly on every metric their mode recomputes."""
     from grail_bench.harness.submissions import verify as verify_submission
 
     with errors():

@@ -225,6 +225,8 @@ class Kind:
         recompute: ``recompute(output row) -> {metric: value}``.
         consistent: Whether arrays read from a published line fit together (lengths, indices).
         shapes: What :attr:`consistent` requires, said in words.
+        f1: The metric whose largest gap a run again reports (``results verify``): the rows' F1 (online: the area
+            under the F1 curve).
     """
 
     name: str
@@ -236,6 +238,7 @@ class Kind:
     recompute: Callable[[Any], dict[str, Any]]
     consistent: Callable[[dict[str, np.ndarray]], bool]
     shapes: str
+    f1: str = "f1"
 
     def output_row(self, outputs: Outputs) -> Any:
         """The stored form of a run's :class:`~grail_bench.harness.modes.base.Outputs` of this kind."""
@@ -254,7 +257,7 @@ KINDS: dict[str, Kind] = {k.name: k for k in (
          ("n_trajectories", "convergence", "never", "step_accuracy", "f1_auc", "curve", "n_ties"),
          _recompute_online, _consistent_online,
          "y_true and lengths must hold one entry per trajectory, each length at least 1, and scores one row per "
-         "prefix (the sum of lengths)"),
+         "prefix (the sum of lengths)", f1="f1_auc"),
     Kind("open_set_outputs", "open-set", open_set.OpenSetRow, OpenSetOutputRow, open_set.MODE.key,
          ("auroc", "f1", "accuracy", "unknown_recall", "false_alarm", "threshold", "n_observations", "n_ties"),
          _recompute_open_set, _consistent_open_set,
@@ -288,6 +291,12 @@ def disagreements(row: Any, outputs: Any) -> list[str]:
     kind = output_kind(outputs)
     again = kind.recompute(outputs)
     return [name for name in kind.metrics if not _same(getattr(row, name), again[name])]
+
+
+def differing(row: Any, other: Any) -> list[str]:
+    """The recomputable metrics (its output kind's) on which two rows of one mode differ (empty: all agree
+    exactly, NaN agreeing with NaN)."""
+    return [name for name in output_kind(row).metrics if not _same(getattr(row, name), getattr(other, name))]
 
 
 def _same(a: Any, b: Any) -> bool:

@@ -4,8 +4,8 @@ source (:func:`merge`) and spot-checked by running units again here (:func:`veri
 A submission is a folder in the published format (:mod:`grail_bench.harness.published`) with a
 ``source.json`` beside its ``format.json``: ``{"lab": ..., "recognizer": ..., "version": ..., "url": ...}``
 (:data:`SOURCE_FIELDS`, all text), saying who ran it, with what recognizer package and version, and where it is
-published. Its offline rows come with their per-instance outputs (``<domain>/outputs.jsonl``), from which every
-stated metric is recomputed.
+published. Its rows, of every mode, come with their per-instance outputs (``<domain>/outputs.jsonl`` for the
+offline rows, ``online_outputs.jsonl``, ...), from which every stated metric is recomputed.
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ import numpy as np
 
 from grail_bench.core.errors import UserError
 from grail_bench.harness.diagnostics import FitRow
+from grail_bench.harness.modes import MODES, Mode
 from grail_bench.harness.outputs import KINDS as OUTPUT_KINDS
-from grail_bench.harness.outputs import METRICS, disagreements
+from grail_bench.harness.outputs import differing, disagreements, output_kind
 from grail_bench.harness.outputs import ROW_TYPES as OUTPUT_ROWS
 from grail_bench.harness.planning import recognizer_config, task_params
 from grail_bench.harness.published import KINDS, Published, PublishedError, read
@@ -64,10 +65,6 @@ def _task_exists(task_id: str, params: str) -> bool:
     from grail_bench.task import find_task
 
     return find_task(task_id, json.loads(params)) is not None
-
-
-def _offline_key(r: Any) -> tuple:
-    return r.task, r.recognizer, r.scorer, r.config_hash, r.seed, r.observability, r.protocol
 
 
 def check(published: Published, need_outputs: bool = True) -> list[str]:
@@ -185,10 +182,11 @@ class Verified:
     """One unit run again: how many of its rows agree exactly with the submission's.
 
     Attributes:
-        unit: ``task recognizer seed protocol``.
+        unit: ``task recognizer seed protocol``, followed by its mode in brackets when not offline.
         rows: Rows compared.
-        agreeing: Rows whose every recomputable metric is the submission's.
-        max_f1_gap: Largest absolute F1 difference.
+        agreeing: Rows whose every recomputable metric (their mode's output kind's,
+            :data:`grail_bench.harness.outputs.KINDS`) is the submission's.
+        max_f1_gap: Largest absolute F1 difference (online: of the area under the F1 curve).
     """
 
     unit: str
@@ -197,62 +195,77 @@ class Verified:
     max_f1_gap: float
 
 
-def verify(path: Path, sample: int, seed: int = 0) -> list[Verified]:
-    """Run ``sample`` offline units of a submission again here (its recognizer installed from its entry point)
-    and compare their rows with the submitted ones.
+#: A unit run again: task, recognizer, configuration hash, seed, protocol and mode name.
+Unit = tuple[str, str, str, int, str, str]
 
-    Units are drawn at random (``seed``) from those of the submission; each is planned from the stored
-    configuration and task parameters, and must hash to the stored configuration.
+
+def verify(path: Path, sample: int, seed: int = 0) -> list[Verified]:
+    """Run ``sample`` units of a submission, of any of its modes, again here (its recognizer installed from its
+    entry point) and compare their rows with the submitted ones.
+
+    Units (task, recognizer, configuration, seed, protocol and mode) are drawn at random (``seed``) from those of
+    the submission, over the rows of every mode; each is planned from the stored configuration and task parameters
+    in its mode, must hash to the stored configuration, and is compared on every metric its mode recomputes from
+    per-instance outputs.
 
     Raises:
-        SubmissionError: For a submission without offline rows, a recognizer not installed here, or a
+        SubmissionError: For a submission without rows of any mode, a recognizer not installed here, or a
             configuration this grail-bench plans differently.
     """
+    if sample < 1:
+        raise SubmissionError("--sample must be at least 1")
+    modes = {mode.row: mode for mode in MODES.values()}
+    units: dict[Unit, list[Any]] = defaultdict(list)
+    for r in read(path).all_rows():
+        if type(r) in modes:
+            units[(r.task, r.recognizer, r.config_hash, r.seed, r.protocol, modes[type(r)].name)].append(r)
+    if not units:
+        raise SubmissionError(f"{path} has no rows ({', '.join(MODES)}) to run again")
+    keys = sorted(units)
+    chosen = [keys[i] for i in sorted(np.random.default_rng(seed).choice(len(keys), min(sample, len(keys)),
+                                                                         replace=False))]
+    return [_run_again(key, MODES.get(key[-1]), units[key]) for key in chosen]
+
+
+def _run_again(unit: Unit, mode: Mode, stated: list[Any]) -> Verified:
+    """Run one unit of a submission again in an in-memory store and compare its rows with ``stated``."""
     from grail_bench.harness.api import request
     from grail_bench.harness.planning import RecognizerSpec
     from grail_bench.harness.sweep import run_sweep
     from grail_bench.recognizers.registry import UnknownRecognizerError, recognizer_info
     from grail_bench.task.observation import parse_label
 
-    if sample < 1:
-        raise SubmissionError("--sample must be at least 1")
-    rows = read(path).rows.get("offline", [])
-    units: dict[tuple, list[Any]] = defaultdict(list)
-    for r in rows:
-        units[(r.task, r.recognizer, r.config_hash, r.seed, r.protocol)].append(r)
-    if not units:
-        raise SubmissionError(f"{path} has no offline rows to run again")
-    keys = sorted(units)
-    chosen = [keys[i] for i in sorted(np.random.default_rng(seed).choice(len(keys), min(sample, len(keys)),
-                                                                         replace=False))]
-    out = []
-    for key in chosen:
-        task, recognizer, config_hash, unit_seed, protocol = key
-        stated = units[key]
-        try:
-            recognizer_info(recognizer)
-        except UnknownRecognizerError:
-            raise SubmissionError(f"recognizer {recognizer!r} is not installed here: install the submission's "
-                                  "package (its entry point in grail_bench.recognizers) to verify it") from None
-        parts = parse_label(protocol)
-        req = request(task, [RecognizerSpec(recognizer, recognizer_config(stated[0].config),
-                                            tuple(sorted({r.scorer for r in stated})))],
-                      seeds=[unit_seed], observability=sorted({r.observability for r in stated}),
-                      protocol=parts.protocol, rounding=parts.rounding, noise=parts.noise, channel=parts.channel,
-                      task_params=task_params(stated[0].config))
-        with ResultsStore(":memory:") as memory:
-            summary = run_sweep([req], memory)
-            planned = summary.planned[0][1][0]
-            if planned.config_hash != config_hash:
-                raise SubmissionError(f"{task} {recognizer}: this grail-bench plans configuration "
-                                      f"{planned.config_hash}, the submission states {config_hash}")
-            again = {_offline_key(r): r for r in memory.rows()}
-        agreeing, gap = 0, 0.0
-        for r in stated:
-            mine = again.get(_offline_key(r))
-            if mine is None:
-                continue
-            agreeing += all(getattr(mine, m) == getattr(r, m) for m in METRICS)
-            gap = max(gap, abs(mine.f1 - r.f1))
-        out.append(Verified(f"{task} {recognizer} seed {unit_seed} {protocol}", len(stated), agreeing, gap))
-    return out
+    task, recognizer, config_hash, unit_seed, protocol, _ = unit
+    try:
+        recognizer_info(recognizer)
+    except UnknownRecognizerError:
+        raise SubmissionError(f"recognizer {recognizer!r} is not installed here: install the submission's "
+                              "package (its entry point in grail_bench.recognizers) to verify it") from None
+    parts = parse_label(protocol)
+    levels = sorted({r.observability for r in stated}) if mode.takes_levels else None
+    req = request(task, [RecognizerSpec(recognizer, recognizer_config(stated[0].config),
+                                        tuple(sorted({r.scorer for r in stated})))],
+                  seeds=[unit_seed], observability=levels, mode=mode.name, protocol=parts.protocol,
+                  rounding=parts.rounding, noise=parts.noise, channel=parts.channel,
+                  task_params=task_params(stated[0].config))
+    with ResultsStore(":memory:") as memory:
+        summary = run_sweep([req], memory)
+        planned = summary.planned[0][1][0]
+        if planned.config_hash != config_hash:
+            raise SubmissionError(f"{task} {recognizer}: this grail-bench plans configuration "
+                                  f"{planned.config_hash}, the submission states {config_hash}")
+        again = {_key(mode, r): r for r in memory.select(mode)}
+    f1 = output_kind(stated[0]).f1
+    agreeing, gap = 0, 0.0
+    for r in stated:
+        mine = again.get(_key(mode, r))
+        if mine is None:
+            continue
+        agreeing += not differing(r, mine)
+        gap = max(gap, abs(getattr(mine, f1) - getattr(r, f1)))
+    which = "" if mode.name == "offline" else f" ({mode.name})"
+    return Verified(f"{task} {recognizer} seed {unit_seed} {protocol}{which}", len(stated), agreeing, gap)
+
+
+def _key(mode: Mode, row: Any) -> tuple:
+    return tuple(getattr(row, k) for k in mode.key)
