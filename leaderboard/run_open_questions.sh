@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The open questions (issue 62; docs/concepts/shifts.md): `reproduce --profile open-questions`, the paper grid's
-# MiniGrid tasks under action slips and across regimes (with the Boltzmann tasks), PointMaze under a weaker
-# actuator; the paper's methods, the support-aware variants, bip, grnet and the demonstrator; 10 seeds.
+# MiniGrid tasks under action slips, in rooms with moved walls and across regimes (with the Boltzmann tasks),
+# PointMaze under a weaker actuator; the paper's methods, the support-aware variants, bip, grnet and the
+# demonstrator; 10 seeds.
 #
 #   leaderboard/run_open_questions.sh [COMMIT] [WORKERS]
 #
@@ -10,7 +11,7 @@
 # .cache: every shift level and off-support rule reuses the task's models from it), WORKERS parallel units
 # (default 2), into this checkout's store leaderboard/results.sqlite; tables, figures and the manifest go to
 # leaderboard/open-questions/, the log and the process id beside them (run.log, run.pid). It resumes from the store
-# where it stops: run it again with the same commit. Planned: 10 550 units (tests/test_sweep.py); see
+# where it stops: run it again with the same commit. Planned: 12 930 units (tests/test_sweep.py); see
 # leaderboard/README.md, "To be published", for the expected time. Start it on a quiet machine only.
 set -euo pipefail
 cd "$(dirname "$0")/.."

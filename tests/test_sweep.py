@@ -323,10 +323,11 @@ BREADTH_UNITS = (2 * (5 * 6 + 8 * 4 + 3 * 4) * 10 + 2 * (20 * 3 + 32 * 3) * 10 +
 
 # The open questions: 17 MiniGrid recognizer configurations (the paper's 4 methods, 3 under the occupancy scorer,
 # 3 with off_support stay and 3 with uniform, BC with stay pairs, bip and grnet, the demonstrator) on the paper's
-# 7 tasks at 4 slip levels, on 10 tasks (with the 3 Boltzmann ones) under 3 test regimes less the 6 where a task
-# meets its own regime unshifted (those units are the slip sweep's first level, run once), and on the 3 2-goal
-# tasks under the biased regime; 15 PointMaze configurations on 2 maps at 4 actuator scales; 10 seeds each.
-OPEN_QUESTIONS_UNITS = (17 * (7 * 4 + (10 * 3 - 6) + 3) + 15 * 2 * 4) * 10
+# 7 tasks at 4 slip levels and 2 moved-wall levels (their unshifted level is the slip sweep's first, run once), on
+# 10 tasks (with the 3 Boltzmann ones) under 3 test regimes less the 6 where a task meets its own regime unshifted
+# (again the slip sweep's first level), and on the 3 2-goal tasks under the biased regime; 15 PointMaze
+# configurations on 2 maps at 4 actuator scales; 10 seeds each.
+OPEN_QUESTIONS_UNITS = (17 * (7 * 4 + 7 * 2 + (10 * 3 - 6) + 3) + 15 * 2 * 4) * 10
 
 
 @pytest.mark.parametrize("name, units", [("quick", 7 * 4 * 2 + 10 * 4 * 2 + 4 * 2 + 4 * 2 + 2),
