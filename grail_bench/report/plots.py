@@ -9,7 +9,8 @@
 * ``training_time``: training seconds per goal, per method (the efficiency section).
 * ``model_size``: kilobytes of one goal's stored model, per method (the storage table).
 * ``ablation``: F1 and scoring time per scorer; ``online``: accuracy against the observed fraction.
-* ``shifts``: F1 against a test-time shift's size; ``regimes``: the cross-regime grid as heatmaps.
+* ``shifts``: F1 against a test-time shift's size, one family's canonical configurations; ``regimes``: the
+  cross-regime grid as heatmaps, a panel per canonical configuration.
 
 Figures are returned as matplotlib figures and written by :func:`save` (PNG
 and SVG) or embedded in the web page by :func:`svg` (text as text, stable IDs).
@@ -44,11 +45,17 @@ def pyplot() -> Any:
     return plt
 
 
+def _layout(fig: Any) -> None:
+    """Lay ``fig`` out tightly, unless it has a layout of its own (constrained, for a legend outside its panels)."""
+    if fig.get_layout_engine() is None:
+        fig.tight_layout()
+
+
 def save(fig: Any, out: Path, stem: str) -> list[Path]:
     """Write ``fig`` as ``out/stem.png`` and ``out/stem.svg``, close it, return the paths."""
     plt = pyplot()
     paths = [out / f"{stem}.png", out / f"{stem}.svg"]
-    fig.tight_layout()
+    _layout(fig)
     try:
         write_files({paths[0]: lambda tmp: fig.savefig(tmp, dpi=110, format="png"),
                      paths[1]: lambda tmp: fig.savefig(tmp, format="svg")})
@@ -61,7 +68,7 @@ def save_png(fig: Any, path: Path) -> Path:
     """Write ``fig`` as one PNG (its folder created), close it, return the path."""
     plt = pyplot()
     path = Path(path)
-    fig.tight_layout()
+    _layout(fig)
     try:
         write_with(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
     finally:
@@ -75,7 +82,7 @@ def svg(draw: Callable[[], Any]) -> str:
     with plt.rc_context(SVG_STYLE):
         fig = draw()
         buf = io.StringIO()
-        fig.tight_layout()
+        _layout(fig)
         fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": None, "Format": None, "Type": None})
     plt.close(fig)
     text = buf.getvalue()
@@ -337,83 +344,140 @@ def _heat(ax: Any, matrix: Sequence[Sequence[float | None]], rows: Sequence[str]
     return image
 
 
+#: At most this many panels in a row of a shift or regime figure.
+PANELS_PER_ROW = 4
+#: A categorical shift's label longer than this is drawn as its level (``level 1``); SHIFTS.md names it in full.
+SHORT_LABEL = 24
+
+
+def _grid(plt: Any, n: int, width: float, height: float, extra: float = 0.0) -> tuple[Any, list[Any]]:
+    """A figure of ``n`` panels, at most :data:`PANELS_PER_ROW` a row, each ``width`` x ``height`` inches
+    (``extra`` inches more for a legend or colour bar), laid out by matplotlib's constrained layout; the unused
+    panels hidden."""
+    cols = min(PANELS_PER_ROW, n)
+    rows = -(-n // cols)
+    fig = plt.figure(figsize=(width * cols, height * rows + extra), layout="constrained")
+    axes = list(fig.subplots(rows, cols, squeeze=False).flat)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    return fig, axes[:n]
+
+
+def shift_ticks(shifts_in: Sequence[Any]) -> list[str]:
+    """A categorical axis's labels of a family's values: as the profile wrote them, or, where one is longer than
+    :data:`SHORT_LABEL` (a list of walls), ``level 1``, ``level 2``... (the unshifted task kept)."""
+    labels = [s.label for s in shifts_in]
+    if all(len(label) <= SHORT_LABEL for label in labels):
+        return labels
+    levels = iter(range(1, len(labels) + 1))
+    return [s.label if not s.params else f"level {next(levels)}" for s in shifts_in]
+
+
 def shifts(curves: Sequence[Any]) -> Any:
-    """F1 against a shift's size: a row of panels per family, task and protocol, a panel per method, one line per
-    configuration with its 95 % band, the Bayes ceiling dashed at the values that have one (a figure; ``curves``
-    are :func:`grail_bench.report.shifts.shift_curves`)."""
+    """One family's F1 against its shift: a panel per task and protocol, a line per configuration with its 95 %
+    band (references dash-dotted in grey), the Bayes ceiling dashed at the values that have one, one legend
+    below the panels (a figure; ``curves`` are one family's
+    :func:`grail_bench.report.shifts.shift_curves`, those :func:`grail_bench.report.shifts.drawn` selects)."""
     plt = pyplot()
-    rows = list(dict.fromkeys((c.family, c.task, c.protocol) for c in curves))
-    methods = sorted({c.method for c in curves})
-    fig, axes = plt.subplots(len(rows), len(methods), figsize=(3.6 * len(methods), 3.0 * len(rows)), squeeze=False)
-    for i, key in enumerate(rows):
-        mine = [c for c in curves if (c.family, c.task, c.protocol) == key]
-        shifts_in = list(dict.fromkeys(p.shift for c in mine for p in c.points))
+    panels = sorted({(c.task, c.protocol) for c in curves})
+    labels = sorted({c.label for c in curves if not c.reference}) + sorted({c.label for c in curves if c.reference})
+    styles = {c.label: ("0.35", "-.") if c.reference else (None, "-") for c in curves}
+    colours = {label: styles[label][0] or f"C{i % 10}" for i, label in enumerate(labels)}
+    ncol = max(1, int(3.5 * min(PANELS_PER_ROW, len(panels)) // 2.6))  # legend columns of ~2.6 in
+    fig, axes = _grid(plt, len(panels), 3.5, 2.8, extra=0.3 * -(-(len(labels) + 1) // ncol))
+    shifts_all = list(dict.fromkeys(p.shift for c in curves for p in c.points))
+    order = {s: k for k, s in enumerate(shifts_all)}
+    handles: dict[str, Any] = {}
+    for ax, panel in zip(axes, panels):
+        mine = [c for c in curves if (c.task, c.protocol) == panel]
+        shifts_in = sorted({p.shift for c in mine for p in c.points}, key=order.__getitem__)
         numeric = all(s.x is not None for s in shifts_in)
         where = {s: (s.x if numeric else k) for k, s in enumerate(shifts_in)}
+        for c in sorted(mine, key=lambda c: labels.index(c.label)):
+            x = [where[p.shift] for p in c.points]
+            handles[c.label], = ax.plot(x, [p.result.f1_mean for p in c.points], marker="o", markersize=3,
+                                        color=colours[c.label], linestyle=styles[c.label][1], label=c.label)
+            ax.fill_between(x, [p.result.f1_ci95_low for p in c.points], [p.result.f1_ci95_high for p in c.points],
+                            color=colours[c.label], alpha=0.15)
         ceiling = {p.shift: p.result.ceiling for c in mine for p in c.points if p.result.ceiling is not None}
-        for j, method in enumerate(methods):
-            ax = axes[i, j]
-            lines = [c for c in mine if c.method == method]
-            for k, c in enumerate(lines):
-                x = [where[p.shift] for p in c.points]
-                ax.plot(x, [p.result.f1_mean for p in c.points], marker="o", color=f"C{k % 10}", label=c.label,
-                        linestyle="-" if k < 10 else ":")  # a method's eleventh variant on: dotted
-                ax.fill_between(x, [p.result.f1_ci95_low for p in c.points],
-                                [p.result.f1_ci95_high for p in c.points], color=f"C{k % 10}", alpha=0.15)
-            known = [s for s in shifts_in if s in ceiling]
-            if known:
-                ax.plot([where[s] for s in known], [ceiling[s] for s in known], color="black", linestyle="--",
-                        linewidth=1, marker="_", label="Bayes ceiling (accuracy)")
-            ax.set_title(f"{key[0]}: {short_name(key[1])} ({key[2]}) · {method}", fontsize=8)
-            ax.set_ylim(0, 1.05)
-            if numeric:
-                ax.set_xlabel(" / ".join(dict.fromkeys(s.label.split("=")[0] for s in shifts_in if s.params)))
-                if shifts_in[-1].x < shifts_in[0].x:
-                    ax.invert_xaxis()  # the shift grows to the right
-            else:
-                ax.set_xticks(range(len(shifts_in)), [s.label for s in shifts_in], rotation=30, ha="right",
-                              fontsize=7)
-            if j == 0:
-                ax.set_ylabel("F1 (mean over levels)")
-            if lines:
-                ax.legend(fontsize=6)
-            else:
-                ax.set_visible(False)
+        known = [s for s in shifts_in if s in ceiling]
+        if known:
+            handles["Bayes ceiling (accuracy)"], = ax.plot(
+                [where[s] for s in known], [ceiling[s] for s in known], color="black", linestyle="--", linewidth=1,
+                label="Bayes ceiling (accuracy)")
+        ax.set_title(f"{short_name(panel[0])} ({panel[1]})", fontsize=9)
+        ax.set_ylim(0, 1.05)
+        ax.tick_params(labelsize=7)
+        names = " / ".join(dict.fromkeys(s.label.split("=")[0] for s in shifts_in if s.params))
+        if numeric:
+            ax.set_xticks([s.x for s in shifts_in], [f"{s.x:g}" for s in shifts_in], fontsize=7)
+            ax.set_xlabel(names, fontsize=8)
+            if shifts_in[-1].x < shifts_in[0].x:
+                ax.invert_xaxis()  # the shift grows to the right
+        else:
+            ticks = shift_ticks(shifts_in)
+            ax.set_xticks(range(len(shifts_in)), ticks, fontsize=7)
+            ax.set_xlabel(names + (" (levels as in SHIFTS.md)" if ticks != [s.label for s in shifts_in] else ""),
+                          fontsize=8)
+        if ax in axes[::PANELS_PER_ROW]:
+            ax.set_ylabel("F1 (mean over levels)", fontsize=8)
+    fig.suptitle(f"{curves[0].family}: F1 against the shift", fontsize=10)
+    fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=min(ncol, len(handles)),
+               fontsize=8, frameon=False)
     return fig
 
 
+def regime_rows(cells: Sequence[Any]) -> list[tuple[str, str, tuple[str, int]]]:
+    """The rows of the cross-regime figure: ``(training task, label, group)`` grouped by domain and goal count,
+    then by training regime; labelled ``2 goals · optimal`` (the domain first where cells span several, the task
+    where a group has several of one regime)."""
+    groups = sorted({(c.domain, c.goals) for c in cells})
+    several = len({d for d, _ in groups}) > 1
+    out = []
+    for group in groups:
+        mine = sorted((c for c in cells if (c.domain, c.goals) == group), key=lambda c: (c.train, c.task))
+        tasks = list({c.task: c for c in mine}.values())
+        one_each = len({c.train for c in tasks}) == len(tasks)
+        prefix = (f"{group[0]} " if several else "") + f"{group[1]} goals · "
+        out += [(c.task, prefix + (c.train if one_each else row_label(c)), group) for c in tasks]
+    return out
+
+
 def regimes(cells: Sequence[Any]) -> Any:
-    """The cross-regime grid: a heatmap of F1 (mean over levels) per canonical configuration (a row) and domain
-    and goal count (a column), training regime by test regime, the unshifted task's cell outlined (a figure;
-    ``cells`` are :func:`grail_bench.report.shifts.regime_cells`; all configurations where none is canonical)."""
+    """The cross-regime grid: a heatmap of F1 (mean over levels) per canonical configuration, training task
+    (a row, grouped by domain and goal count) by test regime (a column), the unshifted task's cell outlined and
+    every value printed (a figure; ``cells`` are :func:`grail_bench.report.shifts.regime_cells`; all
+    configurations where none is canonical)."""
     plt = pyplot()
     canonical = [c for c in cells if c.canonical] or list(cells)
-    labels = sorted({c.label for c in canonical})
-    groups = sorted({(c.domain, c.goals) for c in canonical})
-    fig, axes = plt.subplots(len(labels), len(groups), figsize=(3.6 * len(groups), 3.4 * len(labels)),
-                             squeeze=False)
-    for j, group in enumerate(groups):
-        every = [c for c in cells if (c.domain, c.goals) == group]
-        columns = regime_order(every)
-        tasks = list(dict.fromkeys((c.train, c.task) for c in sorted(every, key=lambda c: (c.train, c.task))))
-        one_each = len({train for train, _ in tasks}) == len(tasks)  # the regime names the row
-        names = {c.task: c.train if one_each else row_label(c) for c in every}
-        for i, label in enumerate(labels):
-            ax = axes[i, j]
-            mine = {(c.task, c.test): c.result.f1_mean for c in canonical
-                    if (c.domain, c.goals) == group and c.label == label}
-            if not mine:
-                ax.set_visible(False)
-                continue
-            _heat(ax, [[mine.get((task, col)) for col in columns] for _, task in tasks],
-                  [names[task] for _, task in tasks], columns, vmax=1.0)
-            for row, (train, _) in enumerate(tasks):  # the unshifted task: its own regime
-                if train in columns:
-                    ax.add_patch(plt.Rectangle((columns.index(train) - 0.5, row - 0.5), 1, 1, fill=False,
-                                               edgecolor="black", linewidth=1.5))
-            ax.set_title(f"{label}\n{group[0]}, {group[1]} goals: F1 (mean over levels)", fontsize=8)
-            ax.set_xlabel("test regime")
-            ax.set_ylabel("trained on")
+    labels = sorted({c.label for c in canonical if not c.reference}) + sorted({c.label for c in canonical
+                                                                               if c.reference})
+    rows = regime_rows(canonical)
+    columns = regime_order(canonical)
+    fig, axes = _grid(plt, len(labels), max(2.8, 0.5 * len(columns) + 0.9), max(2.4, 0.26 * len(rows) + 1.1),
+                      extra=0.3)
+    image = None
+    for k, (ax, label) in enumerate(zip(axes, labels)):
+        mine = {(c.task, c.test): c.result.f1_mean for c in canonical if c.label == label}
+        image = _heat(ax, [[mine.get((task, col)) for col in columns] for task, _, _ in rows],
+                      [name for _, name, _ in rows], columns, vmax=1.0)
+        trains = {c.task: c.train for c in canonical}
+        for row, (task, _, group) in enumerate(rows):
+            if trains[task] in columns and (task, trains[task]) in mine:  # the unshifted task: its own regime
+                ax.add_patch(plt.Rectangle((columns.index(trains[task]) - 0.5, row - 0.5), 1, 1, fill=False,
+                                           edgecolor="black", linewidth=1.5))
+            if row and rows[row - 1][2] != group:  # between goal counts
+                ax.axhline(row - 0.5, color="0.2", linewidth=2.5, zorder=5)
+        ax.set_aspect("auto")
+        ax.set_title(label, fontsize=9)
+        ax.set_xlabel("test regime", fontsize=8)
+        if k % PANELS_PER_ROW:
+            ax.tick_params(labelleft=False)
+        else:
+            ax.set_ylabel("trained on", fontsize=8)
+    fig.suptitle("Cross-regime grid: F1 (mean over levels)\noutlined: the unshifted task", fontsize=9)
+    if image is not None:
+        fig.colorbar(image, ax=axes, shrink=0.6, label="F1")
     return fig
 
 

@@ -17,8 +17,8 @@ shift sweep (``vary = {shift = [{test_slip = 0.0}, {test_slip = 0.1}]}``, or the
 profile's ``[shifts]`` table, ``shift = "slip"``) runs its tasks under each table of test parameters in turn
 (docs/concepts/shifts.md) and joins the tables: each shifted task is a named variant of its own, and a table
 that shifts nothing is the task itself; sections that set test parameters (a shift sweep, or fixed ones) also
-write ``SHIFTS.md`` and ``shifts.png`` (F1 against each shift of the dynamics) and ``REGIMES.md`` and
-``regimes.png`` (the cross-regime grid; :mod:`grail_bench.report.shifts`). A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
+write ``SHIFTS.md`` and a figure per family, ``shifts-<family>.png`` (F1 against each shift of the dynamics) and
+``REGIMES.md`` and ``regimes.png`` (the cross-regime grid; :mod:`grail_bench.report.shifts`). A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
 its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant); its ``protocol`` and
 ``rounding`` (e.g. ``protocol = "prefix"``, ``rounding = "floor"``) replace each task's default, and its
 ``noise`` and ``channel`` set the observation model (``noise = 0.2``, ``channel = "actions"``). The grid runs
@@ -55,7 +55,7 @@ from grail_bench.report.configs import config_key
 from grail_bench.report.html import write_site
 from grail_bench.report.reference import paper_reference_path, read_reference
 from grail_bench.report.rows import BudgetCurve, BudgetPoint, calibration_rows
-from grail_bench.report.shifts import Family, family, regime_cells, shift_curves
+from grail_bench.report.shifts import Family, drawn, family, figure_stems, regime_cells, shift_curves
 from grail_bench.report.summary import domain_summaries, profile_figure_data, profiles_markdown
 from grail_bench.report.tables import (budgets_markdown, calibration_markdown, mode_markdown, regimes_markdown,
                                        shifts_markdown)
@@ -433,7 +433,7 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     archived configurations, every cell with its 95 % bootstrap interval); every other mode with
     rows adds its table (``ONLINE.md``, ``OPEN_SET.md``) and the online runs their figure (``online.png``);
     budget studies write ``BUDGETS.md`` and ``budgets.png``; sections that set test parameters write
-    ``SHIFTS.md`` and ``shifts.png`` (shifted dynamics) and ``REGIMES.md`` and ``regimes.png`` (the cross-regime
+    ``SHIFTS.md`` and ``shifts-<family>.png`` (shifted dynamics) and ``REGIMES.md`` and ``regimes.png`` (the cross-regime
     grid, :func:`write_shifts`). Only the rows the profile's requests own count
     (other configurations in a shared store do not); ``fits`` are the stored fit diagnostics. Ceilings missing
     from the cache are computed on ``executor`` (default: in this process); ``plans`` are what the sweep
@@ -539,13 +539,17 @@ def _test_overrides(request: Request) -> dict[str, Any]:
 
 
 def write_shifts(board: leaderboard.Leaderboard, families: Sequence[Family], out: Path, title: str) -> list[Path]:
-    """``SHIFTS.md``, ``shifts.png`` and ``.svg`` (F1 against each shift of the dynamics) and ``REGIMES.md``,
-    ``regimes.png`` and ``.svg`` (the cross-regime grid), where the families have rows; nothing otherwise."""
+    """``SHIFTS.md`` (every configuration), per family of shifted dynamics ``shifts-<family>.png`` and ``.svg``
+    (F1 against the shift, its canonical configurations: :func:`grail_bench.report.shifts.drawn`) and
+    ``REGIMES.md``, ``regimes.png`` and ``.svg`` (the cross-regime grid), where the families have rows; nothing
+    otherwise."""
     written: list[Path] = []
     curves = shift_curves(board.records, board.configs, board.ceilings, families)
     if curves:
         written.append(write_text(out / "SHIFTS.md", shifts_markdown(curves, title)))
-        written += plots.save(plots.shifts(curves), out, "shifts")
+        shown = drawn(curves)
+        for name, stem in figure_stems(c.family for c in curves).items():
+            written += plots.save(plots.shifts([c for c in shown if c.family == name]), out, stem)
     cells = regime_cells(board.records, board.configs, board.ceilings, families)
     if cells:
         written.append(write_text(out / "REGIMES.md", regimes_markdown(cells, title)))

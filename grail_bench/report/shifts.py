@@ -18,6 +18,7 @@ figures draw.
 from __future__ import annotations
 
 import json
+import re
 from collections import defaultdict
 from dataclasses import dataclass
 from functools import lru_cache
@@ -159,6 +160,8 @@ class ShiftCurve:
         levels: The observability levels pooled.
         points: In the family's order.
         last: The family's largest shift (its last value).
+        canonical: Whether it is its method's canonical configuration (the figures draw those).
+        reference: Whether its recognizer is a reference (the demonstrator), never ranked.
     """
 
     family: str
@@ -169,6 +172,8 @@ class ShiftCurve:
     levels: tuple[float, ...]
     points: tuple[ShiftPoint, ...]
     last: Shift
+    canonical: bool = False
+    reference: bool = False
 
     @property
     def drop(self) -> float | None:
@@ -253,11 +258,32 @@ def shift_curves(records: Sequence[OfflineRecord], configs: Mapping[ConfigKey, C
                 if result is not None:
                     points.append(ShiftPoint(fam.shifts[index], result))
             if points:
-                first = next(iter(by_shift.values()))[0]
-                out.append(ShiftCurve(fam.name, task, protocol, label, configs[config_key(first)].method,
+                config = configs[config_key(next(iter(by_shift.values()))[0])]
+                out.append(ShiftCurve(fam.name, task, protocol, label, config.method,
                                       tuple(sorted({r.observability for g in by_shift.values() for r in g})),
-                                      tuple(points), fam.shifts[-1]))
+                                      tuple(points), fam.shifts[-1], config.canonical, config.reference))
     return out
+
+
+def drawn(curves: Sequence[ShiftCurve]) -> list[ShiftCurve]:
+    """The curves a family's figure draws: its canonical configurations (each method under its own scorer, the
+    demonstrator's among them), as the leaderboard's boards show; all of a family's curves where none is canonical.
+    The named variants stay in ``SHIFTS.md``."""
+    canonical = {c.family for c in curves if c.canonical}
+    return [c for c in curves if c.canonical or c.family not in canonical]
+
+
+def figure_stems(families: Iterable[str]) -> dict[str, str]:
+    """Each family's figure file stem, ``shifts-<family>`` (``shifts-action-scale``), its name reduced to letters,
+    digits, ``-`` and ``_`` (a profile names its families) and made unique."""
+    stems: dict[str, str] = {}
+    for name in dict.fromkeys(families):
+        base = "shifts-" + (re.sub(r"[^A-Za-z0-9_-]+", "-", name).strip("-")[:60] or "family")
+        stem, k = base, 2
+        while stem in stems.values():
+            stem, k = f"{base}-{k}", k + 1
+        stems[name] = stem
+    return stems
 
 
 @dataclass(frozen=True)
@@ -275,6 +301,7 @@ class RegimeCell:
         test_params: The test regime's parameters where the profile sets them (``routes=["NE", "ES"]``).
         protocol: The protocol as stored.
         result: The pooled result.
+        reference: Whether its recognizer is a reference (the demonstrator), never ranked.
     """
 
     domain: str
@@ -288,6 +315,7 @@ class RegimeCell:
     test_params: str
     protocol: str
     result: Pooled
+    reference: bool = False
 
 
 def regime_cells(records: Sequence[OfflineRecord], configs: Mapping[ConfigKey, Configuration],
@@ -311,7 +339,7 @@ def regime_cells(records: Sequence[OfflineRecord], configs: Mapping[ConfigKey, C
         regime_params = TaskOverrides.of(params.get("test_regime_params", {})).label()
         out.append(RegimeCell(task.domain or domain_of(task_id), len(task.goals), shown, config.method,
                               config.canonical, task_id, task.regime, params.get("test_regime", task.regime),
-                              regime_params, protocol, result))
+                              regime_params, protocol, result, config.reference))
     return sorted(out, key=lambda c: (c.domain, c.goals, c.label, c.train, c.test))
 
 

@@ -20,7 +20,7 @@ from grail_bench.harness.modes import Mode
 from grail_bench.report.escape import md
 from grail_bench.report.layout import Fitted, grid_table, stacked
 from grail_bench.report.rows import AblationRow, BudgetCurve, CalibrationRow, timing_rows
-from grail_bench.report.shifts import RegimeCell, ShiftCurve, regime_order, row_label
+from grail_bench.report.shifts import RegimeCell, ShiftCurve, figure_stems, regime_order, row_label
 from grail_bench.task.observation import level_text
 
 TASK_PREFIX = "GRAIL/"
@@ -256,16 +256,19 @@ def shifts_markdown(curves: Sequence[ShiftCurve], title: str) -> str:
     lines = [f"# {title}: test-time shifts", "",
              "Each configuration (recognizer, scorer and settings, as the leaderboard names them) against the size",
              "of a shift of the test demonstrations' dynamics, in the profile's order from the unshifted task to the",
-             "largest shift (`shifts.png` draws F1, the ceiling dashed). " + POOLED, "",
+             "largest shift (each family's figure, `shifts-<family>.png`, draws F1 of the canonical configurations",
+             "and the demonstrator, the ceiling dashed). " + POOLED, "",
              "Drop: F1 at the largest shift minus F1 unshifted (negative: F1 falls under the shift; – unless both",
              "have rows).", ""]
     panels: dict[tuple[str, str, str], list[ShiftCurve]] = {}
     for c in curves:
         panels.setdefault((c.family, c.task, c.protocol), []).append(c)
+    stems = figure_stems(family for family, _, _ in panels)
     for (family, task, protocol), mine in panels.items():
         levels = sorted({lv for c in mine for lv in c.levels})
         lines += [f"## {md(family)}: {md(task.removeprefix(TASK_PREFIX))} ({md(protocol)}, "
-                  f"{', '.join(level_text(lv) for lv in levels)} observed)", ""]
+                  f"{', '.join(level_text(lv) for lv in levels)} observed)", "",
+                  f"Figure: [`{stems[family]}.png`]({stems[family]}.png)", ""]
         header = ["method", "shift", "seeds", "F1", "95 % interval", *[f"F1 @ {level_text(lv)}" for lv in levels],
                   "ceiling", "NLL", "ECE"]
         lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
@@ -292,7 +295,7 @@ def regimes_markdown(cells: Sequence[RegimeCell], title: str) -> str:
     lines = [f"# {title}: cross-regime grid", "",
              "Each configuration fitted on one regime's training demonstrations (a row: the task's own regime) and",
              "tested on another regime's demonstrations (a column: `test_regime`); the diagonal, in bold, is the",
-             "unshifted task. Matrices per domain and goal count; `regimes.png` draws those of the canonical",
+             "unshifted task. Matrices per domain and goal count; [`regimes.png`](regimes.png) draws those of the canonical",
              "configurations. " + POOLED, ""]
     groups: dict[tuple[str, int], list[RegimeCell]] = {}
     for c in cells:
