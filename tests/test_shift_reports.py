@@ -138,13 +138,14 @@ def _curve(family: str, label: str, canonical: bool, reference: bool = False) ->
     result = Pooled(2, 0.5, 0.4, 0.6, {0.3: 0.5}, None, None, None)
     shifts = (Shift(TaskOverrides(), UNSHIFTED), Shift(TaskOverrides.of({"test_slip": 0.3}), "test_slip=0.3", 0.3))
     return ShiftCurve(family, OPTIMAL, "subset", label, label.split(" · ")[0], (0.3,),
-                      tuple(ShiftPoint(s, result) for s in shifts), shifts[-1], canonical, reference)
+                      tuple(ShiftPoint(s, result) for s in shifts), shifts[-1], canonical, reference, shifts)
 
 
 def test_figures_draw_canonical_configurations_and_all_of_a_family_without_one():
     curves = [_curve("slip", "BC-GRAIL", True), _curve("slip", "BC-GRAIL · off_support stay", False),
               _curve("slip", "BC-GRAIL · occupancy", False), _curve("slip", DEMONSTRATOR, True, reference=True),
-              _curve("obstacle", "BC-GRAIL · n_epochs 3", False), _curve("obstacle", "GAIL-GRAIL · augment stay", False)]
+              _curve("obstacle", "BC-GRAIL · n_epochs 3", False),
+              _curve("obstacle", "GAIL-GRAIL · augment stay", False)]
     assert [(c.family, c.label) for c in drawn(curves)] == [
         ("slip", "BC-GRAIL"), ("slip", DEMONSTRATOR),
         ("obstacle", "BC-GRAIL · n_epochs 3"), ("obstacle", "GAIL-GRAIL · augment stay")]

@@ -381,12 +381,15 @@ def shifts(curves: Sequence[Any]) -> Any:
     plt = pyplot()
     panels = sorted({(c.task, c.protocol) for c in curves})
     labels = sorted({c.label for c in curves if not c.reference}) + sorted({c.label for c in curves if c.reference})
-    styles = {c.label: ("0.35", "-.") if c.reference else (None, "-") for c in curves}
-    colours = {label: styles[label][0] or f"C{i % 10}" for i, label in enumerate(labels)}
+    references = {c.label for c in curves if c.reference}
+    colours = {label: "0.35" if label in references else f"C{i % 10}" for i, label in enumerate(labels)}
+    styles = {label: "-." if label in references else "-" if i < 10 else ":" for i, label in enumerate(labels)}
     ncol = max(1, int(3.5 * min(PANELS_PER_ROW, len(panels)) // 2.6))  # legend columns of ~2.6 in
     fig, axes = _grid(plt, len(panels), 3.5, 2.8, extra=0.3 * -(-(len(labels) + 1) // ncol))
-    shifts_all = list(dict.fromkeys(p.shift for c in curves for p in c.points))
-    order = {s: k for k, s in enumerate(shifts_all)}
+    present = {p.shift for c in curves for p in c.points}
+    values = [s for s in curves[0].values if s in present] or list(dict.fromkeys(p.shift for c in curves
+                                                                                  for p in c.points))
+    order, ticks = {s: k for k, s in enumerate(values)}, dict(zip(values, shift_ticks(values)))
     handles: dict[str, Any] = {}
     for ax, panel in zip(axes, panels):
         mine = [c for c in curves if (c.task, c.protocol) == panel]
@@ -396,7 +399,7 @@ def shifts(curves: Sequence[Any]) -> Any:
         for c in sorted(mine, key=lambda c: labels.index(c.label)):
             x = [where[p.shift] for p in c.points]
             handles[c.label], = ax.plot(x, [p.result.f1_mean for p in c.points], marker="o", markersize=3,
-                                        color=colours[c.label], linestyle=styles[c.label][1], label=c.label)
+                                        color=colours[c.label], linestyle=styles[c.label], label=c.label)
             ax.fill_between(x, [p.result.f1_ci95_low for p in c.points], [p.result.f1_ci95_high for p in c.points],
                             color=colours[c.label], alpha=0.15)
         ceiling = {p.shift: p.result.ceiling for c in mine for p in c.points if p.result.ceiling is not None}
@@ -415,10 +418,9 @@ def shifts(curves: Sequence[Any]) -> Any:
             if shifts_in[-1].x < shifts_in[0].x:
                 ax.invert_xaxis()  # the shift grows to the right
         else:
-            ticks = shift_ticks(shifts_in)
-            ax.set_xticks(range(len(shifts_in)), ticks, fontsize=7)
-            ax.set_xlabel(names + (" (levels as in SHIFTS.md)" if ticks != [s.label for s in shifts_in] else ""),
-                          fontsize=8)
+            ax.set_xticks(range(len(shifts_in)), [ticks[s] for s in shifts_in], fontsize=7)
+            renamed = any(ticks[s] != s.label for s in shifts_in)
+            ax.set_xlabel(names + (" (levels as in SHIFTS.md)" if renamed else ""), fontsize=8)
         if ax in axes[::PANELS_PER_ROW]:
             ax.set_ylabel("F1 (mean over levels)", fontsize=8)
     fig.suptitle(f"{curves[0].family}: F1 against the shift", fontsize=10)
@@ -456,12 +458,12 @@ def regimes(cells: Sequence[Any]) -> Any:
     columns = regime_order(canonical)
     fig, axes = _grid(plt, len(labels), max(2.8, 0.5 * len(columns) + 0.9), max(2.4, 0.26 * len(rows) + 1.1),
                       extra=0.3)
+    trains = {c.task: c.train for c in canonical}
     image = None
     for k, (ax, label) in enumerate(zip(axes, labels)):
         mine = {(c.task, c.test): c.result.f1_mean for c in canonical if c.label == label}
         image = _heat(ax, [[mine.get((task, col)) for col in columns] for task, _, _ in rows],
                       [name for _, name, _ in rows], columns, vmax=1.0)
-        trains = {c.task: c.train for c in canonical}
         for row, (task, _, group) in enumerate(rows):
             if trains[task] in columns and (task, trains[task]) in mine:  # the unshifted task: its own regime
                 ax.add_patch(plt.Rectangle((columns.index(trains[task]) - 0.5, row - 0.5), 1, 1, fill=False,

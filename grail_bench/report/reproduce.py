@@ -18,7 +18,8 @@ profile's ``[shifts]`` table, ``shift = "slip"``) runs its tasks under each tabl
 (docs/concepts/shifts.md) and joins the tables: each shifted task is a named variant of its own, and a table
 that shifts nothing is the task itself; sections that set test parameters (a shift sweep, or fixed ones) also
 write ``SHIFTS.md`` and a figure per family, ``shifts-<family>.png`` (F1 against each shift of the dynamics) and
-``REGIMES.md`` and ``regimes.png`` (the cross-regime grid; :mod:`grail_bench.report.shifts`). A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
+``REGIMES.md`` and ``regimes.png`` (the cross-regime grid; :mod:`grail_bench.report.shifts`).
+A unit two sections share runs once. A section's ``config`` sets hyperparameters of all
 its recognizers (e.g. ``config = {algorithm = "sac"}`` for a DRACO variant); its ``protocol`` and
 ``rounding`` (e.g. ``protocol = "prefix"``, ``rounding = "floor"``) replace each task's default, and its
 ``noise`` and ``channel`` set the observation model (``noise = 0.2``, ``channel = "actions"``). The grid runs
@@ -433,8 +434,8 @@ def write_outputs(rows: Sequence[Row], profile: Profile, out: Path, meta: dict[s
     archived configurations, every cell with its 95 % bootstrap interval); every other mode with
     rows adds its table (``ONLINE.md``, ``OPEN_SET.md``) and the online runs their figure (``online.png``);
     budget studies write ``BUDGETS.md`` and ``budgets.png``; sections that set test parameters write
-    ``SHIFTS.md`` and ``shifts-<family>.png`` (shifted dynamics) and ``REGIMES.md`` and ``regimes.png`` (the cross-regime
-    grid, :func:`write_shifts`). Only the rows the profile's requests own count
+    ``SHIFTS.md`` and ``shifts-<family>.png`` (shifted dynamics) and ``REGIMES.md`` and ``regimes.png`` (the
+    cross-regime grid, :func:`write_shifts`). Only the rows the profile's requests own count
     (other configurations in a shared store do not); ``fits`` are the stored fit diagnostics. Ceilings missing
     from the cache are computed on ``executor`` (default: in this process); ``plans`` are what the sweep
     planned (``run_sweep(...).planned``), so the requests are not planned again; ``ceiling_samples`` are the Monte

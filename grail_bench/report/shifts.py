@@ -162,6 +162,7 @@ class ShiftCurve:
         last: The family's largest shift (its last value).
         canonical: Whether it is its method's canonical configuration (the figures draw those).
         reference: Whether its recognizer is a reference (the demonstrator), never ranked.
+        values: All the family's values, in its order (those of every curve of the family).
     """
 
     family: str
@@ -174,6 +175,7 @@ class ShiftCurve:
     last: Shift
     canonical: bool = False
     reference: bool = False
+    values: tuple[Shift, ...] = ()
 
     @property
     def drop(self) -> float | None:
@@ -261,7 +263,8 @@ def shift_curves(records: Sequence[OfflineRecord], configs: Mapping[ConfigKey, C
                 config = configs[config_key(next(iter(by_shift.values()))[0])]
                 out.append(ShiftCurve(fam.name, task, protocol, label, config.method,
                                       tuple(sorted({r.observability for g in by_shift.values() for r in g})),
-                                      tuple(points), fam.shifts[-1], config.canonical, config.reference))
+                                      tuple(points), fam.shifts[-1], config.canonical, config.reference,
+                                      fam.shifts))
     return out
 
 

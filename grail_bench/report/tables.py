@@ -295,8 +295,8 @@ def regimes_markdown(cells: Sequence[RegimeCell], title: str) -> str:
     lines = [f"# {title}: cross-regime grid", "",
              "Each configuration fitted on one regime's training demonstrations (a row: the task's own regime) and",
              "tested on another regime's demonstrations (a column: `test_regime`); the diagonal, in bold, is the",
-             "unshifted task. Matrices per domain and goal count; [`regimes.png`](regimes.png) draws those of the canonical",
-             "configurations. " + POOLED, ""]
+             "unshifted task. Matrices per domain and goal count; [`regimes.png`](regimes.png) draws those of the",
+             "canonical configurations. " + POOLED, ""]
     groups: dict[tuple[str, int], list[RegimeCell]] = {}
     for c in cells:
         groups.setdefault((c.domain, c.goals), []).append(c)
