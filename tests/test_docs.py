@@ -115,3 +115,24 @@ def test_the_recognizer_guide_is_generated_from_the_contracts_docstrings(site: P
 def test_sphinx_roles_read_as_code_on_every_generated_page(site: Path):
     for page in ("reference/api", "guides/recognizer-plugin"):
         assert not re.search(r":(class|func|meth|attr|mod):<code>", (site / page / "index.html").read_text("utf-8"))
+
+
+def test_an_included_results_file_links_its_figures_where_the_site_serves_them(tmp_path: Path):
+    """SHIFTS.md links ``shifts-slip.png`` beside it; included in a Results page, the link points at the figure the
+    figures hook serves (``results/figures/<path under leaderboard/>``); other links stay as they are."""
+    import importlib.util
+    from types import SimpleNamespace
+
+    spec = importlib.util.spec_from_file_location("include_hook", ROOT / "docs" / "_hooks" / "include.py")
+    hook = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hook)
+    (tmp_path / "leaderboard" / "open-questions").mkdir(parents=True)
+    (tmp_path / "leaderboard" / "open-questions" / "SHIFTS.md").write_text(
+        "Figure: [`shifts-slip.png`](shifts-slip.png), [paper](https://example.org/f.png)\n")
+    (tmp_path / "NOTES.md").write_text("[x](x.png)\n")
+    page = SimpleNamespace(file=SimpleNamespace(src_uri="results/open-questions.md"))
+    config = {"config_file_path": str(tmp_path / "mkdocs.yml")}
+    text = hook.on_page_markdown("<!-- include-if-present: leaderboard/open-questions/SHIFTS.md -->\n"
+                                 "<!-- include: NOTES.md -->", page, config, None)
+    assert "[`shifts-slip.png`](figures/open-questions/shifts-slip.png)" in text
+    assert "(https://example.org/f.png)" in text and "[x](x.png)" in text

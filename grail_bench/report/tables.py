@@ -256,8 +256,8 @@ def shifts_markdown(curves: Sequence[ShiftCurve], title: str) -> str:
     lines = [f"# {title}: test-time shifts", "",
              "Each configuration (recognizer, scorer and settings, as the leaderboard names them) against the size",
              "of a shift of the test demonstrations' dynamics, in the profile's order from the unshifted task to the",
-             "largest shift (each family's figure, `shifts-<family>.png`, draws F1 of the canonical configurations",
-             "and the demonstrator, the ceiling dashed). " + POOLED, "",
+             "largest shift (each family's figure, `shifts-<family>.png`, draws F1 of its canonical configurations,",
+             "the demonstrator's among them, or of all where none is; the ceiling dashed). " + POOLED, "",
              "Drop: F1 at the largest shift minus F1 unshifted (negative: F1 falls under the shift; – unless both",
              "have rows).", ""]
     panels: dict[tuple[str, str, str], list[ShiftCurve]] = {}
