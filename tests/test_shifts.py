@@ -172,6 +172,9 @@ def test_no_shift_is_the_task_itself():
     task = make_task("GRAIL/MiniGrid-Optimal-v0")
     same = task.with_overrides(test_slip=0.0, test_obstacles=None, test_regime="optimal")
     assert same == task and not same.shifted and fingerprint(same) == fingerprint(task)
+    own_walls = task.with_overrides(test_obstacles=task.env_params["obstacles"])  # the room's own walls
+    assert own_walls == task and fingerprint(own_walls) == fingerprint(task)
+    assert task.with_overrides(test_obstacles=[[7, 4], [6, 1]]).shifted
     assert config_hash(fitted_config(same, "bc", {})) == config_hash(fitted_config(task, "bc", {}))
     shifted = task.with_overrides(test_slip=0.1)
     assert fingerprint(shifted) != fingerprint(task)

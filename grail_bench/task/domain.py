@@ -83,7 +83,9 @@ class Domain(Protocol):
     ``check_test(test_params, env_params, goals)``, validating them cheaply, and ``ceiling_shifts``: the shifts
     under which its ``demonstrator`` likelihood stays exact (the Bayes ceiling is refused under the others),
     and ``shift_regimes``: the regimes whose demonstrators take them (default: every regime; the others are
-    refused with the shifts).
+    refused with the shifts), and ``test_replaces``: the test parameters that replace an env parameter at test
+    time, mapped to it (MiniGrid's ``test_obstacles`` -> ``obstacles``), so one equal to the task's own value
+    shifts nothing.
     ``test_regime`` and ``test_regime_params`` (another regime for the test demonstrations) need nothing of
     a domain.
 

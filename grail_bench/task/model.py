@@ -230,7 +230,9 @@ class GRTask:
         extra = sorted(set(self.test_params) - set(defaults))
         if extra:
             raise TaskFieldError(f"test.{extra[0]}", f"unknown test parameter (known: {', '.join(defaults)})")
-        shift = {k: v for k, v in self.test_params.items() if freeze(v) != freeze(defaults[k])}
+        own = {k: self.env_params.get(e) for k, e in (getattr(self.spec, "test_replaces", None) or {}).items()}
+        shift = {k: v for k, v in self.test_params.items()
+                 if freeze(v) != freeze(defaults[k]) and (k not in own or freeze(v) != freeze(own[k]))}
         if shift.get("test_regime") == self.regime and "test_regime_params" not in shift:
             del shift["test_regime"]  # the task's own regime as it is: no shift
         object.__setattr__(self, "test_params", shift)

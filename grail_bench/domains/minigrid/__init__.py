@@ -62,6 +62,8 @@ class MiniGrid:
     test_params: Mapping[str, Any] = TEST_SHIFTS
     # Shifts under which the demonstrators' likelihood stays exact (see .likelihood).
     ceiling_shifts = frozenset({"test_obstacles", "test_slip"})
+    # The test room's walls replace the room's own: the same walls are no shift.
+    test_replaces: Mapping[str, str] = {"test_obstacles": "obstacles"}
     # Regimes whose demonstrators take the dynamics shifts (the Boltzmann one is drawn from the nominal tables).
     shift_regimes = ("optimal", "biased", "suboptimal")
     noop_action = 3  # grid.STAY: the agent neither turns nor moves
