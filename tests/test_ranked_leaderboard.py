@@ -1,5 +1,6 @@
 """The terminal leaderboard ranks first (domain summaries before anything else), filters by task glob, domain and
-method, shows the claims only for a store that ran their tasks, and keeps the ceilings it computes in the store."""
+method, leaves out the rows of tasks under test-time shifts unless asked, shows the claims only for a store that
+ran their tasks, and keeps the ceilings it computes in the store."""
 
 from __future__ import annotations
 
@@ -17,17 +18,19 @@ from grail_bench.harness.ceiling_cache import CeilingCache
 from grail_bench.harness.store import ResultRow, ResultsStore
 from grail_bench.report.claims import claim_tasks
 from grail_bench.report.configs import method_of
+from grail_bench.report.filters import shifted
 from grail_bench.task.overrides import TaskOverrides
 
 MINIGRID, POINT_MAZE = "GRAIL/MiniGrid-Optimal-12Goals-v0", "GRAIL/PointMaze-Optimal-v0"
 SUMMARY = "F1 per method, IQM over seeds and strata"
 
 
-def _rows(task_id: str, name: str, f1: float) -> list[ResultRow]:
-    """Three seeds of ``name`` at its defaults under its own scorer, at every level of the task."""
+def _rows(task_id: str, name: str, f1: float, task_params: dict | None = None) -> list[ResultRow]:
+    """Three seeds of ``name`` at its defaults under its own scorer, at every level of the task (run with
+    ``task_params``)."""
     task = grail_bench.make_task(task_id)
     scorer = method_of(name)[1]
-    config, hashed = stored_config(task_id, name)
+    config, hashed = stored_config(task_id, name, task_params=task_params)
     return [ResultRow(task_id, name, scorer, hashed, seed, level, task.protocol_label, f1, f1, f1, f1 + 0.01 * seed,
                       6, 0, 1.0, 10.0, config, "{}") for seed in range(3) for level in task.observability]
 
@@ -172,3 +175,52 @@ def test_the_claims_table_has_a_row_per_claim_and_method_with_its_best_variant_b
     assert "Not listed: 1 of the paper's claims" in " ".join(out.split())
     every = text(True)
     assert "BC-GRAIL · n_epochs 25" in every and "BC-GRAIL · occupancy" in every
+
+
+SHIFTED_NOTE = "rows of tasks under test-time shifts are not shown"
+
+
+@pytest.fixture
+def shifted_store(tmp_path):
+    """bc on a task unshifted, and GRAQL on the same task under a test-time slip only."""
+    path = tmp_path / "shifted.sqlite"
+    with ResultsStore(path) as s:
+        s.add(_rows(MINIGRID, "bc", 0.8) + _rows(MINIGRID, "graql", 0.4, {"test_slip": 0.3}))
+    return path
+
+
+@pytest.mark.parametrize("args", [[], ["--task", MINIGRID]])
+def test_the_rows_of_shifted_tasks_are_left_out_unless_asked(shifted_store, tmp_path, args):
+    markdown = tmp_path / "board.md"
+    code, out = leaderboard(shifted_store, *args, "--markdown", str(markdown))
+    assert code == 0, out
+    assert "BC-GRAIL" in out and "GRAQL" not in out and "test_slip" not in out
+    n_shifted = len(grail_bench.make_task(MINIGRID).observability) * 3
+    assert f"{n_shifted} {SHIFTED_NOTE}" in " ".join(out.split())
+    assert _table_rows(markdown, "BC-GRAIL") and not _table_rows(markdown, "GRAQL")
+    assert "test_slip" not in markdown.read_text()
+    code, out = leaderboard(shifted_store, *args, "--shifted", "--markdown", str(markdown))
+    assert code == 0, out
+    assert "GRAQL" in out and SHIFTED_NOTE not in " ".join(out.split())
+    assert _table_rows(markdown, "GRAQL") and "test_slip=0.3" in markdown.read_text()
+
+
+def _table_rows(markdown, method: str) -> list[str]:
+    return [line for line in markdown.read_text().splitlines() if line.startswith("|") and f" {method}" in line]
+
+
+def test_a_selection_of_shifted_rows_alone_says_how_to_show_them(shifted_store):
+    code, out = leaderboard(shifted_store, "--method", "graql")
+    assert code == 2 and "all of tasks under test-time shifts; --shifted shows them" in " ".join(out.split())
+    code, out = leaderboard(shifted_store, "--method", "graql", "--shifted")
+    assert code == 0 and "GRAQL" in out
+
+
+@pytest.mark.parametrize("task_id, params, expected", [
+    ("GRAIL/MiniGrid-Boltzmann-v0", None, False),  # a regime of its own, not a shift
+    ("GRAIL/MiniGrid-Optimal-v0", {"test_slip": 0.0}, False),  # the default: the unshifted task
+    ("GRAIL/MiniGrid-Optimal-v0", {"test_regime": "boltzmann"}, True),
+    ("GRAIL/PointMaze-Optimal-v0", {"test_action_scale": 0.5}, True),
+])
+def test_a_row_is_shifted_when_its_task_has_test_parameters(task_id, params, expected):
+    assert shifted(_rows(task_id, "bc", 0.5, params)[0]) is expected

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections import Counter
 from pathlib import Path
 from typing import List, Optional
 
@@ -302,7 +303,8 @@ def leaderboard_(
                                              help="CSV of reported values (columns task, recognizer, observability, f1) to show beside "
                                                   "ours."),
     task: Optional[List[str]] = typer.Option(
-        None, "--task", "-t", help=TASK_FILTER_HELP[:-1] + " (a set's rows are then checked against today's code)."),
+        None, "--task", "-t", help=TASK_FILTER_HELP[:-1] + " (a set's rows are then checked against today's code; "
+                                   "a shifted task's rows, which share its ID, need --shifted too)."),
     domain: Optional[List[str]] = typer.Option(None, "--domain", "-d", help=DOMAIN_FILTER_HELP),
     method: Optional[List[str]] = typer.Option(None, "--method", help=METHOD_FILTER_HELP),
     boards: bool = typer.Option(False, "--boards", help="Also print the paper-style F1 tables, a row per task and "
@@ -332,6 +334,10 @@ def leaderboard_(
         None, "--profiles", help="Also write performance profiles, optimality gaps and calibration (PROFILES.md, "
         "performance_profiles.png, CALIBRATION.md, reliability.png) into this folder."),
     cards: Optional[List[Path]] = typer.Option(None, "--cards", help=CARDS_HELP),
+    shifted: bool = typer.Option(False, "--shifted", help="Also rank the rows of tasks under test-time shifts "
+                                 "(test_slip, test_regime...), each shifted task a variant of its own; left out by "
+                                 "default (`reproduce --profile open-questions` reports them) and only this shows "
+                                 "them, with --task or not."),
 ) -> None:
     """The results store ranked: per domain the methods' IQM of F1 with 95 % intervals first, then the paper's
     headline claims (when the store holds their tasks); --boards adds the paper-style F1 tables."""
@@ -364,11 +370,17 @@ def leaderboard_(
         with open_store(store_path, must_exist=True) as store:
             selected = {name: _select(store, m, filters, scorer, protocol) for name, m in MODES.items()
                         if name == mode.name or (html is not None)}
+            hidden = {} if shifted else _drop_shifted(selected)
+            unseen = {h for counts in hidden.values() for h in counts}
             shown = mode.name == "offline" and (markdown_path is not None or html is not None)  # the terminal: none
-            fits = ([f for f in store.select(FitRow) if filters.task(f.task) and filters.method(f.recognizer)]
-                    if shown else [])
+            fits = ([f for f in store.select(FitRow) if filters.task(f.task) and filters.method(f.recognizer)
+                     and f.config_hash not in unseen] if shown else [])
             where = store.path
         cache = CeilingCache(where, read_only=read_only) if where != ":memory:" else None
+        if not selected[mode.name] and hidden.get(mode.name):
+            raise fail(f"the{'' if mode.name == 'offline' else ' ' + mode.name} results in {where}"
+                       f"{' that match ' + _filter_text(filters) if filters else ''} are all of tasks under "
+                       "test-time shifts; --shifted shows them")
         if not selected[mode.name] and filters:
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} match "
                        f"{_filter_text(filters)}")
@@ -377,6 +389,8 @@ def leaderboard_(
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} yet; run "
                        f"`grail-bench run{hint}` first")
         _say_not_loaded(selected[mode.name])
+        if unseen:
+            _say_shifted(sum(counts.total() for counts in hidden.values()))
         if ablation:
             rows = ablation_rows(MODES["offline"].aggregate(selected["offline"]))
             if not rows:
@@ -450,6 +464,23 @@ def _ranked(offline: list, ref, studies: dict, fits: list, samples: Optional[int
         with console.status("performance profiles (bootstrap bands)"):
             for path in write_robust(board, profiles):
                 say(f"wrote {path}")
+
+
+def _drop_shifted(selected: dict[str, list]) -> dict[str, Counter]:
+    """Leave the rows of tasks under test-time shifts out of every mode's selection (in place); per mode, how many
+    rows of each configuration (hash) were left out."""
+    from grail_bench.report.filters import shifted
+
+    hidden = {}
+    for name, rows in selected.items():
+        hidden[name] = Counter(r.config_hash for r in rows if shifted(r))
+        selected[name] = [r for r in rows if not shifted(r)]
+    return hidden
+
+
+def _say_shifted(count: int) -> None:
+    say(f"{count:,} rows of tasks under test-time shifts are not shown: `grail-bench reproduce --profile "
+        "open-questions` reports them (SHIFTS.md, REGIMES.md); --shifted shows them here")
 
 
 def _filter_text(filters) -> str:  # noqa: ANN001 - a report.filters.Filters

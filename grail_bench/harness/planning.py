@@ -261,13 +261,25 @@ def fit_recognizer(task: GRTask, planned: Planned, seed: int, train: Demos, held
     return Fitted(caps, report, seconds / len(train), diagnostics)
 
 
-def task_params(config_json: str) -> dict[str, Any]:
-    """The regime, env and test parameters a row was run with, and its demonstration counts (``{}`` for rows
-    without them)."""
+def _task_part(config_json: str) -> dict[str, Any]:
+    """The task part of a stored configuration (``{}`` for rows without it)."""
     try:
         task = json.loads(config_json).get("task", {})
     except (ValueError, AttributeError):
         return {}
+    return task if isinstance(task, dict) else {}
+
+
+def shift_params(config_json: str) -> dict[str, Any]:
+    """The test parameters a row was run with (``{}``: a task without test-time shifts, see
+    docs/concepts/shifts.md)."""
+    return dict(_task_part(config_json).get("test", {}))
+
+
+def task_params(config_json: str) -> dict[str, Any]:
+    """The regime, env and test parameters a row was run with, and its demonstration counts (``{}`` for rows
+    without them)."""
+    task = _task_part(config_json)
     counts = {k: task[k] for k in ("n_demos", "n_train") if k in task}
     return {**task.get("params", {}), **task.get("env", {}), **task.get("test", {}), **counts}
 

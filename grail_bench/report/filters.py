@@ -6,7 +6,9 @@
 * ``--method``: a recognizer's registered name (``bc``), its published name (``BC-GRAIL``), or
   ``recognizer/scorer`` (``bc/mse``); globs too, any case.
 
-A row, task or recognizer passes when it matches one value of every filter given.
+A row, task or recognizer passes when it matches one value of every filter given. Apart from these, the leaderboard
+leaves out the rows of tasks under test-time shifts (:func:`shifted`; docs/concepts/shifts.md) unless asked: they
+share their base task's ID, and ``reproduce --profile open-questions`` reports them (SHIFTS.md, REGIMES.md).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from functools import lru_cache
 from typing import Sequence
 
 from grail_bench.core.errors import UserError
+from grail_bench.harness.planning import shift_params
 from grail_bench.report.boards import domain_of
 from grail_bench.report.configs import method_of
 from grail_bench.task import find_task
@@ -33,6 +36,17 @@ def task_domain(task_id: str) -> str:
     """The domain of a task: its card's, or (a task no longer shipped) the first word of its ID."""
     task = find_task(task_id)
     return task.domain if task is not None else domain_of(task_id)
+
+
+@lru_cache(maxsize=None)
+def _shifted(config_json: str) -> bool:
+    return bool(shift_params(config_json))
+
+
+def shifted(row: object) -> bool:
+    """Whether a stored row is of a task under test-time shifts: its configuration sets test parameters
+    (``test_slip``, ``test_regime``...), which only a shifted task's does (read once per configuration)."""
+    return _shifted(row.config)  # type: ignore[attr-defined]
 
 
 @dataclass(frozen=True)
