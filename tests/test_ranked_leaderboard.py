@@ -191,18 +191,21 @@ def shifted_store(tmp_path):
 
 @pytest.mark.parametrize("args", [[], ["--task", MINIGRID]])
 def test_the_rows_of_shifted_tasks_are_left_out_unless_asked(shifted_store, tmp_path, args):
-    markdown = tmp_path / "board.md"
-    code, out = leaderboard(shifted_store, *args, "--markdown", str(markdown))
+    markdown, site = tmp_path / "board.md", tmp_path / "site"
+    code, out = leaderboard(shifted_store, *args, "--markdown", str(markdown), "--html", str(site))
     assert code == 0, out
     assert "BC-GRAIL" in out and "GRAQL" not in out and "test_slip" not in out
     n_shifted = len(grail_bench.make_task(MINIGRID).observability) * 3
     assert f"{n_shifted} {SHIFTED_NOTE}" in " ".join(out.split())
     assert _table_rows(markdown, "BC-GRAIL") and not _table_rows(markdown, "GRAQL")
-    assert "test_slip" not in markdown.read_text()
+    assert "test_slip" not in markdown.read_text() and f"{n_shifted} {SHIFTED_NOTE}" in markdown.read_text()
+    index = (site / "index.html").read_text()
+    assert "test_slip" not in index and SHIFTED_NOTE in index and "GRAQL" not in (site / "minigrid.html").read_text()
     code, out = leaderboard(shifted_store, *args, "--shifted", "--markdown", str(markdown))
     assert code == 0, out
     assert "GRAQL" in out and SHIFTED_NOTE not in " ".join(out.split())
     assert _table_rows(markdown, "GRAQL") and "test_slip=0.3" in markdown.read_text()
+    assert SHIFTED_NOTE not in markdown.read_text()
 
 
 def _table_rows(markdown, method: str) -> list[str]:

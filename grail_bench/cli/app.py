@@ -389,8 +389,9 @@ def leaderboard_(
             raise fail(f"no{'' if mode.name == 'offline' else ' ' + mode.name} results in {where} yet; run "
                        f"`grail-bench run{hint}` first")
         _say_not_loaded(selected[mode.name])
-        if unseen:
-            _say_shifted(sum(counts.total() for counts in hidden.values()))
+        note = _shifted_note(sum(counts.total() for counts in hidden.values())) if unseen else None
+        if note:
+            say(note)
         if ablation:
             rows = ablation_rows(MODES["offline"].aggregate(selected["offline"]))
             if not rows:
@@ -406,7 +407,7 @@ def leaderboard_(
             samples = None  # the tables show no ceiling; only the online plot draws one
         if mode.name == "offline":
             _ranked(offline, ref, selected, fits, samples, workers, cache, boards, all_variants,
-                    markdown_path, html, profiles)
+                    markdown_path, html, profiles, note)
             return
         with make_executor(None, workers, None) as pool:
             board = leaderboard.build(offline, ref, samples, studies=selected, progress=True, fits=fits,
@@ -421,9 +422,10 @@ def leaderboard_(
 
 def _ranked(offline: list, ref, studies: dict, fits: list, samples: Optional[int], workers: Optional[int],  # noqa: ANN001
             cache, boards: bool, all_variants: bool, markdown_path: Optional[Path], html: Optional[Path],
-            profiles: Optional[Path]) -> None:
+            profiles: Optional[Path], note: Optional[str]) -> None:
     """The leaderboard of the paper's protocol: the domain summaries as soon as the records are aggregated (they
-    need no ceiling), the headline claims, then (--boards, or a file that shows them) the ceilings and the boards."""
+    need no ceiling), the headline claims, then (--boards, or a file that shows them) the ceilings and the boards
+    (``note``: what the rows leave out, in Markdown, for the files too)."""
     from grail_bench.report import leaderboard
     from grail_bench.report.claims import claim_tasks, headline_claims
     from grail_bench.report.html import write_site
@@ -455,10 +457,12 @@ def _ranked(offline: list, ref, studies: dict, fits: list, samples: Optional[int
             + ("" if boards else "; --boards prints the F1 tables per task and level"))
     if markdown_path is not None:
         write_text(markdown_path, markdown(board.boards, board.records, fits=board.fits, variants=board.variants,
-                                           archive=board.archive, summaries=summaries, claims=claims), "Markdown")
+                                           archive=board.archive, summaries=summaries, claims=claims, note=note),
+                   "Markdown")
     if html is not None:
         with console.status("web page (bootstrap intervals)"):
-            index = write_site(board, html, summaries=summaries, claims=claims)[0]
+            index = write_site(board, html, summaries=summaries, claims=claims,
+                               note=note and note.replace("`", ""))[0]
         say(f"web page written to {index}")
     if profiles is not None:
         with console.status("performance profiles (bootstrap bands)"):
@@ -478,9 +482,11 @@ def _drop_shifted(selected: dict[str, list]) -> dict[str, Counter]:
     return hidden
 
 
-def _say_shifted(count: int) -> None:
-    say(f"{count:,} rows of tasks under test-time shifts are not shown: `grail-bench reproduce --profile "
-        "open-questions` reports them (SHIFTS.md, REGIMES.md); --shifted shows them here")
+def _shifted_note(count: int) -> str:
+    """The line saying ``count`` rows of shifted tasks are left out (Markdown: commands in backticks)."""
+    return (f"{count:,} rows of tasks under test-time shifts are not shown: `grail-bench reproduce --profile "
+            "open-questions` reports them (SHIFTS.md, REGIMES.md); `grail-bench leaderboard --shifted` shows them "
+            "here")
 
 
 def _filter_text(filters) -> str:  # noqa: ANN001 - a report.filters.Filters

@@ -411,13 +411,14 @@ def json_lines(items: Sequence[Any]) -> str:
 
 
 def write_site(board: Leaderboard, out: str | Path, title: str = "grail-bench leaderboard",
-               summaries: Sequence[DomainSummary] | None = None, claims: Sequence[Any] | None = None) -> list[Path]:
+               summaries: Sequence[DomainSummary] | None = None, claims: Sequence[Any] | None = None,
+               note: str | None = None) -> list[Path]:
     """Render the site into ``out``: ``index.html``, a page per domain, ``records.json``, ``fits.json`` and the
     figures (``figures/*.svg``); the pages and figures an earlier rendering wrote are removed (any other file in
     ``out`` is left alone). Returns the files written, the index first (``summaries`` and ``claims``: see
-    :func:`build_page`)."""
+    :func:`build_page`; ``note``: a line under the index's heading, what the rows shown leave out)."""
     out = Path(out)
-    page = build_page(board, summaries=summaries, claims=claims)
+    page = build_page(board, summaries=summaries, claims=claims) | {"note": note}
     files = {"index.html": render(page, title)}
     files |= {p.file: render(page, title, p.domain) for p in page["pages"]}
     files |= {"records.json": json_lines(page["records"]),

@@ -259,7 +259,8 @@ def _span(values: Sequence[int]) -> str:
 def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
              title: str = "grail-bench leaderboard", fits: dict | None = None, *,
              variants: Sequence[Board] = (), archive: Sequence[ArchiveEntry] = (),
-             summaries: Sequence[DomainSummary] = (), claims: Sequence[Any] | None = None) -> str:
+             summaries: Sequence[DomainSummary] = (), claims: Sequence[Any] | None = None,
+             note: str | None = None) -> str:
     """The leaderboard as Markdown: claims and summaries, the main boards, variants and archive, then seeds,
     timings and ranking metrics.
 
@@ -272,6 +273,7 @@ def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
         archive: The archived configurations (an "Archive" section).
         summaries: The domain summaries (:func:`grail_bench.report.summary.domain_summaries`).
         claims: The headline claims checked (:func:`grail_bench.report.claims.headline_claims`), if any.
+        note: A paragraph (Markdown) after the introduction: what the rows shown leave out.
     """
     lines = [f"# {md(title)}", "",
              "F1 of each method in its canonical configuration (today's default, under its own scorer, named",
@@ -289,6 +291,8 @@ def markdown(boards: Sequence[Board], records: Sequence[Any], ci: bool = False,
              "from its tables and text; they were not produced by grail-bench, and are shown on the rows",
              "of each task's default protocol only. Other configurations are under Variants (named by how they",
              "differ) and, if run by an earlier version, under Archive.", ""]
+    if note:  # the caller's Markdown
+        lines += [note, ""]
     if claims is not None:
         from grail_bench.report.claims import claims_markdown
 
