@@ -265,7 +265,7 @@ def _task_part(config_json: str) -> dict[str, Any]:
     """The task part of a stored configuration (``{}`` for rows without it)."""
     try:
         task = json.loads(config_json).get("task", {})
-    except (ValueError, AttributeError):
+    except (ValueError, AttributeError, TypeError):
         return {}
     return task if isinstance(task, dict) else {}
 
