@@ -178,12 +178,23 @@ class ShiftCurve:
     values: tuple[Shift, ...] = ()
 
     @property
+    def unshifted(self) -> float | None:
+        """F1 of the unshifted task (None without its rows)."""
+        first = self.points[0]
+        return None if first.shift.params else first.result.f1_mean
+
+    @property
+    def at_last(self) -> float | None:
+        """F1 at the family's largest shift (None without its rows)."""
+        final = self.points[-1]
+        return final.result.f1_mean if final.shift == self.last else None
+
+    @property
     def drop(self) -> float | None:
         """F1 at the family's largest shift minus F1 unshifted (None unless it has both)."""
-        first, final = self.points[0], self.points[-1]
-        if first.shift.params or final.shift != self.last or len(self.points) < 2:
+        if len(self.points) < 2 or self.unshifted is None or self.at_last is None:
             return None
-        return final.result.f1_mean - first.result.f1_mean
+        return self.at_last - self.unshifted
 
 
 def _reading(record: OfflineRecord) -> tuple[TaskOverrides, str] | None:

@@ -282,9 +282,7 @@ def shifts_markdown(curves: Sequence[ShiftCurve], title: str) -> str:
         last = md(mine[0].last.label)
         lines += ["", f"| method | F1 unshifted | F1 at {last} | drop |", "|---|---|---|---|"]
         for c in mine:
-            first = c.points[0].result.f1_mean if not c.points[0].shift.params else None
-            final = c.points[-1].result.f1_mean if c.points[-1].shift == c.last else None
-            lines.append(f"| {md(c.label)} | {_num(first)} | {_num(final)} | {_signed(c.drop)} |")
+            lines.append(f"| {md(c.label)} | {_num(c.unshifted)} | {_num(c.at_last)} | {_signed(c.drop)} |")
         lines.append("")
     return "\n".join(lines)
 
