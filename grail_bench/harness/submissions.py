@@ -224,7 +224,7 @@ def verify(path: Path, sample: int, seed: int = 0) -> list[Verified]:
     keys = sorted(units)
     chosen = [keys[i] for i in sorted(np.random.default_rng(seed).choice(len(keys), min(sample, len(keys)),
                                                                          replace=False))]
-    return [_run_again(key, MODES.get(key[-1]), units[key]) for key in chosen]
+    return [_run_again(key, MODES[key[-1]], units[key]) for key in chosen]
 
 
 def _run_again(unit: Unit, mode: Mode, stated: list[Any]) -> Verified:
